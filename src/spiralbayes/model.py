@@ -23,6 +23,7 @@ measured against converged images, ΔV agrees to ~3e-4 relative RMS).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Callable
 
 import numpy as np
@@ -88,11 +89,15 @@ class PolarQuadrature:
     def shape(self) -> tuple[int, int]:
         return (self.x.size, self.n_phi)
 
-    def positions(self) -> np.ndarray:
-        """Cell centres ``(xi, eta)`` [rad], shape (n_x * n_phi, 2), ring-major."""
+    @cached_property
+    def _positions(self) -> np.ndarray:
         r = self.r[:, None] * ARCSEC
         phi = self.phi[None, :]
         return np.stack([(r * np.cos(phi)).ravel(), (r * np.sin(phi)).ravel()], axis=-1)
+
+    def positions(self) -> np.ndarray:
+        """Cell centres ``(xi, eta)`` [rad], shape (n_x * n_phi, 2), ring-major (cached, read-only)."""
+        return self._positions
 
 
 def make_quadrature(template, r_p: float, uv_max: float, *, cell_factor: float = DEFAULT_CELL_FACTOR,

@@ -96,6 +96,7 @@ class ScanContext:
     uv_weights_hat: np.ndarray = field(repr=False)  # (n_rho, n_theta) angular coefficients
     nthreads: int = 1
     _dirty_cache: dict = field(default_factory=dict, repr=False)
+    _quad_cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, vis, axisymmetric, geometry: DiscGeometry, r_p, n_phi_p: int = 90,
@@ -119,7 +120,13 @@ class ScanContext:
         return float(np.max(np.hypot(self.u, self.v)))
 
     def quadrature(self, template, r_p: float) -> PolarQuadrature:
-        return make_quadrature(template, r_p, self.uv_max, cell_factor=self.cell_factor, phi_multiple=self.n_phi_p)
+        """The quadrature grid for ``template`` at ``r_p`` (cached: templates of a bank share grids)."""
+        x = np.asarray(template.x)
+        key = (float(r_p), x.size, float(x[0]), float(x[-1]), len(template.phi))
+        if key not in self._quad_cache:
+            self._quad_cache[key] = make_quadrature(template, r_p, self.uv_max, cell_factor=self.cell_factor,
+                                                    phi_multiple=self.n_phi_p)
+        return self._quad_cache[key]
 
     def dirty_on(self, quad: PolarQuadrature) -> np.ndarray:
         """Real part of the residual dirty image at the quadrature cells, shape ``quad.shape``."""
