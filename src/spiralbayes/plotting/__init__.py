@@ -1,0 +1,1 @@
+"""Plots of spiralbayes results; every function returns a Matplotlib Figure (Agg-safe)."""

@@ -1,0 +1,34 @@
+"""Spiral templates: the δ-map format, template banks, the built-in wake generator and readers.
+
+A template is the fractional residual brightness ``δ(r/r_p, φ) = I/<I>_φ − 1`` that a planet's
+spiral adds to an axisymmetric disc (Stevenson et al. 2024). See
+:mod:`spiralbayes.templates.template` for the conventions (φ anticlockwise on the sky display,
+planet at φ = 0, hand R = anticlockwise orbit with trailing arms).
+
+* :class:`SpiralTemplate` — one map with its metadata; mirror, evaluate, resample.
+* :class:`TemplateBank` — many templates in one HDF5 file; :func:`default_bank` caches the
+  paper's 64-template grid made by :func:`paper_grid`.
+* :func:`make_template` — the built-in semi-analytic generator (:mod:`.wake`).
+* :func:`read_fargo3d`, :func:`read_fits_template` — bring your own simulations.
+"""
+
+from .bank import TemplateBank, default_bank, default_cache_dir
+from .fargo3d import read_fargo3d
+from .fits import read_fits_template, write_fits_template
+from .template import SpiralTemplate
+from .wake import WakeSettings, make_template, paper_grid, template_from_perturbation, wake_shape
+
+__all__ = [
+    "SpiralTemplate",
+    "TemplateBank",
+    "WakeSettings",
+    "default_bank",
+    "default_cache_dir",
+    "make_template",
+    "paper_grid",
+    "read_fargo3d",
+    "read_fits_template",
+    "template_from_perturbation",
+    "wake_shape",
+    "write_fits_template",
+]

@@ -1,0 +1,167 @@
+"""Planet mass units: thermal mass, Jupiter and Neptune masses.
+
+The spiral templates are labelled by the planet mass in units of the *thermal mass*
+(Stevenson et al. 2024; Speedie, Booth & Dong 2022):
+
+.. math:: M_{\\rm th}(r_p) = (H/r)_p^3\\, M_*,
+
+with a flared disc ``H/r = h_ref (r / r_ref)**flaring``. For the paper's flaring index 1/4,
+``M_th ∝ r_p^{3/4}``. Note that Goodman & Rafikov (2001) and wakeflow use
+``M_1 = (2/3) h_p^3 M_*`` instead; :func:`thermal_mass` follows the S22/Stevenson convention.
+
+Check against the paper (Stevenson et al. 2024, sec. 2.3): at 50 au with ``h = 0.07`` and
+``M_* = 0.8 M_sun``, ``M_th = 0.287 M_Jup``, so 0.1 M_th ≈ 0.5 M_Nep and 3 M_th ≈ 0.9 M_Jup.
+
+Radii are in au unless ``distance`` [pc] is given, in which case they are in arcsec
+(``r[au] = r[arcsec] * distance[pc]``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "M_SUN",
+    "M_JUP",
+    "M_NEP",
+    "M_EARTH",
+    "AU",
+    "MASS_UNITS",
+    "aspect_ratio",
+    "arcsec_to_au",
+    "thermal_mass",
+    "mth_to_mass",
+    "mass_to_mth",
+    "mth_to_mjup",
+    "mth_to_mnep",
+]
+
+M_SUN = 1.988409870698051e30
+"""Solar mass [kg] (IAU 2015 nominal GM_sun divided by CODATA 2018 G)."""
+M_JUP = 1.8981245973360505e27
+"""Jupiter mass [kg] (IAU 2015 nominal GM_Jup divided by CODATA 2018 G)."""
+M_NEP = 1.02409e26
+"""Neptune mass [kg] (NASA Neptune fact sheet)."""
+M_EARTH = 5.972167867791379e24
+"""Earth mass [kg] (IAU 2015 nominal GM_Earth divided by CODATA 2018 G)."""
+AU = 1.495978707e11
+"""Astronomical unit [m] (IAU 2012)."""
+
+MASS_UNITS = {"Msun": M_SUN, "Mjup": M_JUP, "Mnep": M_NEP, "Mearth": M_EARTH, "kg": 1.0}
+"""Mass units accepted by the ``unit`` arguments, in kg."""
+
+
+def _unit_kg(unit: str) -> float:
+    try:
+        return MASS_UNITS[unit]
+    except KeyError:
+        raise ValueError(
+            f"unknown mass unit {unit!r}: use one of {sorted(MASS_UNITS)}"
+        ) from None
+
+
+def _positive(name: str, value) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{name} must be positive and finite, got {value!r}")
+    return arr
+
+
+def arcsec_to_au(r_arcsec, distance: float):
+    """Convert an angular radius [arcsec] to au at ``distance`` [pc]."""
+    _positive("distance", distance)
+    return np.asarray(r_arcsec, dtype=float) * float(distance)
+
+
+def _radius_au(r, distance):
+    r = _positive("r_p", r)
+    return r if distance is None else arcsec_to_au(r, distance)
+
+
+def aspect_ratio(r, h_ref: float = 0.07, r_ref: float = 50.0, flaring: float = 0.25, distance=None):
+    """Disc aspect ratio ``H/r = h_ref (r/r_ref)**flaring``.
+
+    Parameters
+    ----------
+    r : float or array
+        Radius [au], or [arcsec] if ``distance`` is given.
+    h_ref : float
+        ``H/r`` at ``r_ref``.
+    r_ref : float
+        Reference radius [au] (always au).
+    flaring : float
+        Flaring index (``H/r ∝ r**flaring``); 1/4 in Stevenson et al. (2024).
+    distance : float, optional
+        Distance [pc]; when given, ``r`` is in arcsec.
+    """
+    _positive("h_ref", h_ref)
+    _positive("r_ref", r_ref)
+    return h_ref * (_radius_au(r, distance) / r_ref) ** flaring
+
+
+def thermal_mass(
+    r_p,
+    mstar: float,
+    *,
+    h_ref: float = 0.07,
+    r_ref: float = 50.0,
+    flaring: float = 0.25,
+    distance: float | None = None,
+    unit: str = "Msun",
+):
+    """Thermal mass ``M_th = (H/r)_p^3 M_*`` at the planet radius.
+
+    Parameters
+    ----------
+    r_p : float or array
+        Planet radius [au], or [arcsec] if ``distance`` [pc] is given.
+    mstar : float
+        Stellar mass [M_sun].
+    h_ref, r_ref, flaring : float
+        Aspect ratio ``h_ref`` at ``r_ref`` [au] and flaring index (see :func:`aspect_ratio`).
+    distance : float, optional
+        Distance [pc]; when given, ``r_p`` is in arcsec.
+    unit : {'Msun', 'Mjup', 'Mnep', 'Mearth', 'kg'}
+        Unit of the result.
+
+    Returns
+    -------
+    float or array
+        ``M_th`` in ``unit``; ``∝ r_p**(3 flaring)``.
+    """
+    _positive("mstar", mstar)
+    h = aspect_ratio(r_p, h_ref, r_ref, flaring, distance)
+    m = h**3 * mstar * M_SUN / _unit_kg(unit)
+    return float(m) if np.ndim(m) == 0 else m
+
+
+def mth_to_mass(mass_mth, r_p, mstar: float, *, unit: str = "Mjup", **disc) -> float | np.ndarray:
+    """Convert a planet mass in thermal masses to ``unit`` at radius ``r_p``.
+
+    ``disc`` takes ``h_ref``, ``r_ref``, ``flaring`` and ``distance`` as in :func:`thermal_mass`.
+    """
+    mass_mth = np.asarray(mass_mth, dtype=float)
+    if np.any(mass_mth < 0) or not np.all(np.isfinite(mass_mth)):
+        raise ValueError(f"planet mass must be non-negative and finite, got {mass_mth!r}")
+    out = mass_mth * thermal_mass(r_p, mstar, unit=unit, **disc)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def mass_to_mth(mass, r_p, mstar: float, *, unit: str = "Mjup", **disc) -> float | np.ndarray:
+    """Convert a planet mass in ``unit`` to thermal masses at radius ``r_p`` (inverse of
+    :func:`mth_to_mass`)."""
+    mass = np.asarray(mass, dtype=float)
+    if np.any(mass < 0) or not np.all(np.isfinite(mass)):
+        raise ValueError(f"planet mass must be non-negative and finite, got {mass!r}")
+    out = mass / thermal_mass(r_p, mstar, unit=unit, **disc)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def mth_to_mjup(mass_mth, r_p, mstar: float, **disc):
+    """Planet mass [M_Jup] of ``mass_mth`` thermal masses at ``r_p`` (see :func:`mth_to_mass`)."""
+    return mth_to_mass(mass_mth, r_p, mstar, unit="Mjup", **disc)
+
+
+def mth_to_mnep(mass_mth, r_p, mstar: float, **disc):
+    """Planet mass [M_Nep] of ``mass_mth`` thermal masses at ``r_p`` (see :func:`mth_to_mass`)."""
+    return mth_to_mass(mass_mth, r_p, mstar, unit="Mnep", **disc)

@@ -1,0 +1,62 @@
+"""Planet mass units (Stevenson et al. 2024; template-physics §0.5)."""
+
+import numpy as np
+import pytest
+
+from spiralbayes.units import (
+    aspect_ratio,
+    mass_to_mth,
+    mth_to_mass,
+    mth_to_mjup,
+    mth_to_mnep,
+    thermal_mass,
+)
+
+
+def test_thermal_mass_at_50au():
+    assert thermal_mass(50, 0.8, unit="Mjup") == pytest.approx(0.287, abs=0.001)
+    assert thermal_mass(50, 0.8) == pytest.approx(0.8 * 0.07**3)
+
+
+def test_paper_conversions():
+    """0.1 M_th ≈ 0.5 M_Nep and 3 M_th ≈ 0.9 M_Jup at 50 au, h = 0.07, M_* = 0.8 M_sun."""
+    assert mth_to_mnep(0.1, 50, 0.8) == pytest.approx(0.5, abs=0.05)
+    assert mth_to_mjup(3.0, 50, 0.8) == pytest.approx(0.9, abs=0.05)
+
+
+def test_thermal_mass_scales_as_r_to_three_quarters():
+    r = np.array([20.0, 50.0, 100.0])
+    m = thermal_mass(r, 0.8, unit="Mjup")
+    np.testing.assert_allclose(m, [0.145, 0.287, 0.483], atol=0.001)
+    np.testing.assert_allclose(m / m[1], (r / 50) ** 0.75)
+
+
+def test_distance_and_reference_radius():
+    # 0.35" at 140 pc = 49 au
+    a = thermal_mass(0.35, 0.8, distance=140.0, unit="Mjup")
+    b = thermal_mass(49.0, 0.8, unit="Mjup")
+    assert a == pytest.approx(b)
+    # the same disc described at another reference radius
+    h100 = aspect_ratio(100.0)
+    assert thermal_mass(50, 0.8, h_ref=h100, r_ref=100.0) == pytest.approx(thermal_mass(50, 0.8))
+
+
+def test_roundtrip_and_units():
+    m = mth_to_mass(1.7, 30.0, 1.2, unit="Mearth")
+    assert mass_to_mth(m, 30.0, 1.2, unit="Mearth") == pytest.approx(1.7)
+    assert mth_to_mass(1.0, 50, 0.8, unit="Mnep") == pytest.approx(mth_to_mnep(1.0, 50, 0.8))
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: thermal_mass(-1.0, 0.8),
+        lambda: thermal_mass(50.0, 0.0),
+        lambda: thermal_mass(50.0, 0.8, unit="Mmoon"),
+        lambda: mth_to_mjup(-0.1, 50.0, 0.8),
+        lambda: thermal_mass(1.0, 0.8, distance=-5.0),
+    ],
+)
+def test_bad_inputs(call):
+    with pytest.raises(ValueError):
+        call()
