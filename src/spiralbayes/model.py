@@ -112,18 +112,17 @@ def make_quadrature(template, r_p: float, uv_max: float, *, cell_factor: float =
     x_lo, x_hi = _template_x_range(x)
     max_cell = 1.0 / (cell_factor * uv_max) / ARCSEC  # arcsec
     r_out = r_p * x_hi
-    dlnx_template = np.log(x_hi / x_lo) / x.size
+    dlnx_template = np.log(x_hi / x_lo) / (x.size - 1)
     dlnx = min(dlnx_template, max_cell / r_out)
-    n_x = _next_pow2_multiple(int(np.ceil(np.log(x_hi / x_lo) / dlnx - 1e-6)), x.size)
+    n_x = _next_pow2_multiple(int(np.ceil(np.log(x_hi / x_lo) / dlnx - 1e-6)), x.size - 1)
     n_phi_min = max(len(template.phi), int(np.ceil(2 * np.pi * r_out / max_cell)))
     n_phi = _next_pow2_multiple(n_phi_min, phi_multiple)
     return PolarQuadrature(float(r_p), np.geomspace(x_lo, x_hi, n_x + 1), n_phi)
 
 
 def _template_x_range(x: np.ndarray) -> tuple[float, float]:
-    """Edges of a log-spaced grid whose cell centres are ``x``."""
-    half = 0.5 * np.log(x[1] / x[0])
-    return float(x[0] * np.exp(-half)), float(x[-1] * np.exp(half))
+    """The support of a template's interpolant: from its first to its last grid point."""
+    return float(x[0]), float(x[-1])
 
 
 def _next_pow2_multiple(n: int, base: int) -> int:
