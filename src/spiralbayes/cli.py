@@ -58,7 +58,7 @@ def _cmd_axisym(args) -> int:
     vis = load_visibilities(args.data)
     geometry = DiscGeometry(args.inc, args.pa, args.dra, args.ddec)
     model = run_axisym(vis, args.out, geometry, distance=args.distance,
-                       fit_geometry="gaussian" if args.fit_geometry else None, progress=not args.quiet)
+                       fit_geometry="nonparametric" if args.fit_geometry else None, progress=not args.quiet)
     print(f"total flux {model.total_flux:.4g} Jy, R_eff(95%) {model.R_eff():.3f} arcsec; outputs in {args.out}")
     return 0
 

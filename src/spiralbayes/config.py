@@ -28,7 +28,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "PA": (0.0, "position angle of the major axis, east of north [deg]"),
         "dRA": (0.0, "disc centre offset to the east [arcsec]"),
         "dDec": (0.0, "disc centre offset to the north [arcsec]"),
-        "fit": (False, "fit the geometry with frank's Gaussian fitter, starting from the values above"),
+        "fit": (False, "fit the geometry with frank's nonparametric fitter (started from its Gaussian fit and the values above)"),
         "distance": (140.0, "distance [pc], for au axes and planet masses"),
     },
     "frank": {

@@ -153,7 +153,7 @@ def run_scan_config(config: dict, *, progress: bool = True):
     f = config["frank"]
     axisym = fit_axisymmetric(vis, geometry, N=f["N"], Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
                               weights_smooth=f["weights_smooth"], nonnegative=f["nonnegative"],
-                              fit_geometry="gaussian" if g["fit"] else None, progress=progress)
+                              fit_geometry="nonparametric" if g["fit"] else None, progress=progress)
     if f["nonnegative"]:
         axisym = axisym.nonnegative()
     tcfg = config["templates"]
