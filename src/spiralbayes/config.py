@@ -56,7 +56,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "amplitude": ("fixed", "'fixed' (the paper's A = 1) or 'free' (best linear spiral amplitude per instance, +1 BIC parameter)"),
         "dask": ("", "empty: serial; 'local': a Dask LocalCluster; else a scheduler address (tcp://host:8786)"),
         "nthreads": (1, "threads per template for the NUFFTs"),
-        "cell_factor": (10.0, "quadrature cells are at most 1/(cell_factor u_max) across"),
+        "cell_factor": (20.0, "quadrature cells are at most 1/(cell_factor u_max) across"),
         "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
     },
     "output": {

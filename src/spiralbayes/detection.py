@@ -8,8 +8,10 @@ one-sided clusters.
 
 Quantities used here (spiralbayes' definitions; thresholds are parameters):
 
-* ``handedness_ratio``: the mirror template's largest Δχ² within ``neighbourhood`` grid steps of
-  the best instance, divided by the best Δχ². Test passes when below ``max_handedness_ratio``.
+* ``handedness_ratio``: the mirror template's largest Δχ² at radii within ``neighbourhood`` grid
+  steps of the best instance (any azimuth: a geometry error places the mirror template's best fit
+  at the reflected azimuth), divided by the best Δχ². Test passes when below
+  ``max_handedness_ratio``.
 * ``localisation``: fraction of the scanned disc area (weights ``r dr dphi``) where the best
   template's Δχ² exceeds half its peak. Test passes when below ``max_localisation``.
 """
@@ -22,7 +24,7 @@ import numpy as np
 
 from .geometry import ARCSEC  # noqa: F401  (documented unit helpers live there)
 
-__all__ = ["Verdict", "detect", "handedness_ratio", "localisation", "mirror_index"]
+__all__ = ["Verdict", "detect", "handedness_ratio", "localisation", "mirror_index", "one_sidedness"]
 
 DELTA_BIC_THRESHOLD = 10.0
 
@@ -43,16 +45,28 @@ def mirror_index(result, template: int) -> int | None:
 
 def handedness_ratio(result, template: int, i_rp: int, i_phi: int, neighbourhood: int = 2,
                      amplitude=None) -> float:
-    """Mirror template's best Δχ² near ``(i_rp, i_phi)`` over this template's Δχ² there."""
+    """Mirror template's best Δχ² at radii near ``i_rp`` over this template's Δχ² at ``(i_rp, i_phi)``."""
     j = mirror_index(result, template)
     if j is None:
         return float("nan")
     dchi2 = result.delta_chi2(amplitude)
     peak = dchi2[template, i_rp, i_phi]
     rows = slice(max(i_rp - neighbourhood, 0), i_rp + neighbourhood + 1)
-    cols = np.arange(i_phi - neighbourhood, i_phi + neighbourhood + 1) % dchi2.shape[2]
-    near = dchi2[j, rows][:, cols]
-    return float(np.max(near) / peak) if peak > 0 else float("nan")
+    return float(np.max(dchi2[j, rows]) / peak) if peak > 0 else float("nan")
+
+
+def one_sidedness(result, template: int, amplitude=None) -> float:
+    """Resultant length (0-1) of the azimuths where Δχ² > 0, weighted by Δχ² and area.
+
+    Near 1 when the improvement clusters on one side of the disc, as for a planet or for the
+    false fits of a phase-centre error (Stevenson et al. 2024, App. A); near 0 for rings.
+    """
+    dchi2 = result.delta_chi2(amplitude)[template]
+    w = np.clip(dchi2, 0, None) * result.r_p[:, None]
+    total = w.sum()
+    if total <= 0:
+        return 0.0
+    return float(np.abs(np.sum(w * np.exp(1j * result.phi_p[None, :]))) / total)
 
 
 def localisation(result, template: int, amplitude=None) -> float:
@@ -98,8 +112,8 @@ class Verdict:
                 f"Delta chi^2 (Delta BIC = 0) = 6 ln N = {self.threshold_6lnN:.1f}).")
         if not self.test1_passed:
             return head + " This is not significant evidence for a planet-driven spiral (Delta BIC <= 10)."
-        hand = (f"the mirror-image template reaches {100 * self.handedness_ratio:.0f} % of that Delta chi^2 "
-                f"nearby and the peak covers {100 * self.localisation:.0f} % of the scanned area")
+        hand = (f"the mirror-image template's best Delta chi^2 at that radius is {self.handedness_ratio:.2f} "
+                f"times the peak, and the peak covers {100 * self.localisation:.1f} % of the scanned area")
         if self.test2_passed:
             return head + f" The peak is compact and handed ({hand}): a planet-driven spiral is detected."
         return head + (f" However {hand}, so the improvement is not attributed to a planet-driven spiral "

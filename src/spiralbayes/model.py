@@ -16,8 +16,9 @@ the naive path (image + NUFFT), against which the quadrature is tested.
 Quadrature: a polar grid log-spaced in ``x = r / r_p`` over the template's range and uniform in
 ``phi``, at least as fine as the template and with cells no larger than ``1 / (cell_factor
 u_max)``, so that the window of a cell changes visibilities at the longest baseline by less
-than ``(pi / cell_factor)^2 / 6`` (1.6 % for the default 10, at the longest baseline only;
-measured against converged images, ΔV agrees to ~3e-4 relative RMS).
+than ``(pi / cell_factor)^2 / 6`` (0.4 % for the default 20, at the longest baseline only).
+Measured against supersampled 1-mas images of the same continuous model, ΔV agrees to 8e-4
+relative RMS with the default (3e-3 with cell_factor 10, 3e-4 with 40).
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ __all__ = [
     "render_perturbation_image",
 ]
 
-DEFAULT_CELL_FACTOR = 10.0
+DEFAULT_CELL_FACTOR = 20.0
 NUFFT_EPSILON = 1e-9
 
 Profile = Callable[[np.ndarray], np.ndarray]
@@ -104,20 +105,20 @@ def make_quadrature(template, r_p: float, uv_max: float, *, cell_factor: float =
                     phi_multiple: int = 90) -> PolarQuadrature:
     """The polar quadrature for ``template`` at planet radius ``r_p`` [arcsec].
 
-    At least as fine as the template's own grid; cells no larger than ``1 / (cell_factor uv_max)``
-    [rad]; ``n_phi`` a multiple of ``phi_multiple`` (so that planet azimuths on that grid are
-    cyclic shifts) and a power-of-two multiple of it, so that grids repeat between radii.
+    Radial cells subdivide the template's own radial intervals (so that the template's bilinear
+    interpolant is linear inside each cell) until none is wider than ``1 / (cell_factor uv_max)``
+    [rad]; ``n_phi`` is a power-of-two multiple of ``phi_multiple`` (so that planet azimuths on
+    that grid are cyclic shifts), at least the template's and fine enough at the outer edge.
     """
     x = np.asarray(template.x, dtype=float)
-    x_lo, x_hi = _template_x_range(x)
     max_cell = 1.0 / (cell_factor * uv_max) / ARCSEC  # arcsec
-    r_out = r_p * x_hi
-    dlnx_template = np.log(x_hi / x_lo) / (x.size - 1)
-    dlnx = min(dlnx_template, max_cell / r_out)
-    n_x = _next_pow2_multiple(int(np.ceil(np.log(x_hi / x_lo) / dlnx - 1e-6)), x.size - 1)
-    n_phi_min = max(len(template.phi), int(np.ceil(2 * np.pi * r_out / max_cell)))
-    n_phi = _next_pow2_multiple(n_phi_min, phi_multiple)
-    return PolarQuadrature(float(r_p), np.geomspace(x_lo, x_hi, n_x + 1), n_phi)
+    widths = np.diff(x) * r_p
+    parts = np.maximum(np.ceil(widths / max_cell - 1e-9).astype(int), 1)
+    steps = np.repeat(np.diff(x) / parts, parts)
+    edges = np.concatenate([[x[0]], x[0] + np.cumsum(steps)])
+    edges[-1] = x[-1]
+    n_phi_min = max(len(template.phi), int(np.ceil(2 * np.pi * r_p * x[-1] / max_cell)))
+    return PolarQuadrature(float(r_p), edges, _next_pow2_multiple(n_phi_min, phi_multiple))
 
 
 def _template_x_range(x: np.ndarray) -> tuple[float, float]:
@@ -133,9 +134,24 @@ def _next_pow2_multiple(n: int, base: int) -> int:
 
 
 def template_on_quadrature(template, quad: PolarQuadrature) -> np.ndarray:
-    """``delta`` at the quadrature's cell centres with the planet at ``phi = 0``; shape ``quad.shape``."""
-    xx, pp = np.meshgrid(quad.x, quad.phi, indexing="ij")
-    return np.asarray(template.evaluate(xx, pp, 1.0, 0.0), dtype=float)
+    """``delta`` at the quadrature's cell centres with the planet at ``phi = 0``; shape ``quad.shape``.
+
+    The template's bilinear interpolant in ``(ln x, phi)`` (:meth:`SpiralTemplate.evaluate`),
+    evaluated as two 1-D linear interpolations: a tensor-product grid needs no more.
+    """
+    log_x = np.log(np.asarray(template.x, dtype=float))
+    delta = np.asarray(template.delta, dtype=float)
+    lq = np.clip(np.log(quad.x), log_x[0], log_x[-1])
+    i = np.clip(np.searchsorted(log_x, lq, side="right") - 1, 0, log_x.size - 2)
+    w = ((lq - log_x[i]) / (log_x[i + 1] - log_x[i]))[:, None]
+    rows = (1 - w) * delta[i] + w * delta[i + 1]
+    phi_t = np.asarray(template.phi, dtype=float)
+    n_t = phi_t.size
+    s = (quad.phi - phi_t[0]) / (2 * np.pi / n_t)
+    j0 = np.floor(s).astype(np.int64)
+    wp = s - j0
+    j0 %= n_t
+    return (1 - wp) * rows[:, j0] + wp * rows[:, (j0 + 1) % n_t]
 
 
 def perturbation_flux(profile: Profile, template, quad: PolarQuadrature, delta=None) -> np.ndarray:
@@ -224,12 +240,14 @@ def render_perturbation_image(profile: Profile, template, r_p: float, phi_p: flo
     geom0 = DiscGeometry(inc, 0.0, 0.0, 0.0)
     l_axis, m_axis = image_axes(shape, pixel_size)
     offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
+    r_table = np.linspace(0.0, r_p * float(np.max(template.x)) * 1.01, 40_001)
+    i_table = np.asarray(profile(r_table), dtype=float)  # the profile once, finely, not per pixel
     image = np.zeros(shape)
     for oy in offsets:
         for ox in offsets:
             L, M = np.meshgrid(l_axis - ox * pixel_size, m_axis + oy * pixel_size)
             r, phi = geom0.sky_to_disc(L, M)
-            image += np.asarray(profile(r)) * template.evaluate(r, phi, r_p, phi_p)
+            image += np.interp(r, r_table, i_table, right=0.0) * template.evaluate(r, phi, r_p, phi_p)
     pixel_sr = (pixel_size * ARCSEC) ** 2
     # flux x cos i: the sky pixel sees brightness I per sr over its own (sky) solid angle
     return image / supersample ** 2 * pixel_sr

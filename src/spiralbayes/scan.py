@@ -42,7 +42,6 @@ from .model import (
     make_quadrature,
     perturbation_flux,
     perturbation_visibilities,
-    template_on_quadrature,
 )
 
 __all__ = ["ScanContext", "ScanResult", "default_rp_grid", "direct_delta_chi2", "scan"]
@@ -214,13 +213,9 @@ def scan_template(context: ScanContext, template) -> tuple[np.ndarray, np.ndarra
     n_rp, n_phi_p = context.r_p.size, context.n_phi_p
     cross = np.empty((n_rp, n_phi_p))
     power = np.empty((n_rp, n_phi_p))
-    delta_cache: dict = {}
     for i, r_p in enumerate(context.r_p):
         quad = context.quadrature(template, r_p)
-        key = (quad.x.size, quad.n_phi)
-        if key not in delta_cache:
-            delta_cache[key] = template_on_quadrature(template, quad)
-        flux = perturbation_flux(context.profile, template, quad, delta=delta_cache[key])
+        flux = perturbation_flux(context.profile, template, quad)
         cross[i] = _cross_all_phi(context, flux, quad)[:: quad.n_phi // n_phi_p]
         power[i] = _power_all_phi(context, flux, quad)[:: context.n_theta // n_phi_p]
     return cross, power

@@ -1,0 +1,175 @@
+"""The grid scan: exactness, injection-recovery, null and phase-centre-error cases, resume, Dask."""
+
+import warnings
+
+import numpy as np
+import pytest
+from conftest import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
+
+from spiralbayes.detection import detect, one_sidedness
+from spiralbayes.fourier import sample_image
+from spiralbayes.likelihood import chi2
+from spiralbayes.model import render_perturbation_image
+from spiralbayes.scan import ScanResult, direct_delta_chi2, scan
+
+
+def image_delta_chi2(vis, axisym, template, r_p, phi_p, pixel):
+    """Naive reference: render the perturbation image, NUFFT it, sum chi^2 (as the authors' loop)."""
+    n = int(2 * 2.3 * r_p / pixel) + 16
+    n += n % 2
+    image = render_perturbation_image(axisym.brightness, template, r_p, phi_p, GEOMETRY.inc, (n, n), pixel)
+    dV = sample_image(image, pixel, vis.u, vis.v, PA=GEOMETRY.PA, dRA=GEOMETRY.dRA, dDec=GEOMETRY.dDec)
+    VA = axisym.visibilities(vis.u, vis.v, GEOMETRY)
+    return chi2(VA, vis.V, vis.weights) - chi2(VA + dV, vis.V, vis.weights)
+
+
+def test_scan_equals_direct_image_evaluation(planet_observation, planet_templates, planet_scan):
+    vis, axisym = planet_observation
+    rng = np.random.default_rng(11)
+    picks = [(0, 14, 0)] + [(int(rng.integers(2)), int(rng.integers(1, 10)), int(rng.integers(90))) for _ in range(3)]
+    for t, i, j in picks:
+        r_p, phi_p = SCAN_RP[i], planet_scan.phi_p[j]
+        coarse = image_delta_chi2(vis, axisym, planet_templates[t], r_p, phi_p, 0.002)
+        fine = image_delta_chi2(vis, axisym, planet_templates[t], r_p, phi_p, 0.001)
+        assert abs(fine - coarse) <= 0.01 * abs(fine) + 0.02  # the reference itself is converged
+        fast = planet_scan.dchi2[t, i, j]
+        assert abs(fast - fine) <= 0.05 + 1e-3 * abs(fine), (t, r_p, phi_p, fast, fine)
+
+
+def test_scan_equals_exact_quadrature_sum(planet_observation, planet_templates, planet_scan):
+    vis, axisym = planet_observation
+    for t, i, j in [(0, 3, 10), (1, 20, 77), (0, 24, 45)]:
+        exact = direct_delta_chi2(vis, axisym, GEOMETRY, planet_templates[t], SCAN_RP[i], planet_scan.phi_p[j])
+        assert planet_scan.dchi2[t, i, j] == pytest.approx(exact, rel=2e-5, abs=1e-3)
+
+
+def test_injected_planet_is_recovered(planet_scan):
+    best = planet_scan.best(0)
+    assert abs(best["r_p"] - R_P_TRUE) <= SCAN_RP[1] - SCAN_RP[0]
+    assert np.degrees(abs(np.angle(np.exp(1j * best["phi_p"])))) <= 4.0
+    assert planet_scan.delta_bic()[0] > 10
+    assert planet_scan.best(1)["delta_chi2"] < 0.2 * best["delta_chi2"]  # left hand clearly lower
+    verdict = detect(planet_scan)
+    assert verdict.detected and verdict.template == "wake_m1_tau3_b10_R"
+    assert verdict.r_p_au == pytest.approx(50.0, abs=7)
+    assert "detected" in verdict.summary()
+
+
+def test_free_amplitude_never_worse(planet_scan):
+    free = planet_scan.delta_chi2("free")
+    assert np.all(free >= planet_scan.dchi2 - 1e-9)
+    assert np.all(free >= -1e-9)
+
+
+@pytest.fixture(scope="module")
+def small_bank():
+    from spiralbayes.templates import make_template
+
+    out = []
+    for mass in (0.3, 3.0):
+        right = make_template(mass, 3.0, 10.0, "R", n_x=160, n_phi=360)
+        out += [right, right.mirror()]
+    return out
+
+
+def _observe_and_scan(small_bank, true_geometry, seed):
+    from spiralbayes.axisymmetric import fit_axisymmetric
+    from spiralbayes.simulate import DiscModel, simulate_observation
+
+    vis = simulate_observation("fiducial", DiscModel(distance=DISTANCE, tau_ref=3.0), true_geometry, seed=seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        axisym = fit_axisymmetric(vis, GEOMETRY, progress=False)
+    return scan(vis, axisym, small_bank, GEOMETRY, r_p=np.linspace(0.02, 0.5, 13), progress=False)
+
+
+def test_planet_free_disc_gives_negative_delta_bic(small_bank):
+    result = _observe_and_scan(small_bank, GEOMETRY, seed=2)
+    assert np.all(result.delta_bic() < 0)
+    assert not detect(result).detected
+
+
+def test_phase_centre_error_gives_one_sided_false_fit_that_fails_handedness(small_bank):
+    """Stevenson et al. (2024) App. A: a 10 mas phase-centre error fakes a one-sided spiral fit,
+    but both hands fit alike, so test 2 rejects it."""
+    result = _observe_and_scan(small_bank, GEOMETRY.replace(dRA=0.01), seed=3)
+    verdict = detect(result)
+    assert verdict.test1_passed  # a large, spurious improvement
+    assert not verdict.test2_passed and not verdict.detected
+    assert verdict.handedness_ratio > 0.5
+    best = result.best()
+    assert one_sidedness(result, best["template_index"]) > 0.5
+
+
+def test_resume_after_interruption_gives_identical_result(tmp_path, monkeypatch, planet_observation, small_bank):
+    import importlib
+
+    scan_module = importlib.import_module("spiralbayes.scan")  # the package exports a function of that name
+
+    vis, axisym = planet_observation
+    kwargs = dict(r_p=np.linspace(0.1, 0.5, 5), n_phi_p=30, progress=False)
+    reference = scan(vis, axisym, small_bank, GEOMETRY, **kwargs)
+    checkpoint = tmp_path / "scan.h5"
+    real = scan_module.scan_template
+    calls = {"n": 0}
+
+    def interrupted(context, template):
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        calls["n"] += 1
+        return real(context, template)
+
+    monkeypatch.setattr(scan_module, "scan_template", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        scan(vis, axisym, small_bank, GEOMETRY, checkpoint=checkpoint, **kwargs)
+    partial = ScanResult.load(checkpoint)
+    assert partial.completed.tolist() == [True, True, False, False]
+    monkeypatch.setattr(scan_module, "scan_template", real)
+    calls_after = {"n": 0}
+
+    def counting(context, template):
+        calls_after["n"] += 1
+        return real(context, template)
+
+    monkeypatch.setattr(scan_module, "scan_template", counting)
+    resumed = scan(vis, axisym, small_bank, GEOMETRY, checkpoint=checkpoint, **kwargs)
+    assert calls_after["n"] == 2  # only the two missing templates were computed
+    np.testing.assert_array_equal(resumed.dchi2, reference.dchi2)
+
+
+def test_checkpoint_for_other_inputs_is_refused(tmp_path, planet_observation, small_bank):
+    vis, axisym = planet_observation
+    checkpoint = tmp_path / "scan.h5"
+    scan(vis, axisym, small_bank[:2], GEOMETRY, r_p=[0.2, 0.3], n_phi_p=10, progress=False, checkpoint=checkpoint)
+    with pytest.raises(ValueError, match="different inputs"):
+        scan(vis, axisym, small_bank[:2], GEOMETRY, r_p=[0.2, 0.4], n_phi_p=10, progress=False,
+             checkpoint=checkpoint)
+
+
+def test_dask_and_serial_agree(planet_observation, small_bank):
+    from dask.distributed import Client, LocalCluster
+
+    vis, axisym = planet_observation
+    kwargs = dict(r_p=np.linspace(0.1, 0.5, 4), n_phi_p=30, progress=False)
+    serial = scan(vis, axisym, small_bank, GEOMETRY, **kwargs)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        parallel = scan(vis, axisym, small_bank, GEOMETRY, client=client, **kwargs)
+    np.testing.assert_array_equal(parallel.dchi2, serial.dchi2)
+
+
+def test_save_load_round_trip(tmp_path, planet_scan):
+    path = planet_scan.save(tmp_path / "result.h5")
+    loaded = ScanResult.load(path)
+    np.testing.assert_array_equal(loaded.dchi2, planet_scan.dchi2)
+    assert loaded.templates == planet_scan.templates
+    assert loaded.geometry == planet_scan.geometry and loaded.distance == DISTANCE
+    assert loaded.best() == planet_scan.best()
+
+
+def test_bad_inputs(planet_observation, small_bank):
+    vis, axisym = planet_observation
+    with pytest.raises(ValueError, match="no templates"):
+        scan(vis, axisym, [], GEOMETRY, r_p=[0.2])
+    with pytest.raises(ValueError, match="r_p must be positive"):
+        scan(vis, axisym, small_bank, GEOMETRY, r_p=[-0.1, 0.2])
