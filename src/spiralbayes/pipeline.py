@@ -31,17 +31,12 @@ class DemoResult:
 
 def select_templates(bank, mass=(), tau0=(), beta=(), hand=()):
     """The templates of ``bank`` matching every non-empty criterion (lists of allowed values)."""
-    chosen = [t for t in bank
-              if (not mass or _isin(t.mass, mass)) and (not tau0 or _isin(t.tau0, tau0))
-              and (not beta or _isin(t.beta, beta)) and (not hand or t.hand in hand)]
-    if not chosen:
+    chosen = bank.select(mass=list(mass) or None, tau0=list(tau0) or None, beta=list(beta) or None,
+                         hand=list(hand) or None)
+    if not len(chosen):
         raise ValueError(f"no template matches mass={list(mass)}, tau0={list(tau0)}, beta={list(beta)}, "
-                         f"hand={list(hand)}")
-    return chosen
-
-
-def _isin(value, allowed) -> bool:
-    return any(np.isclose(value, a) for a in allowed)
+                         f"hand={list(hand)}; the bank has {bank.names}")
+    return list(chosen)
 
 
 def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None) -> list[Path]:

@@ -49,6 +49,7 @@ __all__ = ["ScanContext", "ScanResult", "default_rp_grid", "direct_delta_chi2", 
 log = logging.getLogger(__name__)
 
 NUFFT_EPSILON = 1e-9
+POWER_EPSILON = 1e-7  # relative accuracy of P_hat at the uv nodes; G = |P_hat|^2 errs by ~2e-7
 RHO_OVERSAMPLE = 4.0
 
 
@@ -193,7 +194,7 @@ def _power_all_phi(context: ScanContext, flux: np.ndarray, quad: PolarQuadrature
     nodes = np.stack([np.outer(rho, np.cos(theta)).ravel(), np.outer(rho, np.sin(theta)).ravel()], axis=-1)
     p_hat = ducc0.nufft.experimental.nu2nu(
         points_in=flux.ravel().astype(complex), coord_in=2 * np.pi * quad.positions(), coord_out=nodes,
-        forward=False, epsilon=NUFFT_EPSILON, nthreads=context.nthreads)
+        forward=False, epsilon=POWER_EPSILON, nthreads=context.nthreads)
     g_half = (p_hat.real ** 2 + p_hat.imag ** 2).reshape(n_rho, half)
     g = np.concatenate([g_half, g_half], axis=1)  # G(rho, theta + pi) = G(rho, theta)
     coeff = np.fft.fft(g, axis=1) / n_theta

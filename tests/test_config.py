@@ -1,0 +1,48 @@
+"""The configuration schema: defaults, documentation round trip, rejection of bad input."""
+
+import pytest
+
+from spiralbayes.config import SCHEMA, default_config, describe_config, load_config, merge_config
+
+
+def test_described_defaults_read_back_as_defaults(tmp_path):
+    path = tmp_path / "default.toml"
+    path.write_text(describe_config())
+    assert load_config(path) == default_config()
+
+
+def test_paper_defaults():
+    cfg = default_config()
+    assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (200, 1.2, 1.05)
+    assert (cfg["frank"]["p0"], cfg["frank"]["weights_smooth"]) == (1e-15, 0.1)
+    assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"], cfg["grid"]["n_r_p"], cfg["grid"]["n_phi_p"]) == (0.02, 0.5, 25, 90)
+    assert all(desc for section in SCHEMA.values() for _, desc in section.values())
+
+
+def test_relative_data_path_is_relative_to_the_config(tmp_path):
+    (tmp_path / "sub").mkdir()
+    path = tmp_path / "sub" / "run.toml"
+    path.write_text('[data]\npath = "disc.txt"\n[grid]\nn_r_p = 5\n')
+    cfg = load_config(path)
+    assert cfg["data"]["path"] == str(tmp_path / "sub" / "disc.txt")
+    assert cfg["grid"]["n_r_p"] == 5 and cfg["grid"]["n_phi_p"] == 90
+
+
+@pytest.mark.parametrize("user,match", [
+    ({"dat": {}}, r"unknown config section \[dat\]"),
+    ({"grid": {"nrp": 3}}, r"unknown option grid.nrp.*n_r_p"),
+    ({"grid": {"n_r_p": "many"}}, "grid.n_r_p must be a number"),
+    ({"data": {"conjugated": 1}}, "data.conjugated must be true or false"),
+])
+def test_bad_configuration_is_refused(user, match):
+    with pytest.raises(ValueError, match=match):
+        merge_config(user)
+
+
+def test_missing_and_invalid_files(tmp_path):
+    with pytest.raises(FileNotFoundError, match="--print-config"):
+        load_config(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[grid\n")
+    with pytest.raises(ValueError, match="not valid TOML"):
+        load_config(bad)
