@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_path", "provenance_record", "data_hash", "FORMAT_VERSION"]
+__all__ = ["atomic_path", "provenance_record", "data_hash", "json_default", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
 """Version of spiralbayes' HDF5 layouts; bumped when a layout changes."""
@@ -60,3 +60,12 @@ def provenance_record(**extra) -> dict:
         "format_version": FORMAT_VERSION,
         **extra,
     }
+
+
+def json_default(obj):
+    """``json.dumps(..., default=json_default)``: NumPy scalars and arrays as Python values."""
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)

@@ -37,7 +37,7 @@ from typing import Callable
 
 import numpy as np
 
-from ._provenance import atomic_path, data_hash, provenance_record
+from ._provenance import atomic_path, data_hash, json_default, provenance_record
 from .geometry import ARCSEC, DiscGeometry
 from .visibilities import Visibilities
 
@@ -417,9 +417,9 @@ class AxisymmetricModel:
                 f.attrs["Rmax"] = self.Rmax
                 f.attrs["frank_version"] = self.frank_version or ""
                 f.attrs["fit_time_s"] = np.nan if self.fit_time_s is None else float(self.fit_time_s)
-                f.attrs["hyperparameters"] = json.dumps(self.hyperparameters, default=_json_default)
-                f.attrs["provenance"] = json.dumps(self.provenance, default=_json_default)
-                f.attrs["saved_by"] = json.dumps(provenance_record(), default=_json_default)
+                f.attrs["hyperparameters"] = json.dumps(self.hyperparameters, default=json_default)
+                f.attrs["provenance"] = json.dumps(self.provenance, default=json_default)
+                f.attrs["saved_by"] = json.dumps(provenance_record(), default=json_default)
                 g = f.create_group("geometry")
                 for key, value in self.geometry.to_dict().items():
                     g.attrs[key] = value
@@ -451,14 +451,6 @@ class AxisymmetricModel:
                        frank_version=str(f.attrs["frank_version"]) or None,
                        fit_time_s=None if np.isnan(fit_time) else fit_time,
                        provenance=json.loads(f.attrs["provenance"]), **arrays)
-
-
-def _json_default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return str(obj)
 
 
 # ---------------------------------------------------------------------------------------------

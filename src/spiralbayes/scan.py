@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._provenance import atomic_path, data_hash, provenance_record
+from ._provenance import atomic_path, data_hash, json_default, provenance_record
 from .geometry import ARCSEC, DiscGeometry
 from .likelihood import bic_threshold, chi2, delta_chi2_from_terms
 from .model import (
@@ -326,8 +326,8 @@ class ScanResult:
             f.attrs["n_data"] = self.n_data
             f.attrs["geometry"] = json.dumps(self.geometry.to_dict())
             f.attrs["distance"] = -1.0 if self.distance is None else self.distance
-            f.attrs["templates"] = json.dumps(self.templates, default=_json_default)
-            f.attrs["provenance"] = json.dumps(self.provenance, default=_json_default)
+            f.attrs["templates"] = json.dumps(self.templates, default=json_default)
+            f.attrs["provenance"] = json.dumps(self.provenance, default=json_default)
         return path
 
     @classmethod
@@ -344,20 +344,12 @@ class ScanResult:
                        json.loads(f.attrs["provenance"]))
 
 
-def _json_default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return str(obj)
-
-
 def template_metadata(template) -> dict:
     """JSON-able description of a template (name and physical parameters)."""
     keys = ("name", "mass", "tau0", "beta", "hand", "h_p", "flaring", "wavelength")
     meta = {k: getattr(template, k) for k in keys if getattr(template, k, None) is not None}
     meta.setdefault("name", f"template{id(template)}")
-    return json.loads(json.dumps(meta, default=_json_default))
+    return json.loads(json.dumps(meta, default=json_default))
 
 
 # --------------------------------------------------------------------------------------------

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from ._provenance import FORMAT_VERSION, atomic_path
+from ._provenance import FORMAT_VERSION, atomic_path, json_default
 
 if TYPE_CHECKING:  # pragma: no cover
     from .geometry import DiscGeometry
@@ -540,15 +540,7 @@ def write_uvtable(vis: Visibilities, path, *, delimiter: str | None = None) -> P
 
 
 def _json(obj) -> str:
-    return json.dumps(obj, default=_json_default, sort_keys=True)
-
-
-def _json_default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return str(obj)
+    return json.dumps(obj, default=json_default, sort_keys=True)
 
 
 # ----------------------------------------------------------------------------------
