@@ -61,3 +61,19 @@ def test_errors_are_reported_not_raised(tmp_path, caplog):
     assert "unknown option grid.bogus" in caplog.text
     with pytest.raises(SystemExit):
         main(["scan"])
+
+
+def test_axisym_on_real_as209_sample(tmp_path):
+    from pathlib import Path
+
+    from spiralbayes.axisymmetric import AxisymmetricModel
+
+    data = Path(__file__).parent / "data" / "AS209_DSHARP_subsample_uvtable.txt"
+    out = tmp_path / "fit"
+    code = main(["-q", "axisym", str(data), "--inc", "34.97", "--pa", "85.76", "--dra=-1.9e-3",
+                 "--ddec", "2.5e-3", "--distance", "121", "--out", str(out)])
+    assert code == 0
+    model = AxisymmetricModel.load(next(out.glob("*.h5")))
+    assert model.geometry.inc == 34.97 and model.N == 200
+    assert 0.1 < model.total_flux < 1.0  # AS 209 at 1.25 mm: about 0.25 Jy
+    assert len(list(out.glob("*.png"))) == 2
