@@ -19,6 +19,8 @@ __version__ = "0.1.0"
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from .detection import Verdict, detect  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
+from .posterior import SpiralLikelihood  # noqa: E402
+from .sampling import PosteriorResult, Priors, sample_posterior  # noqa: E402
 from .scan import ScanResult, scan  # noqa: E402
 from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage  # noqa: E402
 from .templates import SpiralTemplate, TemplateBank, default_bank, make_template  # noqa: E402
@@ -34,6 +36,9 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __all__ = [
     "PRESETS",
+    "PosteriorResult",
+    "Priors",
+    "SpiralLikelihood",
     "AxisymmetricModel",
     "DiscGeometry",
     "DiscModel",
@@ -50,6 +55,7 @@ __all__ = [
     "fit_axisymmetric",
     "load_visibilities",
     "make_template",
+    "sample_posterior",
     "save_visibilities",
     "scan",
     "simulate_observation",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from pathlib import Path
 
 __all__ = ["main"]
 
@@ -77,15 +78,55 @@ def _cmd_scan(args) -> int:
     return 0
 
 
+SAMPLE_TEMPLATE = """\
+# spiralbayes sample: emcee posterior over (r_p, phi_p, inc, PA, dRA, dDec) per template.
+# Paths are relative to this file. Keys and meanings:
+{keys}
+data = "disc.txt"
+axisymmetric = "spiralbayes-output/axisymmetric.h5"   # written by `spiralbayes scan` or `axisym`
+templates = "default"
+scan = "spiralbayes-output/scan.h5"                   # optional: initialise walkers, prune templates
+run_name = "posterior"
+
+[select]            # which templates (TemplateBank.select keywords)
+tau0 = [3.0]
+beta = [10.0]
+
+[widths]            # Gaussian prior sigmas around the frank geometry
+inc = 2.0           # deg
+PA = 2.0            # deg
+dRA = 0.02          # arcsec
+dDec = 0.02         # arcsec
+
+[sampler]
+n_walkers = 32
+max_steps = 20000
+convergence = "warn"   # raise / warn / ignore when the chain is shorter than 50 tau
+processes = 2
+"""
+
+
 def _cmd_sample(args) -> int:
-    from . import sampling
+    import tomllib
+
+    from .sampling import SAMPLE_CONFIG_KEYS, run_sample_config
 
     if args.print_config:
-        print(sampling.describe_sample_config())
+        print(SAMPLE_TEMPLATE.format(keys="\n".join(f"#   {k}: {v}" for k, v in SAMPLE_CONFIG_KEYS.items())))
         return 0
     if not args.config:
         raise SystemExit("spiralbayes sample: give a CONFIG file (write a documented one with --print-config)")
-    sampling.run_sample_config_file(args.config, progress=not args.quiet)
+    path = Path(args.config)
+    if not path.exists():
+        raise FileNotFoundError(f"configuration file {path} not found (write one with --print-config)")
+    config = tomllib.loads(path.read_text())
+    for key in ("data", "axisymmetric", "templates", "scan"):
+        value = config.get(key)
+        if isinstance(value, str) and value != "default" and not Path(value).is_absolute():
+            config[key] = str((path.parent / value).resolve())
+    result = run_sample_config(config, args.out)
+    print(result.summary())
+    print(f"outputs in {Path(args.out).resolve()} (chains under chains/)")
     return 0
 
 
@@ -154,6 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("sample", help="emcee posterior over planet position and geometry (TOML config)")
     p.add_argument("config", nargs="?")
+    p.add_argument("--out", default=".", help="output folder (chains go to OUT/chains/<run_name>.h5)")
     p.add_argument("--print-config", action="store_true", help="print the documented default config")
     p.set_defaults(func=_cmd_sample)
 
