@@ -214,3 +214,31 @@ def test_log_posterior_and_phi_wrapping(likelihood, setup):
     samples[:, 1] = np.r_[np.full(50, 0.05), np.full(50, 2 * np.pi - 0.05)]
     wrapped, mu = _wrap_phi(samples)
     assert np.ptp(wrapped[:, 1]) == pytest.approx(0.1)
+
+
+def test_cli_sample_from_toml_config(setup, tmp_path):
+    """`spiralbayes sample CONFIG` writes chains under OUT/chains/<run_name>.h5 and a summary."""
+    import json
+
+    from spiralbayes.cli import main
+    from spiralbayes.templates import TemplateBank
+    from spiralbayes.visibilities import save_visibilities
+
+    save_visibilities(setup["vis"], tmp_path / "obs.h5")
+    setup["model"].save(tmp_path / "axisym.h5")
+    template = setup["template"]
+    TemplateBank([template, template.mirror()]).save(tmp_path / "bank.h5")
+    (tmp_path / "run.toml").write_text(
+        'data = "obs.h5"\naxisymmetric = "axisym.h5"\ntemplates = "bank.h5"\nrun_name = "cli"\n'
+        f"[priors]\nr_p = [{R_RANGE[0]}, {R_RANGE[1]}]\ninc = [42.0, 3.0]\nPA = [70.0, 3.0]\n"
+        "dRA = [0.025, 0.03]\ndDec = [-0.01, 0.03]\n"
+        '[sampler]\nn_walkers = 16\nn_steps = 40\nconvergence = "ignore"\nevidence_draws = 200\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["-q", "sample", str(tmp_path / "run.toml"), "--out", str(tmp_path / "out")]) == 0
+    assert (tmp_path / "out" / "chains" / "cli.h5").exists()
+    summary = json.loads((tmp_path / "out" / "cli_summary.json").read_text())
+    assert "summary" in summary
+    assert (tmp_path / "out" / "cli_corner.png").exists()
+    (tmp_path / "bad.toml").write_text('data = "obs.h5"\nbogus = 1\n')
+    assert main(["sample", str(tmp_path / "bad.toml")]) == 2
