@@ -49,11 +49,13 @@ def plot_corner(result, template=None, *, truths=None, fig=None, **corner_kwargs
     run = result.run(template) if hasattr(result, "run") else result
     samples = run.samples
     mu = float(np.angle(np.mean(np.exp(1j * samples[:, 1]))))
-    fig = fig or _figure(figsize=(9, 9))
+    fig = fig or _figure(figsize=(10, 10))
     kwargs = {"labels": list(PARAMETER_LABELS), "quantiles": [0.16, 0.5, 0.84], "show_titles": True,
-              "title_fmt": ".4f", "truth_color": "tab:red", **corner_kwargs}
+              "title_fmt": ".4f", "title_kwargs": {"fontsize": 9}, "label_kwargs": {"fontsize": 9},
+              "labelpad": 0.12, "truth_color": "tab:red", **corner_kwargs}
     corner.corner(samples, fig=fig, truths=_truth_vector(truths, mu), **kwargs)
-    fig.suptitle(f"{run.name} ({run.mode})", y=1.0)
+    fig.subplots_adjust(top=0.92, left=0.1, bottom=0.1)
+    fig.suptitle(f"{run.name} ({run.mode})", y=0.99)
     return fig
 
 
