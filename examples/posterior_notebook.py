@@ -34,8 +34,9 @@ geometry = DiscGeometry(truth["inc"], truth["PA"], truth["dRA"], truth["dDec"])
 vis = simulate_observation("fiducial", DiscModel(), geometry, planet, r_p=truth["r_p"], phi_p=truth["phi_p"],
                            seed=1, sensitivity=10e-6)
 
-# %% frank fit of the axisymmetric profile (geometry fitted too)
-axisym = fit_axisymmetric(vis, fit_geometry="gaussian")
+# %% frank fit of the axisymmetric profile (geometry fitted too; the nonparametric fitter is the
+# more accurate one for discs with rings and edges)
+axisym = fit_axisymmetric(vis, fit_geometry="nonparametric")
 print(axisym.geometry)
 
 # %% Grid scan over the planet position for the true template and its mirror image
@@ -57,6 +58,13 @@ from spiralbayes.plotting.posterior import plot_template_probabilities, plot_tra
 
 plot_trace(post).savefig(OUT / "posterior_trace.png", dpi=90)
 plot_template_probabilities(post).savefig(OUT / "posterior_templates.png", dpi=90)
+
+# %% The likelihood holds the frank profile fixed, so the geometry posterior is conditional on it: a
+# profile fitted at a wrong inclination absorbs part of the error. To iterate, refit frank at the
+# posterior geometry and sample again:
+#     from spiralbayes.sampling import refit_axisymmetric
+#     axisym = refit_axisymmetric(vis, axisym, post)
+#     post = sample_posterior(vis, axisym, templates, scan=result_scan, priors=priors, ...)
 
 # %% arviz: R-hat and ESS (walkers as chains — emcee walkers are not independent, read with care)
 idata = post.to_inference_data()

@@ -127,6 +127,15 @@ def test_posterior_recovers_planet_geometry_and_hand(setup, tmp_path):
     loaded = type(result).load(result.save(tmp_path / "posterior.h5"))
     assert loaded.template_probabilities == pytest.approx(result.template_probabilities)
     np.testing.assert_allclose(loaded.run(template.name).samples, run.samples)
+    # the optional refit: frank again at the posterior geometry, same hyperparameters
+    from spiralbayes.sampling import refit_axisymmetric
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        refit = refit_axisymmetric(setup["vis"], setup["model"], result)
+    assert refit.geometry.inc == pytest.approx(summary["inc"]["median"])
+    assert refit.geometry.dRA == pytest.approx(summary["dRA"]["median"])
+    assert refit.hyperparameters["N"] == 200 and refit.Rmax == 1.2
 
 
 def test_resume_continues_the_same_chain_and_short_run_warns(setup, tmp_path):

@@ -82,6 +82,7 @@ __all__ = [
     "Priors",
     "TemplateRun",
     "convergence_diagnostics",
+    "refit_axisymmetric",
     "run_sample_config",
     "sample_posterior",
 ]
@@ -936,7 +937,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
                      n_steps: int | None = None, max_steps: int = 20000, check_every: int = 500,
                      convergence: str = "warn", min_ess: float = 400.0, processes: int | None = None, pool=None,
                      seed: int = 0, moves=None, template_prior=None, mcmc_templates=None,
-                     prune_delta_lnL: float = 25.0, evidence_draws: int = 2000, progress: bool = False,
+                     prune_delta_lnL: float = 25.0, evidence_draws: int = 2000, progress: bool = True,
                      initial=None, likelihood_kwargs: dict | None = None) -> PosteriorResult:
     """Sample the posterior of every template and combine them by their evidence.
 
@@ -982,6 +983,8 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
     likelihood_kwargs : dict, optional
         Passed to :class:`~spiralbayes.posterior.SpiralLikelihood` (``epsilon``, ``rp_tolerance``,
         ``oversample``, ...).
+    progress : bool
+        Show emcee's progress bar for each chunk of steps (default True).
 
     Returns
     -------
@@ -1054,6 +1057,34 @@ def _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL) -> set:
 # ---------------------------------------------------------------------------------------------
 # configuration entry point (the CLI's `spiralbayes sample CONFIG`)
 # ---------------------------------------------------------------------------------------------
+def refit_axisymmetric(vis, axisymmetric, result, template=None, *, progress: bool = False):
+    """Refit the frank profile at the posterior-median geometry: the likelihood's optional refit.
+
+    The likelihood holds the axisymmetric profile at the frank fit while the geometry varies. A
+    profile fitted at a wrong geometry absorbs part of the error (the inclination is nearly
+    degenerate with the profile's normalisation and radial scale, flux ∝ cos i), so the geometry
+    posterior is conditional on that profile and can be biased by it. Iterate: refit here with the
+    same hyperparameters, then call :func:`sample_posterior` again with the returned model.
+
+    Parameters
+    ----------
+    vis : Visibilities
+    axisymmetric : AxisymmetricModel
+        The model used for ``result``; its frank hyperparameters are reused.
+    result : PosteriorResult or TemplateRun
+    template : str or int, optional
+        Which template's posterior gives the geometry (default: the most probable).
+    """
+    from .axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
+
+    run = result.run(template) if hasattr(result, "run") else result
+    median = {name: stats["median"] for name, stats in run.summary().items()}
+    geometry = DiscGeometry(median["inc"], median["PA"], median["dRA"], median["dDec"])
+    hyper = {k: axisymmetric.hyperparameters.get(k, v) for k, v in DEFAULT_HYPERPARAMETERS.items()}
+    log.info("refitting the frank profile at the posterior geometry %s", geometry)
+    return fit_axisymmetric(vis, geometry, progress=progress, **hyper)
+
+
 SAMPLE_CONFIG_KEYS = {
     "data": "path of the visibilities (any format load_visibilities reads)",
     "axisymmetric": "path of a saved AxisymmetricModel (HDF5)",
