@@ -147,11 +147,23 @@ def template_on_quadrature(template, quad: PolarQuadrature) -> np.ndarray:
     rows = (1 - w) * delta[i] + w * delta[i + 1]
     phi_t = np.asarray(template.phi, dtype=float)
     n_t = phi_t.size
+    if quad.n_phi % n_t == 0 and phi_t[0] == 0.0:
+        return _refine_periodic(rows, quad.n_phi // n_t)
     s = (quad.phi - phi_t[0]) / (2 * np.pi / n_t)
     j0 = np.floor(s).astype(np.int64)
     wp = s - j0
     j0 %= n_t
     return (1 - wp) * rows[:, j0] + wp * rows[:, (j0 + 1) % n_t]
+
+
+def _refine_periodic(rows: np.ndarray, factor: int) -> np.ndarray:
+    """Linear interpolation along the periodic last axis onto a grid ``factor`` times finer."""
+    out = np.empty((rows.shape[0], rows.shape[1] * factor))
+    following = np.roll(rows, -1, axis=1)
+    for k in range(factor):
+        w = k / factor
+        out[:, k::factor] = rows if k == 0 else (1 - w) * rows + w * following
+    return out
 
 
 def perturbation_flux(profile: Profile, template, quad: PolarQuadrature, delta=None) -> np.ndarray:

@@ -155,6 +155,13 @@ class ScanContext:
                 coord_out=self.uv_nodes.astype(np.float32), epsilon=POWER_EPSILON, nthreads=self.nthreads)
         return self._plan_cache[key]
 
+    def dirty_spectrum(self, quad: PolarQuadrature) -> np.ndarray:
+        """``rfft`` along phi of :meth:`dirty_on` (cached: every template correlates with it)."""
+        key = ("rfft", quad.r_p, quad.x_edges[0], quad.x_edges[-1], quad.x.size, quad.n_phi)
+        if key not in self._dirty_cache:
+            self._dirty_cache[key] = np.fft.rfft(self.dirty_on(quad), axis=1)
+        return self._dirty_cache[key]
+
     def dirty_on(self, quad: PolarQuadrature) -> np.ndarray:
         """Real part of the residual dirty image at the quadrature cells, shape ``quad.shape``."""
         key = (quad.r_p, quad.x_edges[0], quad.x_edges[-1], quad.x.size, quad.n_phi)
@@ -223,8 +230,7 @@ def _power_all_phi(context: ScanContext, flux: np.ndarray, quad: PolarQuadrature
 
 def _cross_all_phi(context: ScanContext, flux: np.ndarray, quad: PolarQuadrature) -> np.ndarray:
     """``Re sum_k w_k R_k* ΔV_k`` for every azimuth of the quadrature grid (length ``n_phi``)."""
-    dirty = context.dirty_on(quad)
-    spec = np.conj(np.fft.rfft(flux, axis=1)) * np.fft.rfft(dirty, axis=1)
+    spec = np.conj(np.fft.rfft(flux, axis=1)) * context.dirty_spectrum(quad)
     return context.geometry.cos_inc * np.fft.irfft(spec.sum(axis=0), n=quad.n_phi)
 
 
