@@ -173,3 +173,22 @@ def test_bad_inputs(planet_observation, small_bank):
         scan(vis, axisym, [], GEOMETRY, r_p=[0.2])
     with pytest.raises(ValueError, match="r_p must be positive"):
         scan(vis, axisym, small_bank, GEOMETRY, r_p=[-0.1, 0.2])
+
+
+def test_without_dask_a_parallel_request_falls_back_to_serial(monkeypatch, caplog, planet_observation, small_bank):
+    import builtins
+
+    vis, axisym = planet_observation
+    kwargs = dict(r_p=[0.2, 0.3], n_phi_p=10, progress=False)
+    serial = scan(vis, axisym, small_bank[:2], GEOMETRY, **kwargs)
+    real_import = builtins.__import__
+
+    def no_dask(name, *args, **kw):
+        if name.startswith("dask"):
+            raise ImportError("no dask here")
+        return real_import(name, *args, **kw)
+
+    monkeypatch.setattr(builtins, "__import__", no_dask)
+    fallback = scan(vis, axisym, small_bank[:2], GEOMETRY, client="local", **kwargs)
+    np.testing.assert_array_equal(fallback.dchi2, serial.dchi2)
+    assert "scanning serially" in caplog.text

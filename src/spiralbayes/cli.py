@@ -142,7 +142,7 @@ def _cmd_templates(args) -> int:
         from .plotting.templates import plot_bank_overview
 
         fig = plot_bank_overview(bank)
-        fig.savefig(args.plot, dpi=120)
+        fig.savefig(args.plot, dpi=120, bbox_inches="tight")
         print(f"wrote {args.plot}")
     return 0
 
