@@ -38,9 +38,12 @@ def test_asymmetric_limits_and_other_plots(planet_scan):
     fig = plot_heatmap(planet_scan, 1, vmin=-50, vmax=200, unit="arcsec")
     norm = fig.axes[0].collections[0].norm
     assert (norm.vmin, norm.vcenter, norm.vmax) == (-50, 0, 200)
-    fig = plot_chi2_vs_rp(planet_scan)
+    fig = plot_chi2_vs_rp(planet_scan, quantity="delta_chi2")
     assert len(fig.axes[0].lines) == 3  # two templates + the zero line
     np.testing.assert_allclose(fig.axes[0].lines[0].get_ydata(), planet_scan.dchi2[0].max(axis=1))
+    fig = plot_chi2_vs_rp(planet_scan)  # chi2_SA: the noise-free signal of each template, with 6 ln N
+    np.testing.assert_allclose(fig.axes[0].lines[0].get_ydata(), planet_scan.power[0].mean(axis=1))
+    assert fig.axes[0].lines[-1].get_ydata()[0] == pytest.approx(6 * np.log(planet_scan.n_data))
     fig = plot_template_grid_heatmaps(planet_scan, hand="R")
     assert len([a for a in fig.axes if a.get_title().startswith("M=")]) == 1
     with pytest.raises(ValueError, match="no scanned template"):

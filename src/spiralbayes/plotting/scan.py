@@ -113,19 +113,42 @@ def plot_template_grid_heatmaps(result, *, hand: str = "R", beta=None, amplitude
     return fig
 
 
-def plot_chi2_vs_rp(result, templates=None, *, amplitude=None, unit: str = "au"):
-    """Best χ²_SA (= −Δχ² maximised over phi_p) against r_p for templates (paper App. B)."""
+def plot_chi2_vs_rp(result, templates=None, *, quantity: str = "chi2_SA", amplitude=None, unit: str = "au"):
+    """χ² against planet radius for each template (Stevenson et al. 2024, App. B).
+
+    ``quantity="chi2_SA"`` (default): ``chi2_SA = sum w |V_S - V_A|^2``, the χ² between the spiral
+    and axisymmetric models — the Δχ² a real planet with that template would give without noise —
+    averaged over phi_p (band: min to max over phi_p), on a log axis, with the ``6 ln N`` line
+    above which such a planet would pass ΔBIC > 0. ``quantity="delta_chi2"``: the best Δχ² over
+    phi_p of the data.
+    """
     import matplotlib.pyplot as plt
 
-    dchi2 = result.delta_chi2(amplitude)
+    from ..likelihood import bic_threshold
+
+    if quantity not in ("chi2_SA", "delta_chi2"):
+        raise ValueError(f"quantity must be 'chi2_SA' or 'delta_chi2', got {quantity!r}")
     idx = range(len(result.templates)) if templates is None else [result.template_index(t) for t in templates]
+    idx = list(idx)
     scale = result.distance if (unit == "au" and result.distance) else 1.0
-    fig, ax = plt.subplots(figsize=(6, 4))
+    r = result.r_p * scale
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for t in idx:
-        ax.plot(result.r_p * scale, np.max(dchi2[t], axis=1), label=result.templates[t]["name"])
-    ax.axhline(0, color="0.5", lw=0.8)
+        name = result.templates[t]["name"]
+        if quantity == "chi2_SA":
+            power = result.power[t]
+            (line,) = ax.plot(r, power.mean(axis=1), label=name)
+            ax.fill_between(r, power.min(axis=1), power.max(axis=1), color=line.get_color(), alpha=0.15)
+        else:
+            ax.plot(r, np.max(result.delta_chi2(amplitude)[t], axis=1), label=name)
+    if quantity == "chi2_SA":
+        ax.set_yscale("log")
+        ax.axhline(bic_threshold(result.n_data), color="k", ls="--", lw=0.8, label="6 ln N")
+        ax.set_ylabel(r"$\chi^2_{SA}$")
+    else:
+        ax.axhline(0, color="0.5", lw=0.8)
+        ax.set_ylabel(r"max over $\phi_p$ of $\Delta\chi^2$")
     ax.set_xlabel(f"r_p [{'au' if scale != 1.0 else 'arcsec'}]")
-    ax.set_ylabel(r"max over $\phi_p$ of $\Delta\chi^2$")
-    if len(list(idx)) <= 12:
+    if len(idx) <= 12:
         ax.legend(fontsize=7)
     return fig
