@@ -189,6 +189,14 @@ def _cell_positions(quad: PolarQuadrature, extra_angle: float) -> np.ndarray:
     return pos
 
 
+def _placed_cells(u, v, profile, template, r_p, phi_p, quad, cell_factor):
+    """Cell fluxes [Jy] (flattened) and positions [rad] of the perturbation with the planet at ``phi_p``."""
+    if quad is None:
+        quad = make_quadrature(template, r_p, float(np.max(np.hypot(u, v))), cell_factor=cell_factor)
+    flux, rest = _rotate_flux(perturbation_flux(profile, template, quad), phi_p)
+    return flux.ravel(), _cell_positions(quad, rest)
+
+
 def perturbation_visibilities(u, v, geometry: DiscGeometry, profile: Profile, template, r_p: float,
                               phi_p: float, *, quad: PolarQuadrature | None = None,
                               cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1,
@@ -212,12 +220,10 @@ def perturbation_visibilities(u, v, geometry: DiscGeometry, profile: Profile, te
 
     u = np.asarray(u, dtype=float)
     v = np.asarray(v, dtype=float)
-    if quad is None:
-        quad = make_quadrature(template, r_p, float(np.max(np.hypot(u, v))), cell_factor=cell_factor)
-    flux, rest = _rotate_flux(perturbation_flux(profile, template, quad), phi_p)
+    flux, pos = _placed_cells(u, v, profile, template, r_p, phi_p, quad, cell_factor)
     q = np.stack(geometry.disc_frame_uv(u, v), axis=-1)
     vis = ducc0.nufft.experimental.nu2nu(
-        points_in=flux.ravel().astype(complex), coord_in=2 * np.pi * _cell_positions(quad, rest),
+        points_in=flux.astype(complex), coord_in=2 * np.pi * pos,
         coord_out=np.ascontiguousarray(q), forward=False, epsilon=epsilon, nthreads=nthreads)
     return geometry.cos_inc * geometry.phase_factor(u, v) * vis
 
@@ -228,12 +234,8 @@ def perturbation_visibilities_dft(u, v, geometry: DiscGeometry, profile: Profile
     """Plain NumPy direct sum of :func:`perturbation_visibilities` (the reference; slow)."""
     u = np.asarray(u, dtype=float)
     v = np.asarray(v, dtype=float)
-    if quad is None:
-        quad = make_quadrature(template, r_p, float(np.max(np.hypot(u, v))), cell_factor=cell_factor)
-    flux, rest = _rotate_flux(perturbation_flux(profile, template, quad), phi_p)
-    pos = _cell_positions(quad, rest)
+    flux, pos = _placed_cells(u, v, profile, template, r_p, phi_p, quad, cell_factor)
     xi, eta = geometry.disc_frame_uv(u, v)
-    flux = flux.ravel()
     out = np.empty(u.size, dtype=complex)
     for start in range(0, u.size, chunk):
         sl = slice(start, start + chunk)

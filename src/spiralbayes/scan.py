@@ -146,7 +146,7 @@ class ScanContext:
 
         Templates share it (it depends only on the grid), which halves the cost of the power term.
         """
-        key = (quad.r_p, quad.x_edges[0], quad.x_edges[-1], quad.x.size, quad.n_phi)
+        key = _grid_key(quad)
         if key not in self._plan_cache:
             import ducc0
 
@@ -157,24 +157,25 @@ class ScanContext:
 
     def dirty_spectrum(self, quad: PolarQuadrature) -> np.ndarray:
         """``rfft`` along phi of :meth:`dirty_on` (cached: every template correlates with it)."""
-        key = ("rfft", quad.r_p, quad.x_edges[0], quad.x_edges[-1], quad.x.size, quad.n_phi)
+        key = _grid_key(quad)
         if key not in self._dirty_cache:
             self._dirty_cache[key] = np.fft.rfft(self.dirty_on(quad), axis=1)
         return self._dirty_cache[key]
 
     def dirty_on(self, quad: PolarQuadrature) -> np.ndarray:
         """Real part of the residual dirty image at the quadrature cells, shape ``quad.shape``."""
-        key = (quad.r_p, quad.x_edges[0], quad.x_edges[-1], quad.x.size, quad.n_phi)
-        if key not in self._dirty_cache:
-            import ducc0
+        import ducc0
 
-            q = np.stack(self.geometry.disc_frame_uv(self.u, self.v), axis=-1)
-            dirty = ducc0.nufft.experimental.nu2nu(
-                points_in=self.weights * self.residual, coord_in=np.ascontiguousarray(q),
-                coord_out=2 * np.pi * quad.positions(), forward=True, epsilon=NUFFT_EPSILON,
-                nthreads=self.nthreads)
-            self._dirty_cache[key] = dirty.real.reshape(quad.shape)
-        return self._dirty_cache[key]
+        q = np.stack(self.geometry.disc_frame_uv(self.u, self.v), axis=-1)
+        dirty = ducc0.nufft.experimental.nu2nu(
+            points_in=self.weights * self.residual, coord_in=np.ascontiguousarray(q),
+            coord_out=2 * np.pi * quad.positions(), forward=True, epsilon=NUFFT_EPSILON, nthreads=self.nthreads)
+        return dirty.real.reshape(quad.shape)
+
+
+def _grid_key(quad: PolarQuadrature) -> tuple:
+    """Identifies a quadrature grid for the per-grid caches."""
+    return (quad.r_p, quad.x_edges[0], quad.x_edges[-1], quad.x.size, quad.n_phi)
 
 
 def _multiple_at_least(n: int, base: int) -> int:
