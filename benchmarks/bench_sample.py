@@ -6,7 +6,7 @@
 Prints, for one log-likelihood evaluation on one core: the fast path (tables + one small type-2
 NUFFT), the exact path (Hankel + type-3 NUFFT of the full quadrature) and the naive path
 (render the perturbation and disc images, ``fourier.sample_image``, chi2), with their ln L
-differences from the exact path. ``--converge`` runs :func:`spiralbayes.sampling.sample_posterior`
+differences from the exact path. ``--converge`` runs :func:`spiralbayes.inference.sampler.sample_posterior`
 for one template until every parameter has chain length > 50 tau and ESS > 400, and reports the
 wall time.
 
@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 from spiralbayes.axisymmetric import AxisymmetricModel  # noqa: E402
 from spiralbayes.geometry import DiscGeometry  # noqa: E402
 from spiralbayes.model import perturbation_visibilities  # noqa: E402
-from spiralbayes.posterior import SpiralLikelihood  # noqa: E402
+from spiralbayes.inference.likelihood import SpiralLikelihood  # noqa: E402
 from spiralbayes.templates import make_template  # noqa: E402
 from spiralbayes.visibilities import Visibilities  # noqa: E402
 
@@ -103,7 +103,8 @@ def bench_likelihood(args) -> dict:
 
 
 def bench_converge(args) -> dict:
-    from spiralbayes.sampling import Priors, sample_posterior
+    from spiralbayes.inference.priors import Priors
+    from spiralbayes.inference.sampler import sample_posterior
 
     vis, model, template = synthetic(args.n_vis, args.uv_max, args.snr)
     priors = Priors.default(model, r_p=(0.1, 0.6))

@@ -19,8 +19,9 @@ import numpy as np
 
 from spiralbayes.axisymmetric import fit_axisymmetric
 from spiralbayes.geometry import DiscGeometry
-from spiralbayes.sampling import Priors, sample_posterior
-from spiralbayes.scan import scan
+from spiralbayes.inference.priors import Priors
+from spiralbayes.inference.sampler import sample_posterior
+from spiralbayes.inference.scan import scan
 from spiralbayes.simulate import DiscModel, simulate_observation
 from spiralbayes.templates import make_template
 
@@ -52,9 +53,9 @@ print(post.template_probabilities, "P(R) =", post.p_right_handed)
 print(post.summary())
 
 # %% Corner plot with the truth, traces, template probabilities
-post.corner(truths=truth).savefig(OUT / "posterior_corner.png", dpi=110)
+from spiralbayes.plotting import plot_corner, plot_template_probabilities, plot_trace  # noqa: E402
 
-from spiralbayes.plotting.posterior import plot_template_probabilities, plot_trace  # noqa: E402
+plot_corner(post, truths=truth).savefig(OUT / "posterior_corner.png", dpi=110)
 
 plot_trace(post).savefig(OUT / "posterior_trace.png", dpi=90)
 plot_template_probabilities(post).savefig(OUT / "posterior_templates.png", dpi=90)
@@ -62,7 +63,7 @@ plot_template_probabilities(post).savefig(OUT / "posterior_templates.png", dpi=9
 # %% The likelihood holds the frank profile fixed, so the geometry posterior is conditional on it: a
 # profile fitted at a wrong inclination absorbs part of the error. To iterate, refit frank at the
 # posterior geometry and sample again:
-#     from spiralbayes.sampling import refit_axisymmetric
+#     from spiralbayes.inference.sampler import refit_axisymmetric
 #     axisym = refit_axisymmetric(vis, axisym, post)
 #     post = sample_posterior(vis, axisym, templates, scan=result_scan, priors=priors, ...)
 

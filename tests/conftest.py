@@ -1,17 +1,13 @@
-"""Shared fixtures: synthetic fiducial observations with and without a planet (built once)."""
+"""Shared fixtures, built once per session: synthetic fiducial observations with and without a planet,
+the posterior tests' observation and likelihood, and a frank fit of a known disc."""
 
 import warnings
 
-import numpy as np
 import pytest
 
-from spiralbayes import DiscGeometry
 from spiralbayes.simulate import DiscModel, simulate_observation
-
-GEOMETRY = DiscGeometry(30.0, 60.0)
-DISTANCE = 140.0
-R_P_TRUE = 50.0 / DISTANCE  # 50 au at 140 pc
-SCAN_RP = np.linspace(0.02, 0.5, 25)  # the paper's 25 radii
+from tests import axisymmetric_setup, posterior_setup
+from tests.helpers import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
 
 
 @pytest.fixture(scope="session")
@@ -37,7 +33,38 @@ def planet_observation(planet_templates):
 
 @pytest.fixture(scope="session")
 def planet_scan(planet_observation, planet_templates):
-    from spiralbayes.scan import scan
+    from spiralbayes.inference.scan import scan
 
     vis, axisym = planet_observation
     return scan(vis, axisym, list(planet_templates), GEOMETRY, r_p=SCAN_RP, distance=DISTANCE, progress=False)
+
+
+@pytest.fixture(scope="session")
+def setup():
+    """The posterior tests' observation (:mod:`tests.posterior_setup`)."""
+    return posterior_setup.build_setup()
+
+
+@pytest.fixture(scope="session")
+def likelihood(setup):
+    from spiralbayes.inference.likelihood import SpiralLikelihood
+
+    return SpiralLikelihood(setup["vis"], setup["model"], setup["template"], posterior_setup.R_RANGE)
+
+
+@pytest.fixture(scope="session")
+def truth_model():
+    return axisymmetric_setup.truth_model()
+
+
+@pytest.fixture(scope="session")
+def synthetic(truth_model):
+    return axisymmetric_setup.synthetic_observation(truth_model)
+
+
+@pytest.fixture(scope="session")
+def fixed_fit(synthetic):
+    """The paper's hyperparameters, geometry held at the truth."""
+    from spiralbayes.axisymmetric import fit_axisymmetric
+
+    return fit_axisymmetric(synthetic, axisymmetric_setup.TRUE_GEOMETRY, nonnegative=True, progress=False)

@@ -1,10 +1,16 @@
 """The spiralbayes command: simulate -> scan from a config, and argument/config errors."""
 
+from __future__ import annotations
+
 import json
+import warnings
 
 import pytest
 
 from spiralbayes.cli import main
+from spiralbayes.templates import make_template
+from tests.helpers import DATA
+from tests.posterior_setup import R_RANGE
 
 
 def test_print_config_is_loadable(capsys, tmp_path):
@@ -17,8 +23,8 @@ def test_print_config_is_loadable(capsys, tmp_path):
 
 
 def test_simulate_then_scan_from_config(tmp_path, capsys):
-    from spiralbayes.templates import TemplateBank, make_template
-    from spiralbayes.visibilities import load_visibilities
+    from spiralbayes.io import load_visibilities
+    from spiralbayes.templates import TemplateBank
 
     data = tmp_path / "obs.txt"
     assert main(["-q", "simulate", "--preset", "taurus", "--out", str(data), "--planet-mass", "3",
@@ -64,11 +70,10 @@ def test_errors_are_reported_not_raised(tmp_path, caplog):
 
 
 def test_axisym_on_real_as209_sample(tmp_path):
-    from pathlib import Path
 
     from spiralbayes.axisymmetric import AxisymmetricModel
 
-    data = Path(__file__).parent / "data" / "AS209_DSHARP_subsample_uvtable.txt"
+    data = DATA / "AS209_DSHARP_subsample_uvtable.txt"
     out = tmp_path / "fit"
     code = main(["-q", "axisym", str(data), "--inc", "34.97", "--pa", "85.76", "--dra=-1.9e-3",
                  "--ddec", "2.5e-3", "--distance", "121", "--out", str(out)])
@@ -77,3 +82,32 @@ def test_axisym_on_real_as209_sample(tmp_path):
     assert model.geometry.inc == 34.97 and model.N == 200
     assert 0.1 < model.total_flux < 1.0  # AS 209 at 1.25 mm: about 0.25 Jy
     assert len(list(out.glob("*.png"))) == 2
+
+
+def test_cli_sample_from_toml_config(setup, tmp_path):
+    """`spiralbayes sample CONFIG` writes chains under OUT/chains/<run_name>.h5 and a summary."""
+    import json
+
+    from spiralbayes.cli import main
+    from spiralbayes.io import save_visibilities
+    from spiralbayes.templates import TemplateBank
+
+    save_visibilities(setup["vis"], tmp_path / "obs.h5")
+    setup["model"].save(tmp_path / "axisym.h5")
+    template = setup["template"]
+    TemplateBank([template, template.mirror()]).save(tmp_path / "bank.h5")
+    (tmp_path / "run.toml").write_text(
+        '[data]\npath = "obs.h5"\n[frank]\nmodel = "axisym.h5"\n[templates]\nbank = "bank.h5"\n'
+        '[sample]\nrun_name = "cli"\nn_walkers = 16\nn_steps = 40\nconvergence = "ignore"\nevidence_draws = 200\n'
+        f"[priors]\nr_p_min = {R_RANGE[0]}\nr_p_max = {R_RANGE[1]}\ninc_sigma = 3.0\nPA_sigma = 3.0\n"
+        "dRA_sigma = 0.03\ndDec_sigma = 0.03\n"
+        f'[output]\ndir = "{tmp_path / "out"}"\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["-q", "sample", str(tmp_path / "run.toml")]) == 0
+    assert (tmp_path / "out" / "chains" / "cli.h5").exists()
+    summary = json.loads((tmp_path / "out" / "cli_summary.json").read_text())
+    assert "summary" in summary
+    assert (tmp_path / "out" / "cli_corner.png").exists()
+    (tmp_path / "bad.toml").write_text('[data]\npath = "obs.h5"\n[sample]\nbogus = 1\n')
+    assert main(["sample", str(tmp_path / "bad.toml")]) == 2

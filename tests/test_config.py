@@ -2,7 +2,13 @@
 
 import pytest
 
-from spiralbayes.config import SCHEMA, default_config, describe_config, load_config, merge_config
+from spiralbayes.config import (
+    SCHEMA,
+    default_config,
+    describe_config,
+    load_config,
+    merge_config,
+)
 
 
 def test_described_defaults_read_back_as_defaults(tmp_path):

@@ -14,25 +14,32 @@ A notebook session needs only the names exported here::
 
 import logging
 
-__version__ = "0.1.0"
-
+from . import exceptions  # noqa: E402
+from ._version import __version__  # noqa: E402
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
-from .detection import Verdict, detect  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
-from .posterior import SpiralLikelihood  # noqa: E402
-from .sampling import PosteriorResult, Priors, sample_posterior  # noqa: E402
-from .scan import ScanResult, scan  # noqa: E402
+from .inference.detection import Verdict, detect  # noqa: E402
+from .inference.likelihood import SpiralLikelihood  # noqa: E402
+from .inference.priors import Priors  # noqa: E402
+from .inference.results import PosteriorResult  # noqa: E402
+from .inference.sampler import sample_posterior  # noqa: E402
+from .inference.scan import ScanResult, scan  # noqa: E402
+from .io import load_visibilities, save_visibilities  # noqa: E402
 from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage  # noqa: E402
 from .templates import SpiralTemplate, TemplateBank, default_bank, make_template  # noqa: E402
-from .visibilities import (  # noqa: E402
-    Visibilities,
-    bin_deprojected,
-    estimate_weights,
-    load_visibilities,
-    save_visibilities,
-)
+from .visibilities import Visibilities, bin_deprojected, estimate_weights  # noqa: E402
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+
+def __getattr__(name):
+    # plotting imports Matplotlib: loaded on first use (``sb.plotting.plot_corner``), not at import time
+    if name == "plotting":
+        import importlib
+
+        return importlib.import_module(".plotting", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "PRESETS",
@@ -52,6 +59,7 @@ __all__ = [
     "default_bank",
     "detect",
     "estimate_weights",
+    "exceptions",
     "fit_axisymmetric",
     "load_visibilities",
     "make_template",

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._version import __version__
+
 __all__ = ["atomic_path", "provenance_record", "data_hash", "json_default", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
@@ -46,8 +48,6 @@ def data_hash(*arrays) -> str:
 
 def provenance_record(**extra) -> dict:
     """Package and dependency versions, time and host, plus ``extra`` items."""
-    from . import __version__
-
     versions = {"spiralbayes": __version__, "numpy": np.__version__, "python": platform.python_version()}
     for mod in ("scipy", "ducc0", "frank", "emcee", "h5py"):
         try:

@@ -27,8 +27,8 @@ def _cmd_demo(args) -> int:
 
 def _cmd_simulate(args) -> int:
     from .geometry import DiscGeometry
+    from .io import save_visibilities
     from .simulate import DiscModel, simulate_observation
-    from .visibilities import save_visibilities
 
     perturbation = None
     if args.planet_mass is not None:
@@ -51,9 +51,9 @@ def _radians(deg):
 
 
 def _cmd_axisym(args) -> int:
-    from .axisymmetric import run_axisym
     from .geometry import DiscGeometry
-    from .visibilities import load_visibilities
+    from .io import load_visibilities
+    from .pipeline import run_axisym
 
     vis = load_visibilities(args.data)
     geometry = DiscGeometry(args.inc, args.pa, args.dra, args.ddec)
@@ -78,55 +78,19 @@ def _cmd_scan(args) -> int:
     return 0
 
 
-SAMPLE_TEMPLATE = """\
-# spiralbayes sample: emcee posterior over (r_p, phi_p, inc, PA, dRA, dDec) per template.
-# Paths are relative to this file. Keys and meanings:
-{keys}
-data = "disc.txt"
-axisymmetric = "spiralbayes-output/axisymmetric.h5"   # written by `spiralbayes scan` or `axisym`
-templates = "default"
-scan = "spiralbayes-output/scan.h5"                   # optional: initialise walkers, prune templates
-run_name = "posterior"
-
-[select]            # which templates (TemplateBank.select keywords)
-tau0 = [3.0]
-beta = [10.0]
-
-[widths]            # Gaussian prior sigmas around the frank geometry
-inc = 2.0           # deg
-PA = 2.0            # deg
-dRA = 0.02          # arcsec
-dDec = 0.02         # arcsec
-
-[sampler]
-n_walkers = 32
-max_steps = 20000
-convergence = "warn"   # raise / warn / ignore when the chain is shorter than 50 tau
-processes = 2
-"""
-
-
 def _cmd_sample(args) -> int:
-    import tomllib
-
-    from .sampling import SAMPLE_CONFIG_KEYS, run_sample_config
+    from .config import describe_config, load_config
+    from .pipeline import run_sample_config
 
     if args.print_config:
-        print(SAMPLE_TEMPLATE.format(keys="\n".join(f"#   {k}: {v}" for k, v in SAMPLE_CONFIG_KEYS.items())))
+        print(describe_config())
         return 0
     if not args.config:
         raise SystemExit("spiralbayes sample: give a CONFIG file (write a documented one with --print-config)")
-    path = Path(args.config)
-    if not path.exists():
-        raise FileNotFoundError(f"configuration file {path} not found (write one with --print-config)")
-    config = tomllib.loads(path.read_text())
-    for key in ("data", "axisymmetric", "templates", "scan"):
-        value = config.get(key)
-        if isinstance(value, str) and value != "default" and not Path(value).is_absolute():
-            config[key] = str((path.parent / value).resolve())
-    result = run_sample_config(config, args.out)
+    config = load_config(args.config)
+    result = run_sample_config(config, progress=not args.quiet)
     print(result.summary())
-    print(f"outputs in {Path(args.out).resolve()} (chains under chains/)")
+    print(f"outputs in {Path(config['output']['dir']).resolve()} (chains under chains/)")
     return 0
 
 
@@ -136,13 +100,9 @@ def _cmd_templates(args) -> int:
     bank = default_bank(rebuild=args.rebuild)
     print(f"{len(bank)} templates in the default bank")
     if args.plot:
-        import matplotlib
-
-        matplotlib.use("Agg")
         from .plotting.templates import plot_bank_overview
 
-        fig = plot_bank_overview(bank)
-        fig.savefig(args.plot, dpi=120, bbox_inches="tight")
+        plot_bank_overview(bank).savefig(args.plot, dpi=120, bbox_inches="tight")
         print(f"wrote {args.plot}")
     return 0
 
@@ -195,7 +155,6 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("sample", help="emcee posterior over planet position and geometry (TOML config)")
     p.add_argument("config", nargs="?")
-    p.add_argument("--out", default=".", help="output folder (chains go to OUT/chains/<run_name>.h5)")
     p.add_argument("--print-config", action="store_true", help="print the documented default config")
     p.set_defaults(func=_cmd_sample)
 

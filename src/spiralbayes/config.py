@@ -1,18 +1,24 @@
-"""One configuration schema for the command line and notebooks (TOML files).
+"""One configuration schema for every command (``scan``, ``sample``) and for notebooks (TOML files).
 
 Every option has a default (from Stevenson et al. 2024 where the paper sets one) and a
 description with units; unknown sections or keys are rejected with the list of valid ones, and
 the configuration actually used is saved beside every output. ``spiralbayes scan
---print-config`` writes the documented default file.
+--print-config`` (or ``sample --print-config``) writes the documented default file. The same file
+drives both commands: ``scan`` reads ``[data]`` to ``[scan]``, ``sample`` adds ``[sample]`` and
+``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``. Relative input
+paths are taken relative to the configuration file.
 """
 
 from __future__ import annotations
 
 import copy
-import tomllib
 from pathlib import Path
 
-__all__ = ["SCHEMA", "default_config", "describe_config", "load_config", "merge_config"]
+import tomllib
+
+from .exceptions import InputError, MissingFileError
+
+__all__ = ["PATH_KEYS", "SCHEMA", "default_config", "describe_config", "load_config", "merge_config"]
 
 # section -> key -> (default, description)
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
@@ -38,6 +44,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "p0": (1e-15, "scale parameter of the power-spectrum prior [Jy^2]"),
         "weights_smooth": (0.1, "strength of the power-spectrum smoothing"),
         "nonnegative": (False, "use frank's non-negative profile"),
+        "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
     "templates": {
         "bank": ("default", "'default' (the built-in 64-template wake bank, cached) or the path of a TemplateBank HDF5 file"),
@@ -59,11 +66,39 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "cell_factor": (20.0, "quadrature cells are at most 1/(cell_factor u_max) across"),
         "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
     },
+    "sample": {
+        "run_name": ("posterior", "chains go to OUTPUT/chains/<run_name>.h5"),
+        "scan": ("", "a saved ScanResult (.h5) to start walkers from and prune templates (empty: OUTPUT/scan.h5 if present)"),
+        "n_walkers": (32, "emcee walkers per template (>= 12)"),
+        "n_steps": (0, "total steps per walker (0: run until converged, up to max_steps)"),
+        "max_steps": (20000, "cap on the steps per walker when running until converged"),
+        "check_every": (500, "steps between convergence checks"),
+        "convergence": ("warn", "'raise', 'warn' or 'ignore' when a chain is shorter than 50 autocorrelation times"),
+        "min_ess": (400.0, "smallest effective sample size per parameter for convergence"),
+        "processes": (1, "worker processes for the walkers"),
+        "seed": (0, "random seed of the sampler"),
+        "prune_delta_lnL": (25.0, "templates whose scan peak is this far below the best (in ln L) get a Laplace evidence only"),
+        "evidence_draws": (2000, "draws of the importance-sampled evidence"),
+        "mcmc_templates": ([], "names of the templates that get a chain (empty: chosen by prune_delta_lnL)"),
+    },
+    "priors": {
+        "r_p_min": (0.0, "smallest planet radius [arcsec] (0: R_eff / 25 of the frank profile)"),
+        "r_p_max": (0.0, "largest planet radius [arcsec] (0: R_eff, at most Rmax / 2.2)"),
+        "inc_sigma": (5.0, "width of the Gaussian prior on the inclination [deg], centred on [geometry]"),
+        "PA_sigma": (5.0, "width of the Gaussian prior on the position angle [deg]"),
+        "dRA_sigma": (0.05, "width of the Gaussian prior on the RA offset [arcsec]"),
+        "dDec_sigma": (0.05, "width of the Gaussian prior on the Dec offset [arcsec]"),
+    },
     "output": {
         "dir": ("spiralbayes-output", "directory for results and plots"),
         "plots": (True, "write heatmap PNGs"),
     },
 }
+
+
+PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("sample", "scan"))
+"""Input paths; relative ones are resolved against the configuration file's folder (``[output] dir``, an
+output, is relative to the working directory)."""
 
 
 def default_config() -> dict:
@@ -76,12 +111,12 @@ def merge_config(user: dict, schema: dict = SCHEMA) -> dict:
     config = default_config() if schema is SCHEMA else {s: {k: v[0] for k, v in ks.items()} for s, ks in schema.items()}
     for section, values in user.items():
         if section not in schema:
-            raise ValueError(f"unknown config section [{section}]; valid sections: {sorted(schema)}")
+            raise InputError(f"unknown config section [{section}]; valid sections: {sorted(schema)}")
         if not isinstance(values, dict):
-            raise ValueError(f"[{section}] must be a table of options")
+            raise InputError(f"[{section}] must be a table of options")
         for key, value in values.items():
             if key not in schema[section]:
-                raise ValueError(f"unknown option {section}.{key}; valid options of [{section}]: {sorted(schema[section])}")
+                raise InputError(f"unknown option {section}.{key}; valid options of [{section}]: {sorted(schema[section])}")
             config[section][key] = _coerce(section, key, value, schema[section][key][0])
     return config
 
@@ -89,16 +124,16 @@ def merge_config(user: dict, schema: dict = SCHEMA) -> dict:
 def _coerce(section: str, key: str, value, default):
     if isinstance(default, bool):
         if not isinstance(value, bool):
-            raise ValueError(f"{section}.{key} must be true or false, got {value!r}")
+            raise InputError(f"{section}.{key} must be true or false, got {value!r}")
         return value
     if isinstance(default, (int, float)) and not isinstance(default, bool):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f"{section}.{key} must be a number, got {value!r}")
+            raise InputError(f"{section}.{key} must be a number, got {value!r}")
         return type(default)(value) if isinstance(default, float) else value
     if isinstance(default, list) and not isinstance(value, list):
         return [value]
     if isinstance(default, str) and not isinstance(value, str):
-        raise ValueError(f"{section}.{key} must be a string, got {value!r}")
+        raise InputError(f"{section}.{key} must be a string, got {value!r}")
     return value
 
 
@@ -109,15 +144,16 @@ def load_config(path, schema: dict = SCHEMA) -> dict:
     """
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"configuration file {path} not found (write one with --print-config)")
+        raise MissingFileError(f"configuration file {path} not found (write one with --print-config)")
     try:
         user = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path} is not valid TOML: {exc}") from None
+        raise InputError(f"{path} is not valid TOML: {exc}") from None
     config = merge_config(user, schema)
-    data_path = config.get("data", {}).get("path")
-    if data_path and not Path(data_path).is_absolute():
-        config["data"]["path"] = str((path.parent / data_path).resolve())
+    for section, key in PATH_KEYS:
+        value = config.get(section, {}).get(key)
+        if value and value != "default" and not Path(value).expanduser().is_absolute():
+            config[section][key] = str((path.parent / value).resolve())
     return config
 
 

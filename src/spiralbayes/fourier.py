@@ -26,7 +26,9 @@ import logging
 
 import numpy as np
 
-from .geometry import ARCSEC, DiscGeometry
+from .exceptions import ImageGridError, InputError
+from .geometry import DiscGeometry
+from .units import ARCSEC
 
 __all__ = [
     "ImageSampler",
@@ -44,10 +46,9 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 DEFAULT_EPSILON = 1e-10
-
-
-class ImageGridError(ValueError):
-    """The image grid cannot represent the data's baselines."""
+"""NUFFT accuracy of image sampling (relative to the image's total flux)."""
+NUFFT_EPSILON = 1e-9
+"""NUFFT accuracy of the polar-quadrature transforms of the spiral model and scan."""
 
 
 def image_axes(shape, pixel_size):
@@ -174,7 +175,7 @@ class ImageSampler:
         """Visibilities [Jy] of ``image`` [Jy/pixel] at the sampler's baselines."""
         image = np.asarray(image)
         if image.shape != self.shape:
-            raise ValueError(f"image shape {image.shape} differs from the sampler's {self.shape}")
+            raise InputError(f"image shape {image.shape} differs from the sampler's {self.shape}")
         grid = np.ascontiguousarray(image, dtype=complex)
         return self._plan.u2nu(grid=grid, forward=False) * self._phase
 

@@ -22,10 +22,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .exceptions import InputError
+from .units import ARCSEC
+
 __all__ = ["ARCSEC", "DiscGeometry", "arcsec_to_rad", "rad_to_arcsec"]
 
-ARCSEC = np.pi / 180.0 / 3600.0
-"""One arcsecond in radians."""
 
 
 def arcsec_to_rad(x):
@@ -61,10 +62,10 @@ class DiscGeometry:
         for name in ("inc", "PA", "dRA", "dDec"):
             value = getattr(self, name)
             if not np.isfinite(value):
-                raise ValueError(f"DiscGeometry.{name} must be finite, got {value!r}")
+                raise InputError(f"DiscGeometry.{name} must be finite, got {value!r}")
             object.__setattr__(self, name, float(value))
         if not 0.0 <= self.inc < 90.0:
-            raise ValueError(
+            raise InputError(
                 f"DiscGeometry.inc = {self.inc} deg is outside [0, 90): give the "
                 "inclination in degrees (0 = face on); a disc seen edge on cannot be deprojected"
             )

@@ -29,8 +29,9 @@ from typing import Callable
 
 import numpy as np
 
-from .fourier import image_axes
-from .geometry import ARCSEC, DiscGeometry
+from .fourier import NUFFT_EPSILON, image_axes
+from .geometry import DiscGeometry
+from .units import ARCSEC
 
 __all__ = [
     "PolarQuadrature",
@@ -42,7 +43,6 @@ __all__ = [
 ]
 
 DEFAULT_CELL_FACTOR = 20.0
-NUFFT_EPSILON = 1e-9
 
 Profile = Callable[[np.ndarray], np.ndarray]
 

@@ -1,4 +1,8 @@
-"""End-to-end runs used by the command line: the demo and a scan from a configuration."""
+"""Every end-to-end run: the demo, the frank fit with plots, and scan and sample from a configuration.
+
+The command line (:mod:`spiralbayes.cli`) only parses arguments and calls these; notebooks can call
+them too. Outputs are written atomically (temporary file, then rename).
+"""
 
 from __future__ import annotations
 
@@ -10,10 +14,36 @@ from pathlib import Path
 
 import numpy as np
 
+from ._provenance import atomic_path, json_default
+from .axisymmetric import AxisymmetricModel, fit_axisymmetric
 from .config import describe_config
+from .exceptions import InputError
 from .geometry import DiscGeometry
+from .inference.detection import detect, mirror_index
+from .inference.priors import DEFAULT_WIDTHS, Priors
+from .inference.results import PosteriorResult
+from .inference.sampler import sample_posterior
+from .inference.scan import ScanResult, scan
+from .io import load_visibilities
+from .plotting.axisymmetric import plot_binned_visibilities, plot_profile
+from .plotting.posterior import plot_corner, plot_template_probabilities
+from .plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
+from .simulate import DiscModel, simulate_observation
+from .templates import TemplateBank, default_bank, make_template
+from .visibilities import Visibilities, estimate_weights
 
-__all__ = ["DemoResult", "load_data", "run_demo", "run_scan_config", "select_templates", "write_scan_outputs"]
+__all__ = [
+    "DemoResult",
+    "load_axisymmetric",
+    "load_data",
+    "load_templates",
+    "run_axisym",
+    "run_demo",
+    "run_sample_config",
+    "run_scan_config",
+    "select_templates",
+    "write_scan_outputs",
+]
 
 log = logging.getLogger(__name__)
 
@@ -34,26 +64,30 @@ def select_templates(bank, mass=(), tau0=(), beta=(), hand=()):
     chosen = bank.select(mass=list(mass) or None, tau0=list(tau0) or None, beta=list(beta) or None,
                          hand=list(hand) or None)
     if not len(chosen):
-        raise ValueError(f"no template matches mass={list(mass)}, tau0={list(tau0)}, beta={list(beta)}, "
+        raise InputError(f"no template matches mass={list(mass)}, tau0={list(tau0)}, beta={list(beta)}, "
                          f"hand={list(hand)}; the bank has {bank.names}")
     return list(chosen)
 
 
+def _save_figure(fig, path: Path, dpi: int = 120) -> Path:
+    """Write a Figure as PNG through a temporary file (no pyplot state is touched)."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
+    return path
+
+
+def _write_text(path: Path, text: str) -> Path:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+    return path
+
+
 def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None) -> list[Path]:
     """Save the scan, the verdict (JSON and text) and the heatmap PNGs; return the paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .detection import mirror_index
-    from .plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
-
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [result.save(out_dir / "scan.h5")]
-    (out_dir / "verdict.json").write_text(json.dumps(verdict.to_dict(), indent=2))
-    (out_dir / "verdict.txt").write_text(verdict.summary() + "\n")
-    files += [out_dir / "verdict.json", out_dir / "verdict.txt"]
+    files.append(_write_text(out_dir / "verdict.json", json.dumps(verdict.to_dict(), indent=2)))
+    files.append(_write_text(out_dir / "verdict.txt", verdict.summary() + "\n"))
     if not plots:
         return files
     done = set()
@@ -63,14 +97,8 @@ def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, ampli
             continue
         done.update({t, j})
         fig = plot_heatmap_pair(result, t, j, amplitude=amplitude)
-        path = out_dir / f"heatmap_{meta['name']}.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        files.append(path)
-    fig = plot_chi2_vs_rp(result, amplitude=amplitude)
-    fig.savefig(out_dir / "chi2_vs_rp.png", dpi=120)
-    plt.close(fig)
-    files.append(out_dir / "chi2_vs_rp.png")
+        files.append(_save_figure(fig, out_dir / f"heatmap_{meta['name']}.png"))
+    files.append(_save_figure(plot_chi2_vs_rp(result, amplitude=amplitude), out_dir / "chi2_vs_rp.png"))
     return files
 
 
@@ -83,12 +111,6 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
     inclination 30 deg and PA 60 deg. The scan uses the masses given, tau0 = 3 and
     beta = 10, both hands, on the paper's grid (25 radii from 0.02 to 0.5 arcsec, 90 azimuths).
     """
-    from .axisymmetric import fit_axisymmetric
-    from .detection import detect
-    from .scan import scan
-    from .simulate import DiscModel, simulate_observation
-    from .templates import make_template
-
     out_dir = Path(out_dir)
     timings = {}
     t0 = time.perf_counter()
@@ -120,10 +142,8 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
 
 def load_data(data: dict):
     """A :class:`Visibilities` from the ``[data]`` section of a configuration."""
-    from .visibilities import estimate_weights, load_visibilities
-
     if not data["path"]:
-        raise ValueError("data.path is empty: give the visibility file in the [data] section")
+        raise InputError("data.path is empty: give the visibility file in the [data] section")
     kwargs = {}
     if data["uv_units"]:
         kwargs["uv_units"] = data["uv_units"]
@@ -135,36 +155,130 @@ def load_data(data: dict):
     return estimate_weights(vis) if data["estimate_weights"] else vis
 
 
+def load_templates(templates: dict) -> list:
+    """The templates chosen by the ``[templates]`` section of a configuration."""
+    bank = default_bank() if templates["bank"] == "default" else TemplateBank.load(templates["bank"])
+    return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"])
+
+
+def _geometry(config: dict) -> DiscGeometry:
+    g = config["geometry"]
+    return DiscGeometry(g["inc"], g["PA"], g["dRA"], g["dDec"])
+
+
+def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> AxisymmetricModel:
+    """The axisymmetric model of a configuration: ``[frank] model`` if given, else a frank fit."""
+    f = config["frank"]
+    if f["model"]:
+        return AxisymmetricModel.load(f["model"])
+    axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"], Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
+                              weights_smooth=f["weights_smooth"], nonnegative=f["nonnegative"],
+                              fit_geometry="nonparametric" if config["geometry"]["fit"] else None, progress=progress)
+    return axisym.nonnegative() if f["nonnegative"] else axisym
+
+
 def run_scan_config(config: dict, *, progress: bool = True):
     """Run a scan described by a merged configuration (:func:`spiralbayes.config.load_config`)."""
-    from .axisymmetric import fit_axisymmetric
-    from .detection import detect
-    from .scan import scan
-    from .templates import TemplateBank, default_bank
-
     vis = load_data(config["data"])
-    g = config["geometry"]
-    geometry = DiscGeometry(g["inc"], g["PA"], g["dRA"], g["dDec"])
-    f = config["frank"]
-    axisym = fit_axisymmetric(vis, geometry, N=f["N"], Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
-                              weights_smooth=f["weights_smooth"], nonnegative=f["nonnegative"],
-                              fit_geometry="nonparametric" if g["fit"] else None, progress=progress)
-    if f["nonnegative"]:
-        axisym = axisym.nonnegative()
-    tcfg = config["templates"]
-    bank = default_bank() if tcfg["bank"] == "default" else TemplateBank.load(tcfg["bank"])
-    templates = select_templates(bank, tcfg["mass"], tcfg["tau0"], tcfg["beta"], tcfg["hand"])
+    axisym = load_axisymmetric(config, vis, progress=progress)
+    templates = load_templates(config["templates"])
     grid = config["grid"]
     r_p = np.linspace(grid["r_p_min"], grid["r_p_max"], grid["n_r_p"])
     out_dir = Path(config["output"]["dir"])
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "config_used.toml").write_text(describe_config(config))
+    _write_text(out_dir / "config_used.toml", describe_config(config))
     s = config["scan"]
     amplitude = "free" if s["amplitude"] == "free" else None
     result = scan(vis, axisym, templates, axisym.geometry, r_p=r_p, n_phi_p=grid["n_phi_p"],
-                  distance=g["distance"], checkpoint=out_dir / "scan_checkpoint.h5" if s["checkpoint"] else None,
+                  distance=config["geometry"]["distance"],
+                  checkpoint=out_dir / "scan_checkpoint.h5" if s["checkpoint"] else None,
                   client=s["dask"] or None, progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"])
     verdict = detect(result, amplitude)
     files = write_scan_outputs(result, verdict, out_dir, config["output"]["plots"], amplitude)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
     return verdict, result, files
+
+
+def _priors(config: dict, axisym: AxisymmetricModel) -> Priors:
+    p = config["priors"]
+    widths = {name: p[f"{name}_sigma"] for name in DEFAULT_WIDTHS}
+    r_p = None
+    if p["r_p_min"] or p["r_p_max"]:
+        default = Priors.default(axisym, widths=widths).r_p
+        r_p = (p["r_p_min"] or default[0], p["r_p_max"] or default[1])
+    return Priors.default(axisym, r_p=r_p, widths=widths)
+
+
+def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult:
+    """Run :func:`~spiralbayes.inference.sampler.sample_posterior` from a merged configuration.
+
+    The axisymmetric model is ``[frank] model``, else ``OUTPUT/axisymmetric.h5`` written by a scan
+    of the same configuration, else a new frank fit; the scan (walker starts, template pruning) is
+    ``[sample] scan``, else ``OUTPUT/scan.h5`` when present. Writes, in ``[output] dir``:
+    ``chains/<run_name>.h5`` (the chains), ``<run_name>_posterior.h5`` (the result),
+    ``<run_name>_summary.json``, ``<run_name>_corner.png``, ``<run_name>_templates.png`` and
+    ``<run_name>_config.toml`` (the configuration used).
+    """
+    out_dir = Path(config["output"]["dir"])
+    out_dir.mkdir(parents=True, exist_ok=True)
+    s = config["sample"]
+    run_name = s["run_name"]
+    vis = load_data(config["data"])
+    scanned = out_dir / "axisymmetric.h5"
+    if not config["frank"]["model"] and scanned.exists():
+        config = {**config, "frank": {**config["frank"], "model": str(scanned)}}
+    axisym = load_axisymmetric(config, vis, progress=progress)
+    templates = load_templates(config["templates"])
+    scan_path = s["scan"] or (out_dir / "scan.h5" if (out_dir / "scan.h5").exists() else "")
+    scan_result = ScanResult.load(scan_path) if scan_path else None
+    _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))
+    sampler = {k: s[k] for k in ("n_walkers", "max_steps", "check_every", "convergence", "min_ess", "seed",
+                                  "prune_delta_lnL", "evidence_draws")}
+    result = sample_posterior(vis, axisym, templates, scan=scan_result, priors=_priors(config, axisym),
+                              run_name=run_name, chains_dir=out_dir / "chains", n_steps=s["n_steps"] or None,
+                              processes=s["processes"] if s["processes"] > 1 else None,
+                              mcmc_templates=s["mcmc_templates"] or None, progress=progress, **sampler)
+    result.save(out_dir / f"{run_name}_posterior.h5")
+    summary = {**result.to_json(), "summary": result.summary()}
+    _write_text(out_dir / f"{run_name}_summary.json", json.dumps(summary, indent=2, default=json_default))
+    _save_figure(plot_corner(result), out_dir / f"{run_name}_corner.png")
+    _save_figure(plot_template_probabilities(result), out_dir / f"{run_name}_templates.png")
+    return result
+
+
+def run_axisym(vis: Visibilities, out_dir, geometry: DiscGeometry | None = None, *,
+               distance: float | None = None, bin_width: float = 20e3, prefix: str = "axisym",
+               **fit_kwargs) -> AxisymmetricModel:
+    """Fit, then write the model (HDF5) and plots of the profile and binned visibilities.
+
+    Parameters
+    ----------
+    vis : Visibilities
+        The data.
+    out_dir : path
+        Output folder (created if missing).
+    geometry : DiscGeometry, optional
+        Passed to :func:`fit_axisymmetric`.
+    distance : float, optional
+        Source distance [pc], for an au axis on the profile plot.
+    bin_width : float
+        Width of the uv-distance bins in the visibility plot [lambda].
+    prefix : str
+        Stem of the output file names: ``{prefix}_model.h5``, ``{prefix}_profile.png``,
+        ``{prefix}_visibilities.png``.
+    **fit_kwargs
+        Passed to :func:`fit_axisymmetric`.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    model = fit_axisymmetric(vis, geometry, **fit_kwargs)
+    written = [model.save(out_dir / f"{prefix}_model.h5")]
+    figures = {
+        f"{prefix}_profile.png": plot_profile(model, distance=distance),
+        f"{prefix}_visibilities.png": plot_binned_visibilities(vis, model, bin_width=bin_width),
+    }
+    for name, fig in figures.items():
+        written.append(_save_figure(fig, out_dir / name, dpi=150))
+    for path in written:
+        log.info("wrote %s", path)
+    return model

@@ -1,4 +1,6 @@
-"""Planet mass units: thermal mass, Jupiter and Neptune masses.
+"""Physical constants and planet mass units: thermal mass, Jupiter and Neptune masses.
+
+Every physical constant of the package is defined here, once.
 
 The spiral templates are labelled by the planet mass in units of the *thermal mass*
 (Stevenson et al. 2024; Speedie, Booth & Dong 2022):
@@ -20,7 +22,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from .exceptions import InputError
+
 __all__ = [
+    "ARCSEC",
+    "TWO_PI",
+    "C_LIGHT",
+    "H_PLANCK",
+    "K_BOLTZMANN",
+    "G_NEWTON",
+    "M_HYDROGEN",
+    "JY",
     "M_SUN",
     "M_JUP",
     "M_NEP",
@@ -35,6 +47,23 @@ __all__ = [
     "mth_to_mjup",
     "mth_to_mnep",
 ]
+
+ARCSEC = np.pi / 180.0 / 3600.0
+"""One arcsecond [rad]."""
+TWO_PI = 2.0 * np.pi
+
+C_LIGHT = 299_792_458.0
+"""Speed of light [m/s] (SI, exact)."""
+H_PLANCK = 6.62607015e-34
+"""Planck constant [J s] (SI 2019, exact)."""
+K_BOLTZMANN = 1.380649e-23
+"""Boltzmann constant [J/K] (SI 2019, exact)."""
+G_NEWTON = 6.67430e-11
+"""Gravitational constant [m^3 kg^-1 s^-2] (CODATA 2018)."""
+M_HYDROGEN = 1.6735575e-27
+"""Mass of a hydrogen atom [kg]."""
+JY = 1e-26
+"""One jansky [W m^-2 Hz^-1]."""
 
 M_SUN = 1.988409870698051e30
 """Solar mass [kg] (IAU 2015 nominal GM_sun divided by CODATA 2018 G)."""
@@ -55,7 +84,7 @@ def _unit_kg(unit: str) -> float:
     try:
         return MASS_UNITS[unit]
     except KeyError:
-        raise ValueError(
+        raise InputError(
             f"unknown mass unit {unit!r}: use one of {sorted(MASS_UNITS)}"
         ) from None
 
@@ -63,7 +92,7 @@ def _unit_kg(unit: str) -> float:
 def _positive(name: str, value) -> np.ndarray:
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-        raise ValueError(f"{name} must be positive and finite, got {value!r}")
+        raise InputError(f"{name} must be positive and finite, got {value!r}")
     return arr
 
 
@@ -142,7 +171,7 @@ def mth_to_mass(mass_mth, r_p, mstar: float, *, unit: str = "Mjup", **disc) -> f
     """
     mass_mth = np.asarray(mass_mth, dtype=float)
     if np.any(mass_mth < 0) or not np.all(np.isfinite(mass_mth)):
-        raise ValueError(f"planet mass must be non-negative and finite, got {mass_mth!r}")
+        raise InputError(f"planet mass must be non-negative and finite, got {mass_mth!r}")
     out = mass_mth * thermal_mass(r_p, mstar, unit=unit, **disc)
     return float(out) if np.ndim(out) == 0 else out
 
@@ -152,7 +181,7 @@ def mass_to_mth(mass, r_p, mstar: float, *, unit: str = "Mjup", **disc) -> float
     :func:`mth_to_mass`)."""
     mass = np.asarray(mass, dtype=float)
     if np.any(mass < 0) or not np.all(np.isfinite(mass)):
-        raise ValueError(f"planet mass must be non-negative and finite, got {mass!r}")
+        raise InputError(f"planet mass must be non-negative and finite, got {mass!r}")
     out = mass / thermal_mass(r_p, mstar, unit=unit, **disc)
     return float(out) if np.ndim(out) == 0 else out
 

@@ -1,1 +1,23 @@
-"""Plots of spiralbayes results; every function returns a Matplotlib Figure (Agg-safe)."""
+"""Plots of spiralbayes results; every function returns a Matplotlib Figure (no pyplot state).
+
+In a notebook the Figure displays itself; elsewhere call ``fig.savefig(path)``.
+"""
+
+from .axisymmetric import plot_binned_visibilities, plot_profile
+from .posterior import plot_corner, plot_template_probabilities, plot_trace
+from .scan import plot_chi2_vs_rp, plot_heatmap, plot_heatmap_pair, plot_template_grid_heatmaps
+from .templates import plot_bank_overview, plot_template
+
+__all__ = [
+    "plot_bank_overview",
+    "plot_binned_visibilities",
+    "plot_chi2_vs_rp",
+    "plot_corner",
+    "plot_heatmap",
+    "plot_heatmap_pair",
+    "plot_profile",
+    "plot_template",
+    "plot_template_grid_heatmaps",
+    "plot_template_probabilities",
+    "plot_trace",
+]

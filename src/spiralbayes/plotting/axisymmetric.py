@@ -12,6 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..axisymmetric import AxisymmetricModel
+from ..exceptions import InputError
 from ..visibilities import Visibilities
 
 __all__ = ["plot_profile", "plot_binned_visibilities"]
@@ -65,7 +66,7 @@ def plot_profile(model: AxisymmetricModel, truth: Callable | tuple | None = None
                  f"R$_{{95}}$ = {model.R_eff(0.95):.3f}\"", fontsize=9)
     if distance is not None:
         if not (np.isfinite(distance) and distance > 0):
-            raise ValueError(f"distance = {distance!r} pc must be positive")
+            raise InputError(f"distance = {distance!r} pc must be positive")
         top = ax.secondary_xaxis("top", functions=(lambda r: r * distance, lambda a: a / distance))
         top.set_xlabel("r [au]")
     ax.legend(fontsize=8)
@@ -103,9 +104,9 @@ def plot_binned_visibilities(vis: Visibilities, model: AxisymmetricModel, *, bin
         Unit of the baseline axis.
     """
     if units not in _UV_UNITS:
-        raise ValueError(f"units = {units!r} must be one of {sorted(_UV_UNITS)}")
+        raise InputError(f"units = {units!r} must be one of {sorted(_UV_UNITS)}")
     if not (np.isfinite(bin_width) and bin_width > 0):
-        raise ValueError(f"bin_width = {bin_width!r} lambda must be positive")
+        raise InputError(f"bin_width = {bin_width!r} lambda must be positive")
     div, label = _UV_UNITS[units]
     q, re, re_err, im, im_err = _bin(vis, model.geometry, bin_width)
     q_lo = max(q.min() * 0.5, 1.0) if logx else 0.0

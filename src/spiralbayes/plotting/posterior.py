@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..posterior import PARAMETER_LABELS, PARAMETER_NAMES
+from ..exceptions import InputError
+from ..inference.likelihood import PARAMETER_LABELS, PARAMETER_NAMES
 
 __all__ = ["plot_corner", "plot_trace", "plot_template_probabilities"]
 
@@ -21,12 +22,12 @@ def _truth_vector(truths, mu_phi: float | None = None):
     if isinstance(truths, dict):
         unknown = set(truths) - set(PARAMETER_NAMES)
         if unknown:
-            raise ValueError(f"unknown truth keys {sorted(unknown)}: use {PARAMETER_NAMES}")
+            raise InputError(f"unknown truth keys {sorted(unknown)}: use {PARAMETER_NAMES}")
         vec = [truths.get(n) for n in PARAMETER_NAMES]
     else:
         vec = list(truths)
         if len(vec) != len(PARAMETER_NAMES):
-            raise ValueError(f"truths needs {len(PARAMETER_NAMES)} values ({PARAMETER_NAMES})")
+            raise InputError(f"truths needs {len(PARAMETER_NAMES)} values ({PARAMETER_NAMES})")
     if vec[1] is not None and mu_phi is not None:  # wrap phi_p next to the samples
         vec[1] = mu_phi + (vec[1] - mu_phi + np.pi) % (2 * np.pi) - np.pi
     return [None if v is None else float(v) for v in vec]

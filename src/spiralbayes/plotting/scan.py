@@ -8,6 +8,10 @@ convention of :mod:`spiralbayes.geometry`.
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.figure import Figure
+
+from ..exceptions import InputError
+from ..inference.statistics import bic_threshold
 
 __all__ = ["plot_chi2_vs_rp", "plot_heatmap", "plot_heatmap_pair", "plot_template_grid_heatmaps"]
 
@@ -56,11 +60,9 @@ def _mark_best(ax, result, t_index, amplitude, unit):
 def plot_heatmap(result, template=0, *, amplitude=None, unit: str = "au", vmin=None, vmax=None,
                  cmap: str = "RdBu_r", ax=None, mark_best: bool = True):
     """Polar Δχ² heatmap of one template over (r_p, phi_p); returns the Figure."""
-    import matplotlib.pyplot as plt
-
     t = result.template_index(template)
     values = result.delta_chi2(amplitude)[t]
-    fig = ax.figure if ax is not None else plt.figure(figsize=(5.5, 4.8))
+    fig = ax.figure if ax is not None else Figure(figsize=(5.5, 4.8))
     ax = ax or fig.add_subplot(111)
     mesh = _draw(ax, result, values, _norm(values, vmin, vmax), unit, cmap)
     if mark_best:
@@ -73,13 +75,12 @@ def plot_heatmap(result, template=0, *, amplitude=None, unit: str = "au", vmin=N
 def plot_heatmap_pair(result, right, left, *, amplitude=None, unit: str = "au", vmin=None, vmax=None,
                       cmap: str = "RdBu_r"):
     """R and L templates side by side with a shared colour bar (the paper's handedness view)."""
-    import matplotlib.pyplot as plt
-
     idx = [result.template_index(right), result.template_index(left)]
     dchi2 = result.delta_chi2(amplitude)
     values = dchi2[idx]
     norm = _norm(values, vmin, vmax)
-    fig, axes = plt.subplots(1, 2, figsize=(10.5, 4.8), constrained_layout=True)
+    fig = Figure(figsize=(10.5, 4.8), layout="constrained")
+    axes = fig.subplots(1, 2)
     for ax, t in zip(axes, idx):
         mesh = _draw(ax, result, dchi2[t], norm, unit, cmap)
         _mark_best(ax, result, t, amplitude, unit)
@@ -91,18 +92,16 @@ def plot_heatmap_pair(result, right, left, *, amplitude=None, unit: str = "au", 
 
 def plot_template_grid_heatmaps(result, *, hand: str = "R", beta=None, amplitude=None, unit: str = "au"):
     """Heatmaps of every scanned template of one hand (and beta), mass × tau0, shared colours."""
-    import matplotlib.pyplot as plt
-
     chosen = [i for i, m in enumerate(result.templates)
               if m.get("hand") == hand and (beta is None or m.get("beta") == beta)]
     if not chosen:
-        raise ValueError(f"no scanned template with hand={hand!r} and beta={beta!r}")
+        raise InputError(f"no scanned template with hand={hand!r} and beta={beta!r}")
     masses = sorted({result.templates[i].get("mass") for i in chosen})
     taus = sorted({result.templates[i].get("tau0") for i in chosen})
     dchi2 = result.delta_chi2(amplitude)
     norm = _norm(dchi2[chosen])
-    fig, axes = plt.subplots(len(masses), len(taus), figsize=(3 * len(taus), 3 * len(masses)),
-                             squeeze=False, constrained_layout=True)
+    fig = Figure(figsize=(3 * len(taus), 3 * len(masses)), layout="constrained")
+    axes = fig.subplots(len(masses), len(taus), squeeze=False)
     mesh = None
     for i in chosen:
         m = result.templates[i]
@@ -122,17 +121,14 @@ def plot_chi2_vs_rp(result, templates=None, *, quantity: str = "chi2_SA", amplit
     above which such a planet would pass ΔBIC > 0. ``quantity="delta_chi2"``: the best Δχ² over
     phi_p of the data.
     """
-    import matplotlib.pyplot as plt
-
-    from ..likelihood import bic_threshold
-
     if quantity not in ("chi2_SA", "delta_chi2"):
-        raise ValueError(f"quantity must be 'chi2_SA' or 'delta_chi2', got {quantity!r}")
+        raise InputError(f"quantity must be 'chi2_SA' or 'delta_chi2', got {quantity!r}")
     idx = range(len(result.templates)) if templates is None else [result.template_index(t) for t in templates]
     idx = list(idx)
     scale = result.distance if (unit == "au" and result.distance) else 1.0
     r = result.r_p * scale
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
+    ax = fig.subplots()
     for t in idx:
         name = result.templates[t]["name"]
         if quantity == "chi2_SA":

@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 
+from ..exceptions import InputError
 from ..templates.bank import TemplateBank
 from ..templates.template import SpiralTemplate
 
@@ -118,7 +119,7 @@ def plot_bank_overview(bank: TemplateBank, *, beta: float = 0.0, hand: str = "R"
     """
     sub = bank.select(beta=beta, hand=hand)
     if len(sub) == 0:
-        raise ValueError(f"the bank has no templates with beta={beta}, hand={hand!r}")
+        raise InputError(f"the bank has no templates with beta={beta}, hand={hand!r}")
     params = sub.parameters
     masses = np.unique(params["mass"])
     taus = np.unique(params["tau0"])

@@ -15,8 +15,10 @@ planet at φ = 0, hand R = anticlockwise orbit with trailing arms).
 from .bank import TemplateBank, default_bank, default_cache_dir
 from .fargo3d import read_fargo3d
 from .fits import read_fits_template, write_fits_template
+from .generator import make_template, paper_grid
+from .radiative import template_from_perturbation
 from .template import SpiralTemplate
-from .wake import WakeSettings, make_template, paper_grid, template_from_perturbation, wake_shape
+from .wake import WakeSettings, wake_shape
 
 __all__ = [
     "SpiralTemplate",

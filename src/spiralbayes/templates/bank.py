@@ -23,15 +23,18 @@ from pathlib import Path
 
 import numpy as np
 
-from .._provenance import FORMAT_VERSION, atomic_path, provenance_record
+from .._hdf5 import open_file, write_file
+from .._provenance import FORMAT_VERSION, provenance_record
+from ..exceptions import DataFileError, InputError
+from .generator import paper_grid
 from .template import SpiralTemplate, validate_hand
+from .wake import WakeSettings
 
 __all__ = ["TemplateBank", "default_bank", "default_cache_dir"]
 
 log = logging.getLogger(__name__)
 
 BANK_KIND = "spiralbayes.TemplateBank"
-_SCALARS = ("mass", "tau0", "beta", "h_p", "flaring", "wavelength")
 
 
 class TemplateBank(Sequence):
@@ -57,7 +60,7 @@ class TemplateBank(Sequence):
         names = [t.name for t in self._templates]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
-            raise ValueError(f"template names must be unique in a bank; duplicated: {dupes}")
+            raise InputError(f"template names must be unique in a bank; duplicated: {dupes}")
         self._index = {n: i for i, n in enumerate(names)}
         self.provenance = dict(provenance or {})
 
@@ -149,69 +152,31 @@ class TemplateBank(Sequence):
         compression : {None, 'lzf', 'gzip'}
             Dataset compression (default none: fastest to load).
         """
-        import h5py
-
-        path = Path(path)
         prov = provenance_record(**{k: v for k, v in self.provenance.items() if k != "created"})
-        with atomic_path(path) as tmp:
-            with h5py.File(tmp, "w") as f:
-                f.attrs["kind"] = BANK_KIND
-                f.attrs["format_version"] = FORMAT_VERSION
-                f.attrs["provenance"] = json.dumps(prov, default=str, sort_keys=True)
-                f.attrs["order"] = json.dumps(self.names)
-                if "generator_key" in self.provenance:
-                    f.attrs["generator_key"] = str(self.provenance["generator_key"])
-                grp = f.create_group("templates")
-                for t in self._templates:
-                    g = grp.create_group(t.name)
-                    g.create_dataset("delta", data=np.asarray(t.delta, dtype=np.float32),
-                                     compression=compression)
-                    g.create_dataset("x", data=t.x)
-                    g.create_dataset("phi", data=t.phi)
-                    for k in _SCALARS:
-                        g.attrs[k] = float(getattr(t, k))
-                    g.attrs["hand"] = t.hand
-                    g.attrs["name"] = t.name
-                    g.attrs["provenance"] = t.provenance_json()
+        with write_file(path, BANK_KIND) as f:
+            f.attrs["provenance"] = json.dumps(prov, default=str, sort_keys=True)
+            f.attrs["order"] = json.dumps(self.names)
+            if "generator_key" in self.provenance:
+                f.attrs["generator_key"] = str(self.provenance["generator_key"])
+            grp = f.create_group("templates")
+            for t in self._templates:
+                t.to_hdf5_group(grp.create_group(t.name), compression=compression)
         log.info("wrote %d templates to %s", len(self), path)
-        return path
+        return Path(path)
 
     @classmethod
     def load(cls, path) -> "TemplateBank":
         """Read a bank written by :meth:`save`."""
-        import h5py
-
-        path = Path(path)
-        if not path.exists():
-            raise FileNotFoundError(f"template bank {path} does not exist")
-        try:
-            f = h5py.File(path, "r")
-        except OSError as exc:
-            raise ValueError(f"{path} is not a readable HDF5 file ({exc}); rebuild or re-download it") from exc
-        with f:
-            kind = f.attrs.get("kind", "")
-            if kind != BANK_KIND or "templates" not in f:
-                raise ValueError(f"{path} is not a spiralbayes template bank (kind={kind!r})")
+        with open_file(path, BANK_KIND, "template bank") as f:
             version = int(f.attrs.get("format_version", -1))
             if version > FORMAT_VERSION:
-                raise ValueError(
-                    f"{path} has format_version {version}, newer than this spiralbayes "
-                    f"({FORMAT_VERSION}); upgrade spiralbayes"
-                )
+                raise DataFileError(f"{path} has format_version {version}, newer than this spiralbayes "
+                                    f"({FORMAT_VERSION}); upgrade spiralbayes")
+            if "templates" not in f:
+                raise DataFileError(f"{path} holds no templates group; rebuild or re-download it")
             order = json.loads(f.attrs["order"]) if "order" in f.attrs else sorted(f["templates"])
             prov = json.loads(f.attrs.get("provenance", "{}"))
-            templates = []
-            for name in order:
-                g = f["templates"][name]
-                a = g.attrs
-                templates.append(
-                    SpiralTemplate(
-                        x=g["x"][()], phi=g["phi"][()], delta=g["delta"][()],
-                        hand=str(a["hand"]), name=str(a["name"]),
-                        provenance=json.loads(a.get("provenance", "{}")),
-                        **{k: float(a[k]) for k in _SCALARS},
-                    )
-                )
+            templates = [SpiralTemplate.from_hdf5_group(f["templates"][name]) for name in order]
         return cls(templates, prov)
 
 
@@ -230,7 +195,7 @@ def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = Fal
                  progress: bool = False, **options) -> TemplateBank:
     """The paper's 64-template bank from the built-in generator, cached on disk.
 
-    Built on first use with :func:`~spiralbayes.templates.wake.paper_grid` (a few seconds) and
+    Built on first use with :func:`~spiralbayes.templates.generator.paper_grid` (a few seconds) and
     stored as ``bank-<key>.h5`` in ``cache_dir`` (default :func:`default_cache_dir`), where ``key`` hashes
     the generator settings and version, so a changed generator rebuilds. Loading a cached bank
     takes well under a second.
@@ -246,8 +211,6 @@ def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = Fal
     **options
         :class:`~spiralbayes.templates.wake.WakeSettings` fields (e.g. ``n_phi``, ``wavelength``).
     """
-    from .wake import WakeSettings, paper_grid
-
     settings = WakeSettings(**options)
     key = settings.key()
     folder = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
@@ -264,7 +227,7 @@ def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = Fal
     t0 = time.perf_counter()
     templates = paper_grid(progress=progress, **options)
     bank = TemplateBank(templates, {"generator_key": key, "generator_settings": settings.to_dict(),
-                                    "generator": "spiralbayes.templates.wake.paper_grid"})
+                                    "generator": "spiralbayes.templates.generator.paper_grid"})
     log.info("built the default template bank in %.1f s", time.perf_counter() - t0)
     try:
         bank.save(path)

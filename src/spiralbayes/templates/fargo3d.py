@@ -16,7 +16,7 @@ Output layout (FARGO3D ``src/output.c``, ``src/split.c``):
 
 The map is rotated so the planet sits at φ = 0 (an integer roll of cells plus linear
 interpolation for the sub-cell remainder), then passed through the same S22 radiative transfer as
-the built-in generator (:func:`~spiralbayes.templates.wake.template_from_perturbation`).
+the built-in generator (:func:`~spiralbayes.templates.radiative.template_from_perturbation`).
 """
 
 from __future__ import annotations
@@ -27,20 +27,21 @@ from pathlib import Path
 
 import numpy as np
 
+from ..exceptions import InputError, MissingFileError
+from ..units import TWO_PI
+from .radiative import template_from_perturbation
 from .template import SpiralTemplate, validate_hand
-from .wake import template_from_perturbation
 
 __all__ = ["read_fargo3d", "read_variables", "read_field", "read_planet", "read_domain"]
 
 log = logging.getLogger(__name__)
 
 NGHY = 3  # ghost cells at each radial end of domain_y.dat
-TWO_PI = 2.0 * np.pi
 
 
 def _need(path: Path, what: str) -> Path:
     if not path.exists():
-        raise FileNotFoundError(
+        raise MissingFileError(
             f"FARGO3D {what} {path.name!r} not found in {path.parent}: point `directory` at the run's "
             "output directory (OUTPUTDIR, which holds variables.par, domain_x.dat, domain_y.dat and "
             "the field files)"
@@ -77,9 +78,9 @@ def read_domain(directory, params: dict | None = None) -> tuple[np.ndarray, np.n
     nx = int(params.get("NX", phi_e.size - 1))
     ny = int(params.get("NY", r_all.size - 1 - 2 * NGHY))
     if phi_e.size != nx + 1:
-        raise ValueError(f"domain_x.dat has {phi_e.size} edges, expected NX + 1 = {nx + 1} (variables.par)")
+        raise InputError(f"domain_x.dat has {phi_e.size} edges, expected NX + 1 = {nx + 1} (variables.par)")
     if r_all.size != ny + 1 + 2 * NGHY:
-        raise ValueError(
+        raise InputError(
             f"domain_y.dat has {r_all.size} edges, expected NY + 1 + 2*{NGHY} = {ny + 1 + 2 * NGHY} "
             "(FARGO3D writes 3 ghost edges at each end)"
         )
@@ -108,7 +109,7 @@ def _rank_blocks(directory: Path, ncpu: int, ny: int, nz: int):
             blocks.append((y0, yn - y0 + 1))
         else:
             if nz != 1:
-                raise ValueError(
+                raise InputError(
                     f"per-rank output of a 3-D run needs {inf.name} (written by FARGO3D) to place the blocks"
                 )
             rest, base = ny % ncpu, ny // ncpu
@@ -130,16 +131,16 @@ def read_field(directory, fluid: str, field: str, n: int, params: dict | None = 
     try:
         nx, ny, nz = int(params["NX"]), int(params["NY"]), int(params.get("NZ", 1))
     except KeyError as exc:
-        raise ValueError(f"variables.par in {directory} lacks {exc.args[0]}; is it a FARGO3D output?") from None
+        raise InputError(f"variables.par in {directory} lacks {exc.args[0]}; is it a FARGO3D output?") from None
     if nz != 1:
-        raise ValueError(f"NZ = {nz}: only 2-D (r, φ) FARGO3D runs are supported; take a 2-D run")
+        raise InputError(f"NZ = {nz}: only 2-D (r, φ) FARGO3D runs are supported; take a 2-D run")
     names = _field_names(fluid, field, n, pattern)
     for name in names:
         path = directory / name
         if path.exists():
             data = np.fromfile(path, dtype=np.float64)
             if data.size != nx * ny * nz:
-                raise ValueError(
+                raise InputError(
                     f"{path} holds {data.size} values, expected NX*NY*NZ = {nx * ny * nz}; "
                     "is it from this run (check variables.par)?"
                 )
@@ -154,19 +155,19 @@ def read_field(directory, fluid: str, field: str, n: int, params: dict | None = 
             continue
         ids = [int(p.stem.rsplit("_", 1)[1]) for p in ranks]
         if ids != list(range(len(ids))):
-            raise FileNotFoundError(f"per-rank files {stem}_*.dat are incomplete: found ranks {ids}")
+            raise MissingFileError(f"per-rank files {stem}_*.dat are incomplete: found ranks {ids}")
         out = np.empty((ny, nx))
         for p, (y0, nyl) in zip(ranks, _rank_blocks(directory, len(ranks), ny, nz)):
             block = np.fromfile(p, dtype=np.float64)
             if block.size != nyl * nx:
-                raise ValueError(
+                raise InputError(
                     f"{p.name} holds {block.size} values, expected {nyl} radii x NX = {nyl * nx} "
                     f"for {len(ranks)} ranks; add the run's grid*.inf files or merge the outputs"
                 )
             out[y0: y0 + nyl] = block.reshape(nyl, nx)
         return out
     looked = ", ".join(names + [n[:-4] + "_<rank>.dat" for n in names])
-    raise FileNotFoundError(
+    raise MissingFileError(
         f"FARGO3D field {field!r} of fluid {fluid!r} at output {n} not found in {directory} "
         f"(looked for {looked}); check `fluid` (e.g. 'gas', 'dust1'), the output number, or pass "
         "`pattern=` with the file naming of your run"
@@ -179,7 +180,7 @@ def read_planet(directory, n: int, planet: int = 0) -> dict:
     rows = np.loadtxt(path, ndmin=2)
     match = rows[rows[:, 0].astype(int) == int(n)]
     if match.size == 0:
-        raise ValueError(f"{path.name} has no row for output {n} (outputs {rows[0, 0]:g}–{rows[-1, 0]:g})")
+        raise InputError(f"{path.name} has no row for output {n} (outputs {rows[0, 0]:g}–{rows[-1, 0]:g})")
     row = match[-1]
     x, y = row[1], row[2]
     return {"r": float(np.hypot(x, y)), "phi": float(np.arctan2(y, x)),
@@ -269,13 +270,13 @@ def read_fargo3d(
     hand = validate_hand(hand)
     directory = Path(directory)
     if not directory.is_dir():
-        raise FileNotFoundError(f"FARGO3D output directory {directory} does not exist")
+        raise MissingFileError(f"FARGO3D output directory {directory} does not exist")
     params = read_variables(directory)
     phi_e, r_e = read_domain(directory, params)
     phi_c = 0.5 * (phi_e[1:] + phi_e[:-1])
     r_c = 0.5 * (r_e[1:] + r_e[:-1])
     if not np.allclose(np.diff(phi_e), TWO_PI / phi_c.size, rtol=1e-6):
-        raise ValueError("domain_x.dat is not a uniform full circle in azimuth; only such runs are supported")
+        raise InputError("domain_x.dat is not a uniform full circle in azimuth; only such runs are supported")
     sigma = read_field(directory, fluid, "dens", output, params, pattern)
     planet = read_planet(directory, output)
     r_p, phi_p = planet["r"], planet["phi"]
@@ -287,20 +288,20 @@ def read_fargo3d(
             sigma_ref = _azimuthal_mean_at(sigma0, r_c, r_p)
         except FileNotFoundError:
             if "SIGMA0" not in params:
-                raise ValueError(
+                raise InputError(
                     "cannot set Σ_d,0(r_p) for τ0: no output 0 and no SIGMA0 in variables.par; pass sigma_ref="
                 ) from None
             r0 = float(params.get("R0", 1.0))
             sigma_ref = float(params["SIGMA0"]) * (r_p / r0) ** -float(params.get("SIGMASLOPE", 0.0))
             if fluid != "gas":
                 if "DUST_TO_GAS" not in params:
-                    raise ValueError(
+                    raise InputError(
                         f"fluid {fluid!r}: no output 0 and no DUST_TO_GAS in variables.par to scale SIGMA0; "
                         "pass sigma_ref="
                     ) from None
                 sigma_ref *= float(params["DUST_TO_GAS"])
     if not np.isfinite(sigma_ref) or sigma_ref <= 0:
-        raise ValueError(f"Σ_d,0(r_p) = {sigma_ref!r} is not positive; pass sigma_ref=")
+        raise InputError(f"Σ_d,0(r_p) = {sigma_ref!r} is not positive; pass sigma_ref=")
 
     # temperature perturbation
     tfield = None
@@ -320,17 +321,17 @@ def read_fargo3d(
                 gas = sigma if fluid == "gas" else read_field(directory, "gas", "dens", output, params)
                 tfield = energy / gas
             else:
-                raise ValueError(f"unknown eos {eos!r}: use 'auto', 'isothermal' or 'adiabatic'")
+                raise InputError(f"unknown eos {eos!r}: use 'auto', 'isothermal' or 'adiabatic'")
 
     sigma_rot, phi = _rotate_to_planet(sigma, phi_c, phi_p)
     x = r_c / r_p
     keep = np.ones(x.size, bool) if x_range is None else (x >= x_range[0]) & (x <= x_range[1])
     if keep.sum() < 2:
-        raise ValueError(f"x_range {x_range} keeps fewer than 2 radii of the run (x = {x.min():.3g}–{x.max():.3g})")
+        raise InputError(f"x_range {x_range} keeps fewer than 2 radii of the run (x = {x.min():.3g}–{x.max():.3g})")
     x, sigma_rot = x[keep], sigma_rot[keep]
     mean = sigma_rot.mean(axis=1)
     if np.any(mean <= 0):
-        raise ValueError(f"{fluid} density has non-positive azimuthal means; check the field")
+        raise InputError(f"{fluid} density has non-positive azimuthal means; check the field")
     tfac = None
     if tfield is not None:
         t_rot = _rotate_to_planet(tfield, phi_c, phi_p)[0][keep]

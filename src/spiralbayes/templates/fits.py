@@ -19,11 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..exceptions import InputError, MissingFileError
+from ..units import TWO_PI
 from .template import SpiralTemplate, template_name, validate_hand
 
 __all__ = ["read_fits_template", "write_fits_template"]
 
-TWO_PI = 2.0 * np.pi
 SUFFIXES = {
     "delta": "_intens_frac_rt.fits",
     "r": "_rcenters.fits",
@@ -42,14 +43,14 @@ def _fits():
 
 def _read(path: Path, what: str) -> np.ndarray:
     if not path.exists():
-        raise FileNotFoundError(
+        raise MissingFileError(
             f"FITS {what} file {path} not found; give its path explicitly (r_file=, phi_file=) or use "
             f"the paper's naming <base>{SUFFIXES.get(what, '.fits')}"
         )
     with _fits().open(path) as hdul:
         data = hdul[0].data
         if data is None:
-            raise ValueError(f"{path}: primary HDU holds no data")
+            raise InputError(f"{path}: primary HDU holds no data")
         return np.asarray(data, dtype=float)
 
 
@@ -71,7 +72,7 @@ def _resolve(path, r_file, phi_file, phi_unshifted_file):
 
     r_path, phi_path = pick(r_file, "r"), pick(phi_file, "phi")
     if r_path is None or phi_path is None:
-        raise ValueError(
+        raise InputError(
             f"{path}: give r_file= and phi_file= (the r- and φ-centre FITS files) when the δ file does "
             f"not follow the paper's naming <base>{SUFFIXES['delta']}"
         )
@@ -122,17 +123,17 @@ def read_fits_template(
     """
     hand = validate_hand(hand)
     if not np.isfinite(r_planet) or r_planet <= 0:
-        raise ValueError(f"r_planet must be positive, got {r_planet!r}")
+        raise InputError(f"r_planet must be positive, got {r_planet!r}")
     delta_path, r_path, phi_path, un_path = _resolve(path, r_file, phi_file, phi_unshifted_file)
     delta = _read(delta_path, "delta")
     r = np.ravel(_read(r_path, "r"))
     phi_c = np.ravel(_read(phi_path, "phi"))
     if delta.ndim != 2:
-        raise ValueError(f"{delta_path}: δ must be a 2-D (r, φ) map, got shape {delta.shape}")
+        raise InputError(f"{delta_path}: δ must be a 2-D (r, φ) map, got shape {delta.shape}")
     if delta.shape == (phi_c.size, r.size) and delta.shape != (r.size, phi_c.size):
         delta = delta.T
     if delta.shape != (r.size, phi_c.size):
-        raise ValueError(
+        raise InputError(
             f"{delta_path}: δ has shape {delta.shape}, which matches neither (n_r, n_φ) = "
             f"({r.size}, {phi_c.size}) nor its transpose from {r_path.name} and {phi_path.name}"
         )

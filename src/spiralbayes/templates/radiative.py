@@ -17,26 +17,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..units import AU, M_SUN
+from ..exceptions import InputError
+from ..units import AU, C_LIGHT, G_NEWTON, H_PLANCK, K_BOLTZMANN, M_HYDROGEN, M_SUN
+from .template import SpiralTemplate, check_tau0, template_name
 
 __all__ = [
-    "H_PLANCK",
-    "K_BOLTZMANN",
-    "C_LIGHT",
-    "G_NEWTON",
-    "M_HYDROGEN",
     "planck_nu",
     "dlnB_dlnT",
     "midplane_temperature",
     "brightness",
     "residual",
+    "template_from_perturbation",
 ]
-
-H_PLANCK = 6.62607015e-34  # J s (SI 2019, exact)
-K_BOLTZMANN = 1.380649e-23  # J/K (SI 2019, exact)
-C_LIGHT = 2.99792458e8  # m/s (exact)
-G_NEWTON = 6.67430e-11  # m^3 kg^-1 s^-2 (CODATA 2018)
-M_HYDROGEN = 1.6735575e-27  # kg, mass of a hydrogen atom
 
 
 def planck_nu(T, wavelength: float) -> np.ndarray:
@@ -96,3 +88,76 @@ def residual(intensity, axis: int = -1) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         d = np.where(mean > 0, intensity / mean - 1.0, 0.0)
     return d
+
+
+def template_from_perturbation(
+    x,
+    phi,
+    dsigma,
+    tau0: float,
+    *,
+    temperature_factor=None,
+    sigma_axisym=None,
+    hand: str = "R",
+    mass: float = float("nan"),
+    beta: float = float("nan"),
+    h_p: float = 0.07,
+    flaring: float = 0.25,
+    sigma_slope: float = 1.0,
+    wavelength: float = 0.87e-3,
+    mstar: float = 0.8,
+    r_p_au: float = 50.0,
+    mu: float = 2.34,
+    name: str | None = None,
+    provenance: dict | None = None,
+    store_brightness: bool = True,
+) -> SpiralTemplate:
+    """S22-style radiative transfer of a surface-density map into a :class:`SpiralTemplate`.
+
+    Parameters
+    ----------
+    x, phi : 1-D arrays
+        ``r/r_p`` (increasing) and azimuths ``2πk/n`` [rad], planet at φ = 0.
+    dsigma : (n_x, n_phi) array
+        ``Σ_d/Σ_d,axisym − 1`` (dust follows gas for Stokes number ≲ 0.1).
+    tau0 : float
+        Initial optical depth at ``r_p``: ``τ = τ0 Σ_d/Σ_d,0(r_p)``.
+    temperature_factor : (n_x, n_phi) array, optional
+        ``T/T_0(r)`` (1 if omitted: isothermal).
+    sigma_axisym : (n_x,) array, optional
+        Axisymmetric ``Σ_d/Σ_d,0(r_p)`` (default ``x^{-p}``, no gap).
+    hand : {'R', 'L'}
+        Hand of the input map; the template keeps it.
+    wavelength, mstar, r_p_au, mu, h_p, flaring : float
+        Observing wavelength [m] and the disc parameters of the temperature
+        (:func:`~spiralbayes.templates.radiative.midplane_temperature`).
+
+    Returns
+    -------
+    SpiralTemplate
+        ``δ = I/<I>_φ − 1`` with ``I = B_ν(T)(1 − e^{−τ})`` (float32 δ).
+    """
+    check_tau0(tau0)
+    x = np.asarray(x, dtype=float)
+    phi = np.asarray(phi, dtype=float)
+    dsigma = np.asarray(dsigma, dtype=float)
+    if dsigma.shape != (x.size, phi.size):
+        raise InputError(f"dsigma has shape {dsigma.shape}, expected ({x.size}, {phi.size})")
+    sig_ax = x**-sigma_slope if sigma_axisym is None else np.asarray(sigma_axisym, dtype=float)
+    ratio = np.clip(1.0 + dsigma, 1e-3, None)
+    tau = tau0 * sig_ax[:, None] * ratio
+    T = midplane_temperature(x, r_p_au=r_p_au, mstar=mstar, h_p=h_p, flaring=flaring, mu=mu)[:, None]
+    if temperature_factor is not None:
+        T = T * np.asarray(temperature_factor, dtype=float)
+    intensity = brightness(tau, T, wavelength)
+    delta = residual(intensity, axis=1).astype(np.float32)
+    bright = None
+    if store_brightness:
+        i_p = np.argmin(np.abs(np.log(x)))
+        ref = intensity[i_p].mean()
+        bright = intensity / ref if ref > 0 else intensity
+    return SpiralTemplate(
+        x=x, phi=phi, delta=delta, mass=mass, tau0=tau0, beta=beta, h_p=h_p, flaring=flaring,
+        wavelength=wavelength, hand=hand, name=name or template_name(mass, tau0, beta, hand),
+        provenance=provenance or {}, brightness=bright,
+    )

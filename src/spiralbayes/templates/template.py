@@ -21,26 +21,44 @@ from __future__ import annotations
 import json
 import logging
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
-__all__ = ["SpiralTemplate", "HANDS", "validate_hand", "template_name"]
+from .._provenance import json_default
+from ..exceptions import InputError
+from ..units import TWO_PI
+
+__all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "template_metadata", "check_mass_beta", "check_tau0", "template_name", "validate_hand"]
 
 log = logging.getLogger(__name__)
 
 HANDS = ("R", "L")
-TWO_PI = 2.0 * np.pi
+SCALAR_FIELDS = ("mass", "tau0", "beta", "h_p", "flaring", "wavelength")
+"""Numeric metadata every template carries (NaN where unknown)."""
 
 
 def validate_hand(hand: str) -> str:
     """Return ``'R'`` or ``'L'``; raise ``ValueError`` for anything else."""
     h = str(hand).strip().upper()
     if h not in HANDS:
-        raise ValueError(
+        raise InputError(
             f"unknown hand {hand!r}: use 'R' (planet orbiting anticlockwise, trailing arms) or 'L'"
         )
     return h
+
+
+def check_mass_beta(mass, beta) -> None:
+    """Raise :class:`InputError` unless the mass [M_th] is positive and beta non-negative."""
+    if not np.isfinite(mass) or mass <= 0:
+        raise InputError(f"planet mass must be positive (in thermal masses M_th), got {mass!r}")
+    if not np.isfinite(beta) or beta < 0:
+        raise InputError(f"cooling time beta must be >= 0 (0 = isothermal), got {beta!r}")
+
+
+def check_tau0(tau0) -> None:
+    """Raise :class:`InputError` unless tau0 is positive and finite."""
+    if not np.isfinite(tau0) or tau0 <= 0:
+        raise InputError(f"tau0 (initial optical depth at r_p) must be positive, got {tau0!r}")
 
 
 def template_name(mass: float, tau0: float, beta: float, hand: str, prefix: str = "wake") -> str:
@@ -104,28 +122,28 @@ class SpiralTemplate:
             self.delta = self.delta.astype(float)
         self.hand = validate_hand(self.hand)
         if self.x.ndim != 1 or self.x.size < 2:
-            raise ValueError(f"SpiralTemplate.x must be 1-D with >= 2 radii, got shape {self.x.shape}")
+            raise InputError(f"SpiralTemplate.x must be 1-D with >= 2 radii, got shape {self.x.shape}")
         if np.any(self.x <= 0) or np.any(np.diff(self.x) <= 0):
-            raise ValueError("SpiralTemplate.x (r/r_p) must be positive and strictly increasing")
+            raise InputError("SpiralTemplate.x (r/r_p) must be positive and strictly increasing")
         if self.phi.ndim != 1 or self.phi.size < 2:
-            raise ValueError(f"SpiralTemplate.phi must be 1-D with >= 2 azimuths, got {self.phi.shape}")
+            raise InputError(f"SpiralTemplate.phi must be 1-D with >= 2 azimuths, got {self.phi.shape}")
         dphi = np.diff(self.phi)
         if np.any(dphi <= 0) or not np.allclose(dphi, TWO_PI / self.phi.size, rtol=1e-6, atol=1e-9):
-            raise ValueError(
+            raise InputError(
                 "SpiralTemplate.phi must be uniform with spacing 2π/n_phi (cell centres covering "
                 "one full turn); resample the map onto such a grid first"
             )
         if self.delta.shape != (self.x.size, self.phi.size):
-            raise ValueError(
+            raise InputError(
                 f"SpiralTemplate.delta has shape {self.delta.shape}, expected (len(x), len(phi)) = "
                 f"({self.x.size}, {self.phi.size})"
             )
         if not np.all(np.isfinite(self.delta)):
-            raise ValueError("SpiralTemplate.delta contains NaN or inf; replace them (e.g. by 0) first")
+            raise InputError("SpiralTemplate.delta contains NaN or inf; replace them (e.g. by 0) first")
         if self.brightness is not None:
             self.brightness = np.asarray(self.brightness, dtype=float)
             if self.brightness.shape != self.delta.shape:
-                raise ValueError("SpiralTemplate.brightness must have the shape of delta")
+                raise InputError("SpiralTemplate.brightness must have the shape of delta")
         for key in ("mass", "tau0", "beta", "h_p", "flaring", "wavelength"):
             setattr(self, key, float(getattr(self, key)))
         if not self.name:
@@ -204,7 +222,7 @@ class SpiralTemplate:
             ``[x[0], x[-1]]``.
         """
         if not np.isfinite(r_p) or r_p <= 0:
-            raise ValueError(f"r_p must be positive and finite, got {r_p!r}")
+            raise InputError(f"r_p must be positive and finite, got {r_p!r}")
         r, phi = np.broadcast_arrays(np.asarray(r, dtype=float), np.asarray(phi, dtype=float))
         with np.errstate(divide="ignore", invalid="ignore"):
             u = np.log(r / r_p)
@@ -218,7 +236,7 @@ class SpiralTemplate:
         x_new = np.asarray(x_new, dtype=float)
         n_phi = self.phi.size if n_phi is None else int(n_phi)
         if n_phi < 2:
-            raise ValueError(f"n_phi must be >= 2, got {n_phi}")
+            raise InputError(f"n_phi must be >= 2, got {n_phi}")
         phi_new = TWO_PI * np.arange(n_phi) / n_phi
         delta = self.evaluate(x_new[:, None], phi_new[None, :], 1.0, 0.0).astype(self.delta.dtype)
         bright = None
@@ -231,18 +249,24 @@ class SpiralTemplate:
         return replace(self, x=x_new, phi=phi_new, delta=delta, provenance=prov, brightness=bright)
 
     # ------------------------------------------------------------------ I/O
-    def save(self, path) -> Path:
-        """Write this template alone to an HDF5 file (a one-template :class:`TemplateBank`)."""
-        from .bank import TemplateBank
-
-        return TemplateBank([self]).save(path)
+    def to_hdf5_group(self, group, *, compression: str | None = None) -> None:
+        """Store the template in an open ``h5py.Group`` (datasets delta, x, phi; scalars as attributes)."""
+        group.create_dataset("delta", data=np.asarray(self.delta, dtype=np.float32), compression=compression)
+        group.create_dataset("x", data=self.x)
+        group.create_dataset("phi", data=self.phi)
+        for k in SCALAR_FIELDS:
+            group.attrs[k] = float(getattr(self, k))
+        group.attrs["hand"] = self.hand
+        group.attrs["name"] = self.name
+        group.attrs["provenance"] = self.provenance_json()
 
     @classmethod
-    def load(cls, path, name: str | int = 0) -> "SpiralTemplate":
-        """Read one template (by name or index) from an HDF5 bank file."""
-        from .bank import TemplateBank
-
-        return TemplateBank.load(path)[name]
+    def from_hdf5_group(cls, group) -> "SpiralTemplate":
+        """Read a template written by :meth:`to_hdf5_group`."""
+        a = group.attrs
+        return cls(x=group["x"][()], phi=group["phi"][()], delta=group["delta"][()], hand=str(a["hand"]),
+                   name=str(a["name"]), provenance=json.loads(a.get("provenance", "{}")),
+                   **{k: float(a[k]) for k in SCALAR_FIELDS})
 
     def provenance_json(self) -> str:
         """``provenance`` serialised to JSON (non-JSON values become strings)."""
@@ -298,3 +322,11 @@ def _bilinear(table: np.ndarray, u_grid: np.ndarray, phi_grid: np.ndarray, u, ph
     )
     out[inside] = v
     return out
+
+
+def template_metadata(template) -> dict:
+    """JSON-able description of a template (name and physical parameters)."""
+    keys = ("name", "mass", "tau0", "beta", "hand", "h_p", "flaring", "wavelength")
+    meta = {k: getattr(template, k) for k in keys if getattr(template, k, None) is not None}
+    meta.setdefault("name", f"template{id(template)}")
+    return json.loads(json.dumps(meta, default=json_default))

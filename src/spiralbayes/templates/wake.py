@@ -61,8 +61,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .radiative import brightness, midplane_temperature, residual
-from .template import SpiralTemplate, template_name, validate_hand
+from ..exceptions import InputError
+from ..units import TWO_PI
+from .burgers import solve_burgers
+from .template import check_mass_beta, validate_hand
 
 __all__ = [
     "GENERATOR_VERSION",
@@ -77,11 +79,7 @@ __all__ = [
     "cooling_response",
     "gap_profile",
     "linear_profile",
-    "solve_burgers",
     "surface_density_perturbation",
-    "template_from_perturbation",
-    "make_template",
-    "paper_grid",
 ]
 
 log = logging.getLogger(__name__)
@@ -96,7 +94,6 @@ PAPER_TAUS = (0.1, 0.3, 1.0, 3.0)
 PAPER_BETAS = (0.0, 10.0)
 """Cooling times of the paper's grid (0 = isothermal)."""
 
-TWO_PI = 2.0 * np.pi
 _N_FINE = 4001  # points per side for the radial quadratures
 
 
@@ -187,7 +184,7 @@ class WakeSettings:
         bad = [k for k, ok in checks.items() if not ok]
         if bad:
             values = {k: getattr(self, k) for k in bad}
-            raise ValueError(f"invalid WakeSettings {values}: see the WakeSettings docstring for ranges")
+            raise InputError(f"invalid WakeSettings {values}: see the WakeSettings docstring for ranges")
         object.__setattr__(self, "n_x", int(self.n_x))
         object.__setattr__(self, "n_phi", int(self.n_phi))
         object.__setattr__(self, "n_eta", int(self.n_eta))
@@ -360,72 +357,6 @@ def linear_profile(eta, amp: float = 0.5, width: float = 0.8) -> np.ndarray:
     return amp * (pos - neg)
 
 
-# ---------------------------------------------------------------------------- Burgers solver
-def _godunov_flux(uL, uR):
-    """Exact Godunov flux of the Burgers equation ``f(u) = u²/2``."""
-    fL = 0.5 * uL * uL
-    fR = 0.5 * uR * uR
-    shock = uL > uR
-    f_shock = np.where(uL + uR > 0, fL, fR)
-    f_rare = np.where(uL >= 0, fL, np.where(uR <= 0, fR, 0.0))
-    return np.where(shock, f_shock, f_rare)
-
-
-def _minmod(a, b):
-    return np.where(a * b > 0, np.where(np.abs(a) < np.abs(b), a, b), 0.0)
-
-
-def _burgers_step(u, dt, dx):
-    """One MUSCL–Hancock step (minmod slopes, exact Riemann flux), periodic boundaries."""
-    du_l = u - np.roll(u, 1)
-    slope = _minmod(du_l, np.roll(du_l, -1))
-    lam = dt / dx
-    # half-step predictor of the face values: u_t = -u u_x
-    ul = u - 0.5 * slope
-    ur = u + 0.5 * slope
-    corr = 0.5 * lam * (0.5 * ur * ur - 0.5 * ul * ul)
-    face_left_of_next = ur - corr  # u_{i+1/2}^-  (from cell i)
-    face_right = np.roll(ul - corr, -1)  # u_{i+1/2}^+ (from cell i+1)
-    flux = _godunov_flux(face_left_of_next, face_right)
-    return u - lam * (flux - np.roll(flux, 1))
-
-
-def solve_burgers(u0, dx: float, times, cfl: float = 0.8) -> np.ndarray:
-    """Solve ``∂_t u + u ∂_x u = 0`` on a periodic grid and return ``u`` at ``times``.
-
-    Parameters
-    ----------
-    u0 : (n,) array
-        Initial profile on a uniform periodic grid of spacing ``dx``.
-    times : (m,) array
-        Non-negative output times (any order; duplicates allowed).
-    cfl : float
-        Courant number.
-
-    Returns
-    -------
-    (m, n) array
-        The solution at each requested time (MUSCL–Hancock with the exact Godunov flux; second
-        order in smooth regions, shocks over ~2 cells, conservative so the N-wave decay is right).
-    """
-    times = np.asarray(times, dtype=float)
-    if np.any(times < 0) or not np.all(np.isfinite(times)):
-        raise ValueError("solve_burgers: times must be finite and non-negative")
-    order = np.argsort(times, kind="stable")
-    out = np.empty((times.size, np.size(u0)))
-    u = np.array(u0, dtype=float)
-    t = 0.0
-    for k in order:
-        target = times[k]
-        while t < target - 1e-12 * max(1.0, target):
-            umax = np.max(np.abs(u))
-            dt = target - t if umax == 0 else min(cfl * dx / umax, target - t)
-            u = _burgers_step(u, dt, dx)
-            t += dt
-        out[k] = u
-    return out
-
-
 # ---------------------------------------------------------------------------- the wake map
 def _periodic_interp(table: np.ndarray, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """Linear interpolation of ``table[rows[i], ·]`` at fractional periodic indices ``pos[i, j]``."""
@@ -458,7 +389,7 @@ def surface_density_perturbation(mass: float, beta: float, settings: WakeSetting
     The result is cached and read-only.
     """
     st = settings or WakeSettings()
-    _check_mass_beta(mass, beta)
+    check_mass_beta(mass, beta)
     return _cached_perturbation(float(mass), float(beta), st)
 
 
@@ -502,262 +433,3 @@ def _primary_and_secondary(x, phi, mass, beta, st: WakeSettings) -> np.ndarray:
                 phi_sep = np.radians(102.0) * (qp / 1e-3) ** 0.2  # Fung & Dong (2015)
                 dsig[sel] += (w_mass * w_x[sel])[:, None] * primary(phi + phi_sep, sel)
     return dsig
-
-
-def _check_mass_beta(mass, beta):
-    if not np.isfinite(mass) or mass <= 0:
-        raise ValueError(f"planet mass must be positive (in thermal masses M_th), got {mass!r}")
-    if not np.isfinite(beta) or beta < 0:
-        raise ValueError(f"cooling time beta must be >= 0 (0 = isothermal), got {beta!r}")
-
-
-def _check_tau0(tau0):
-    if not np.isfinite(tau0) or tau0 <= 0:
-        raise ValueError(f"tau0 (initial optical depth at r_p) must be positive, got {tau0!r}")
-
-
-# ---------------------------------------------------------------------------- radiative transfer
-def template_from_perturbation(
-    x,
-    phi,
-    dsigma,
-    tau0: float,
-    *,
-    temperature_factor=None,
-    sigma_axisym=None,
-    hand: str = "R",
-    mass: float = float("nan"),
-    beta: float = float("nan"),
-    h_p: float = 0.07,
-    flaring: float = 0.25,
-    sigma_slope: float = 1.0,
-    wavelength: float = 0.87e-3,
-    mstar: float = 0.8,
-    r_p_au: float = 50.0,
-    mu: float = 2.34,
-    name: str | None = None,
-    provenance: dict | None = None,
-    store_brightness: bool = True,
-) -> SpiralTemplate:
-    """S22-style radiative transfer of a surface-density map into a :class:`SpiralTemplate`.
-
-    Parameters
-    ----------
-    x, phi : 1-D arrays
-        ``r/r_p`` (increasing) and azimuths ``2πk/n`` [rad], planet at φ = 0.
-    dsigma : (n_x, n_phi) array
-        ``Σ_d/Σ_d,axisym − 1`` (dust follows gas for Stokes number ≲ 0.1).
-    tau0 : float
-        Initial optical depth at ``r_p``: ``τ = τ0 Σ_d/Σ_d,0(r_p)``.
-    temperature_factor : (n_x, n_phi) array, optional
-        ``T/T_0(r)`` (1 if omitted: isothermal).
-    sigma_axisym : (n_x,) array, optional
-        Axisymmetric ``Σ_d/Σ_d,0(r_p)`` (default ``x^{-p}``, no gap).
-    hand : {'R', 'L'}
-        Hand of the input map; the template keeps it.
-    wavelength, mstar, r_p_au, mu, h_p, flaring : float
-        Observing wavelength [m] and the disc parameters of the temperature
-        (:func:`~spiralbayes.templates.radiative.midplane_temperature`).
-
-    Returns
-    -------
-    SpiralTemplate
-        ``δ = I/<I>_φ − 1`` with ``I = B_ν(T)(1 − e^{−τ})`` (float32 δ).
-    """
-    _check_tau0(tau0)
-    x = np.asarray(x, dtype=float)
-    phi = np.asarray(phi, dtype=float)
-    dsigma = np.asarray(dsigma, dtype=float)
-    if dsigma.shape != (x.size, phi.size):
-        raise ValueError(f"dsigma has shape {dsigma.shape}, expected ({x.size}, {phi.size})")
-    sig_ax = x**-sigma_slope if sigma_axisym is None else np.asarray(sigma_axisym, dtype=float)
-    ratio = np.clip(1.0 + dsigma, 1e-3, None)
-    tau = tau0 * sig_ax[:, None] * ratio
-    T = midplane_temperature(x, r_p_au=r_p_au, mstar=mstar, h_p=h_p, flaring=flaring, mu=mu)[:, None]
-    if temperature_factor is not None:
-        T = T * np.asarray(temperature_factor, dtype=float)
-    intensity = brightness(tau, T, wavelength)
-    delta = residual(intensity, axis=1).astype(np.float32)
-    bright = None
-    if store_brightness:
-        i_p = np.argmin(np.abs(np.log(x)))
-        ref = intensity[i_p].mean()
-        bright = intensity / ref if ref > 0 else intensity
-    return SpiralTemplate(
-        x=x, phi=phi, delta=delta, mass=mass, tau0=tau0, beta=beta, h_p=h_p, flaring=flaring,
-        wavelength=wavelength, hand=hand, name=name or template_name(mass, tau0, beta, hand),
-        provenance=provenance or {}, brightness=bright,
-    )
-
-
-def make_template(
-    mass: float,
-    tau0: float,
-    beta: float,
-    hand: str = "R",
-    *,
-    h_p: float = 0.07,
-    flaring: float = 0.25,
-    wavelength: float = 0.87e-3,
-    n_x: int = 320,
-    n_phi: int = 720,
-    x_range: tuple[float, float] = (0.2, 2.2),
-    backend: str = "builtin",
-    store_brightness: bool = True,
-    **options,
-) -> SpiralTemplate:
-    """Make one spiral template with the built-in semi-analytic wake model.
-
-    Parameters
-    ----------
-    mass : float
-        Planet mass ``M_p/M_th`` (``M_th = h_p³ M_*``), > 0.
-    tau0 : float
-        Initial dust optical depth at ``r_p``, > 0.
-    beta : float
-        Cooling time ``β = t_c Ω`` (0: isothermal; 10: the paper's slow cooling).
-    hand : {'R', 'L'}
-        R: anticlockwise orbit with trailing arms; L: its mirror image.
-    h_p, flaring : float
-        ``H/r`` at the planet and flaring index.
-    wavelength : float
-        Observing wavelength [m] (0.87e-3: ALMA Band 7).
-    n_x, n_phi : int
-        Grid size (log-spaced radii, uniform azimuths; keep ``n_phi`` a multiple of 90).
-    x_range : (float, float)
-        Radial extent ``(x_min, x_max)`` in ``r/r_p``.
-    backend : {'builtin', 'wakeflow'}
-        'wakeflow' takes δΣ/Σ from the optional ``wakeflow`` package (experimental; see
-        :func:`_wakeflow_perturbation`).
-    store_brightness : bool
-        Keep the normalised intensity map (for plots).
-    **options
-        Other :class:`WakeSettings` fields (``sigma_slope``, ``gamma``, ``alpha``, ``mstar``,
-        ``r_p_au``, ``profile_amp``, ``secondary``, ``gap``, ``nonlinear``, ...).
-
-    Returns
-    -------
-    SpiralTemplate
-    """
-    hand = validate_hand(hand)
-    _check_mass_beta(mass, beta)
-    _check_tau0(tau0)
-    try:
-        st = WakeSettings(h_p=h_p, flaring=flaring, wavelength=wavelength, n_x=n_x, n_phi=n_phi,
-                          x_min=x_range[0], x_max=x_range[1], **options)
-    except TypeError as exc:
-        valid = sorted(f.name for f in dataclasses.fields(WakeSettings))
-        raise ValueError(f"make_template: {exc}; valid options are {valid}") from None
-    return _make_from_settings(float(mass), float(tau0), float(beta), hand, st, backend, store_brightness)
-
-
-def _make_from_settings(mass, tau0, beta, hand, st: WakeSettings, backend="builtin", store_brightness=True):
-    x, phi = st.grid()
-    if backend == "builtin":
-        dsig = surface_density_perturbation(mass, beta, st)
-    elif backend == "wakeflow":
-        dsig = _wakeflow_perturbation(mass, st, x, phi)
-    else:
-        raise ValueError(f"unknown backend {backend!r}: use 'builtin' or 'wakeflow'")
-    sig_ax = x**-st.sigma_slope * (gap_profile(x, mass, st) if st.gap else 1.0)
-    tfac = None
-    if beta > 0:
-        f_beta = cooling_response(x, beta, st.h_p, st.gamma, st.m_eff_factor)[2]
-        tfac = np.clip(1.0 + dsig, 1e-3, None) ** ((st.gamma - 1.0) * f_beta[:, None])
-    prov = {
-        "generator": f"spiralbayes.templates.wake ({backend})",
-        "generator_version": GENERATOR_VERSION,
-        "settings": st.to_dict(),
-        "references": "Rafikov 2002; Goodman & Rafikov 2001; Bollati et al. 2021; Miranda & Rafikov "
-        "2019, 2020a; Fung & Dong 2015; Kanagawa et al. 2016; Speedie, Booth & Dong 2022",
-    }
-    tmpl = template_from_perturbation(
-        x, phi, dsig, tau0, temperature_factor=tfac, sigma_axisym=sig_ax, hand="R", mass=mass,
-        beta=beta, h_p=st.h_p, flaring=st.flaring, sigma_slope=st.sigma_slope,
-        wavelength=st.wavelength, mstar=st.mstar, r_p_au=st.r_p_au, mu=st.mu,
-        name=template_name(mass, tau0, beta, "R"), provenance=prov, store_brightness=store_brightness,
-    )
-    return tmpl if hand == "R" else tmpl.mirror()
-
-
-def paper_grid(
-    masses=PAPER_MASSES, taus=PAPER_TAUS, betas=PAPER_BETAS, hands=("R", "L"),
-    *, store_brightness: bool = False, progress: bool = False, **options,
-) -> list[SpiralTemplate]:
-    """The paper's template grid: ``M_p/M_th ∈ {0.1, 0.3, 1, 3} × τ0 ∈ {0.1, 0.3, 1, 3} ×
-    β ∈ {0, 10} × {R, L}`` = 64 templates (Stevenson et al. 2024, sec. 2.3).
-
-    ``options`` go to :class:`WakeSettings` (e.g. ``n_x``, ``n_phi``, ``h_p``). Ordered by mass,
-    then τ0, then β, then hand.
-    """
-    st = WakeSettings(**options)
-    combos = [(m, t, b, h) for m in masses for t in taus for b in betas for h in hands]
-    it = combos
-    if progress:
-        from tqdm.auto import tqdm
-
-        it = tqdm(combos, desc="templates", unit="tmpl")
-    out = []
-    for m, t, b, h in it:
-        out.append(_make_from_settings(float(m), float(t), float(b), validate_hand(h), st,
-                                       store_brightness=store_brightness))
-    return out
-
-
-# ---------------------------------------------------------------------------- wakeflow backend
-def _wakeflow_perturbation(mass: float, st: WakeSettings, x, phi) -> np.ndarray:  # pragma: no cover
-    """δΣ/Σ from wakeflow (Hilder et al. 2023), interpolated onto ``(x, phi)``. Experimental.
-
-    Requires ``pip install wakeflow`` (not a dependency; see DESIGN.md for its NumPy-2
-    workarounds). wakeflow's mass unit differs (``M_1 = (2/3) h³ M_*``), so the planet mass is
-    passed in Jupiter masses. If wakeflow's interface has changed, compute δΣ/Σ with it directly
-    and call :func:`template_from_perturbation`.
-    """
-    try:
-        import wakeflow  # noqa: F401
-        from wakeflow import WakeflowModel
-    except ImportError as exc:
-        raise ImportError(
-            "backend='wakeflow' needs the optional package wakeflow (pip install wakeflow); "
-            "use backend='builtin' otherwise"
-        ) from exc
-    import glob
-    import os
-    import tempfile
-
-    from ..units import thermal_mass
-
-    m_jup = mass * thermal_mass(st.r_p_au, st.mstar, h_ref=st.h_p, r_ref=st.r_p_au,
-                                flaring=st.flaring, unit="Mjup")
-    cwd = os.getcwd()
-    with tempfile.TemporaryDirectory() as tmp:
-        try:
-            os.chdir(tmp)
-            model = WakeflowModel()
-            model.configure(
-                name="spiralbayes", system="spiralbayes", m_star=st.mstar, m_planet=m_jup,
-                r_outer=st.x_max * st.r_p_au, r_inner=st.x_min * st.r_p_au, r_planet=st.r_p_au,
-                r_ref=st.r_p_au, q=st.q, p=st.sigma_slope, hr=st.h_p, cw_rotation=False,
-                grid_type="cylindrical", n_r=st.n_x, n_phi=st.n_phi, r_log=True,
-                make_midplane_plots=False, show_midplane_plots=False, dimensionless=True,
-            )
-            model.run(overwrite=True)
-            files = sorted(glob.glob(os.path.join(tmp, "**", "*delta*rho*.npy"), recursive=True))
-            if not files:
-                raise RuntimeError("no delta_rho .npy output found")
-            drho = np.load(files[0])
-        except Exception as exc:
-            raise RuntimeError(
-                f"wakeflow {getattr(wakeflow, '__version__', '?')} run failed or its output layout "
-                f"was not recognised ({exc}); compute δΣ/Σ with wakeflow yourself and pass it to "
-                "template_from_perturbation, or use backend='builtin'"
-            ) from exc
-        finally:
-            os.chdir(cwd)
-    drho = np.squeeze(drho)
-    if drho.shape != (x.size, phi.size):
-        if drho.shape == (phi.size, x.size):
-            drho = drho.T
-        else:
-            raise RuntimeError(f"wakeflow returned shape {drho.shape}, expected ({x.size}, {phi.size})")
-    return np.nan_to_num(drho)  # dimensionless wakeflow output: δρ/ρ0

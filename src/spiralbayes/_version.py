@@ -1,0 +1,3 @@
+"""The package version (one place; read by ``__init__`` and by provenance records)."""
+
+__version__ = "0.1.0"

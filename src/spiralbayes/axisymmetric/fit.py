@@ -1,0 +1,236 @@
+"""Fitting the axisymmetric profile (and optionally the geometry) with frank."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import time
+import warnings
+
+import numpy as np
+
+from .._provenance import data_hash, provenance_record
+from ..exceptions import InputError
+from ..geometry import DiscGeometry
+from ..units import ARCSEC
+from ..visibilities import Visibilities
+from .model import (
+    DEFAULT_HYPERPARAMETERS,
+    AxisymmetricModel,
+    _check_hyperparameters,
+    _frank_version,
+)
+
+__all__ = ["GEOMETRY_FITTERS", "fit_axisymmetric"]
+
+log = logging.getLogger(__name__)
+
+GEOMETRY_FITTERS = ("gaussian", "nonparametric")
+"""frank's geometry fitters: a Gaussian fitted in uv space, or a Fourier–Bessel profile (N = 20)."""
+
+
+def _to_frank_geometry(geometry: DiscGeometry):
+    from frank.geometry import FixedGeometry
+
+    return FixedGeometry(geometry.inc, geometry.PA, geometry.dRA, geometry.dDec)
+
+
+def _from_frank_geometry(frank_geometry) -> DiscGeometry:
+    return DiscGeometry(float(frank_geometry.inc), float(frank_geometry.PA) % 180.0,
+                        float(frank_geometry.dRA), float(frank_geometry.dDec))
+
+
+def _fit_geometry(vis: Visibilities, method: str, guess: DiscGeometry | None, Rmax: float) -> DiscGeometry:
+    """Fit ``(inc, PA, dRA, dDec)`` with one of frank's geometry fitters."""
+    from frank.geometry import FitGeometryFourierBessel, FitGeometryGaussian
+
+    if method == "nonparametric" and guess is None:
+        # From frank's default start (inc = PA = 10 deg) the Fourier-Bessel fit often stalls
+        # at inc ~ 0; the Gaussian fit is a cheap, reliable starting point.
+        guess = _fit_geometry(vis, "gaussian", None, Rmax)
+        log.info("nonparametric geometry fit starts from the Gaussian fit's geometry")
+    guess_list = None if guess is None else [guess.inc, guess.PA, guess.dRA, guess.dDec]
+    if method == "gaussian":
+        fitter = FitGeometryGaussian(guess=guess_list)
+    else:
+        fitter = FitGeometryFourierBessel(Rmax, 20, guess=guess_list)
+    fitter.fit(vis.u, vis.v, vis.V, vis.weights)
+    try:
+        return _from_frank_geometry(fitter)
+    except ValueError as exc:
+        raise RuntimeError(f"frank's {method} geometry fit gave an unusable geometry "
+                           f"(inc={fitter.inc}, PA={fitter.PA}): {exc}; give the geometry instead") from None
+
+
+def _blas_threads(n: int | None):
+    """Limit BLAS threads to ``n`` during frank's iterations (needs threadpoolctl; else no-op).
+
+    frank's iterations multiply N x N matrices a few hundred times; BLAS threads buy nothing
+    at N = 200 and, on a busy machine, spin-waiting threads made a fit 6-8x slower (measured on
+    2 cores with other work running: 36-50 s instead of 6 s).
+    """
+    if n is None:
+        return contextlib.nullcontext()
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        log.debug("threadpoolctl not installed: BLAS threads not limited")
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=int(n), user_api="blas")
+
+
+class _IterationProgress:
+    """Count frank's power-spectrum iterations on a tqdm bar (wraps the fitter's solve step)."""
+
+    def __init__(self, fitter, enabled: bool):
+        self.fitter = fitter
+        self.enabled = enabled
+        self.bar = None
+
+    def __enter__(self):
+        from tqdm.auto import tqdm
+
+        self.bar = tqdm(desc="frank iterations", unit="it", disable=not self.enabled, leave=False,
+                        mininterval=0.5)
+        original = getattr(self.fitter, "_perform_fit", None)
+        if original is not None:
+            def counted(*args, **kwargs):
+                self.bar.update(1)
+                return original(*args, **kwargs)
+
+            self.fitter._perform_fit = counted
+        return self
+
+    def __exit__(self, *exc):
+        self.bar.close()
+        self.fitter.__dict__.pop("_perform_fit", None)
+        return False
+
+
+def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
+                     N: int = DEFAULT_HYPERPARAMETERS["N"], Rmax: float = DEFAULT_HYPERPARAMETERS["Rmax"],
+                     alpha: float = DEFAULT_HYPERPARAMETERS["alpha"], p0: float = DEFAULT_HYPERPARAMETERS["p0"],
+                     weights_smooth: float = DEFAULT_HYPERPARAMETERS["weights_smooth"],
+                     nonnegative: bool = False, fit_geometry: str | None = None, method: str = "Normal",
+                     max_iter: int = 2000, convergence_failure: str = "raise",
+                     progress: bool = True, blas_threads: int | None = 1) -> AxisymmetricModel:
+    """Fit an axisymmetric brightness profile to visibilities with frank.
+
+    Parameters
+    ----------
+    vis : Visibilities
+        The data (standardised to the frank convention first).
+    geometry : DiscGeometry, optional
+        Disc geometry. If given and ``fit_geometry`` is None it is held fixed; if given with
+        ``fit_geometry`` it is the geometry fit's starting point.
+    N : int
+        Number of collocation points (Fourier–Bessel terms).
+    Rmax : float
+        Outer radius of the fit [arcsec]; the brightness is zero beyond it.
+    alpha, p0, weights_smooth : float
+        frank's power-spectrum prior: inverse-gamma order and scale [Jy^2], and the spectral
+        smoothness weight.
+    nonnegative : bool
+        Also compute frank's non-negative best fit (``I_nonneg``).
+    fit_geometry : {"gaussian", "nonparametric"}, optional
+        Fit ``(inc, PA, dRA, dDec)`` with frank's ``FitGeometryGaussian`` or
+        ``FitGeometryFourierBessel`` (N = 20, as frank's own pipeline) before the profile.
+        Default: "gaussian" when no ``geometry`` is given, else none. Measured on a synthetic
+        core + ring disc (1e4 random baselines, 4 noise seeds): the Gaussian fit's PA was off by
+        up to 1.4 deg (its profile does not match a ringed disc); the nonparametric fit, started
+        from the Gaussian one, by <= 0.65 deg, with offsets within 1.3 mas.
+    method : {"Normal", "LogNormal"}
+        frank's brightness model.
+    max_iter : int
+        Maximum number of power-spectrum iterations.
+    convergence_failure : {"raise", "warn", "ignore"}
+        What to do when frank has not converged after ``max_iter`` iterations.
+    progress : bool
+        Show a tqdm counter of frank's iterations.
+    blas_threads : int, optional
+        BLAS threads during the fit (via threadpoolctl when installed); None leaves them alone.
+        One is fastest for N ~ 200 (see ``_blas_threads``).
+
+    Returns
+    -------
+    AxisymmetricModel
+        With ``fit_time_s`` the total wall-clock time [s] and the geometry-fit time, iteration
+        count and a hash of the data in ``provenance``.
+    """
+    from frank.radial_fitters import FrankFitter
+
+    if not isinstance(vis, Visibilities):
+        raise TypeError(f"vis must be a spiralbayes Visibilities, got {type(vis).__name__}")
+    _check_hyperparameters(N, Rmax, alpha, p0, weights_smooth)
+    if method not in ("Normal", "LogNormal"):
+        raise InputError(f"method = {method!r}: frank's brightness models are 'Normal' and 'LogNormal'")
+    if convergence_failure not in ("raise", "warn", "ignore"):
+        raise InputError(f"convergence_failure = {convergence_failure!r} must be 'raise', 'warn' or 'ignore'")
+    if geometry is not None and not isinstance(geometry, DiscGeometry):
+        raise TypeError(f"geometry must be a DiscGeometry, got {type(geometry).__name__}")
+    if geometry is None and fit_geometry is None:
+        fit_geometry = "gaussian"
+    if fit_geometry is not None and fit_geometry not in GEOMETRY_FITTERS:
+        raise InputError(f"fit_geometry = {fit_geometry!r} must be one of {GEOMETRY_FITTERS} or None")
+    vis = vis.standardised()
+
+    t0 = time.perf_counter()
+    geometry_time = 0.0
+    if fit_geometry is not None:
+        log.info("fitting the disc geometry with frank (%s) to %d visibilities", fit_geometry, vis.n)
+        geometry = _fit_geometry(vis, fit_geometry, geometry, Rmax)
+        geometry_time = time.perf_counter() - t0
+        log.info("fitted geometry in %.1f s: inc = %.3f deg, PA = %.3f deg, dRA = %.2f mas, dDec = %.2f mas",
+                 geometry_time, geometry.inc, geometry.PA, geometry.dRA * 1e3, geometry.dDec * 1e3)
+
+    _check_baselines(vis, geometry, N, Rmax)
+    log.info("fitting frank profile: N = %d, Rmax = %g arcsec, alpha = %g, p0 = %g Jy^2, weights_smooth = %g, "
+             "%d visibilities", N, Rmax, alpha, p0, weights_smooth, vis.n)
+    fitter = FrankFitter(Rmax, int(N), _to_frank_geometry(geometry), alpha=alpha, p_0=p0,
+                         weights_smooth=weights_smooth, method=method, max_iter=max_iter,
+                         store_iteration_diagnostics=True, verbose=False, convergence_failure="ignore")
+    with _IterationProgress(fitter, progress), _blas_threads(blas_threads), warnings.catch_warnings():
+        # frank 1.2 hands scipy's spsolve a non-CSC matrix at every iteration: harmless, noisy
+        warnings.filterwarnings("ignore", message="spsolve requires A be CSC or CSR")
+        sol = fitter.fit(vis.u, vis.v, vis.V, vis.weights)
+    n_iter = int(fitter.iteration_diagnostics["num_iterations"])
+    converged = n_iter <= max_iter
+    if not converged:
+        msg = (f"frank did not converge within max_iter = {max_iter} iterations; increase max_iter, "
+               "or alpha (convergence is slow for alpha close to 1)")
+        if convergence_failure == "raise":
+            raise RuntimeError(msg + "; or pass convergence_failure='warn' to keep the last iterate")
+        if convergence_failure == "warn":
+            log.warning(msg)
+
+    I_err = None
+    if method == "Normal":
+        I_err = np.sqrt(np.clip(np.diag(sol.covariance), 0.0, None))
+    I_nonneg = np.asarray(sol.solve_non_negative(), dtype=float) if nonnegative else None
+    fit_time = time.perf_counter() - t0
+    log.info("frank fit done in %.2f s (%d iterations%s)", fit_time, n_iter, "" if converged else ", not converged")
+
+    hyper = {"N": int(N), "Rmax": float(Rmax), "alpha": float(alpha), "p0": float(p0),
+             "weights_smooth": float(weights_smooth), "method": method, "nonnegative": bool(nonnegative),
+             "fit_geometry": fit_geometry, "max_iter": int(max_iter), "assume_optically_thick": True}
+    provenance = {"n_vis": int(vis.n), "data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights),
+                  "data_provenance": vis.provenance, "iterations": n_iter, "converged": bool(converged),
+                  "geometry_fit_time_s": geometry_time, **provenance_record()}
+    return AxisymmetricModel(r=np.asarray(sol.r), I=np.asarray(sol.I), geometry=geometry, Rmax=Rmax,
+                             hyperparameters=hyper, I_err=I_err, I_nonneg=I_nonneg,
+                             frank_version=_frank_version(), fit_time_s=fit_time, provenance=provenance,
+                             frank_solution=sol)
+
+
+def _check_baselines(vis: Visibilities, geometry: DiscGeometry, N: int, Rmax: float) -> None:
+    """frank needs its largest collocation frequency above the longest deprojected baseline."""
+    from frank.hankel import DiscreteHankelTransform
+
+    up, vp = geometry.deproject_uv(vis.u, vis.v)
+    q_max = float(np.max(np.hypot(up, vp)))
+    q_last = float(DiscreteHankelTransform(Rmax * ARCSEC, int(N)).q[-1])
+    if q_last < q_max:
+        n_needed = int(np.ceil(N * q_max / q_last)) + 1
+        raise InputError(f"the longest deprojected baseline ({q_max:.4g} lambda) lies beyond frank's last "
+                         f"collocation frequency ({q_last:.4g} lambda) for N = {N}, Rmax = {Rmax} arcsec: "
+                         f"increase N to about {n_needed}, or cut the long baselines")
