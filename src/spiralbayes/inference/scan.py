@@ -191,9 +191,11 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     geometry : DiscGeometry, optional
         Defaults to the axisymmetric model's.
     r_p : array_like, optional
-        Planet radii [arcsec]; default 25 radii up to 0.6 R_eff (the paper's 0.02–0.5 arcsec).
+        Planet radii [arcsec], positive, finite and increasing; default 25 radii up to 0.6 R_eff
+        (the paper's 0.02–0.5 arcsec). Radii beyond the model's ``Rmax`` raise a DataWarning.
     n_phi_p : int
-        Number of planet azimuths over 360 deg (default 90: 4 deg steps, as the paper).
+        Number of planet azimuths over 360 deg, a positive even integer (default 90: 4 deg steps,
+        as the paper; the polar uv grid's angular nodes are a multiple of it and come in pairs).
     distance : float, optional
         Distance [pc], recorded for au axes.
     checkpoint : path, optional
