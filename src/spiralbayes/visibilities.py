@@ -510,13 +510,14 @@ def estimate_weights(
         raise InputError(f"method={method!r} is not known: use 'scatter' or 'neighbours'")
     if method == "neighbours":
         result = neighbour_weight_factor(vis)
+        log.info("weights rescaled by %.4g +/- %.2g (scatter about %s, %d points)",
+                 result.factor, result.factor_error, result.binning, result.dof)
     else:
         result = estimate_weight_factor(vis, geometry, bin_width=bin_width)
-    log.info(
-        "weights rescaled by %.4g +/- %.2g (scatter in %d %s of %.4g lambda, %d dof)",
-        result.factor, result.factor_error, result.n_cells, result.binning, result.bin_width, result.dof,
-    )
-    note = f"rescaled by {result.factor:.6g} (scatter within {result.binning})"
+        log.info("weights rescaled by %.4g +/- %.2g (scatter in %d %s of %.4g lambda, %d dof)",
+                 result.factor, result.factor_error, result.n_cells, result.binning, result.bin_width, result.dof)
+    where = "about" if method == "neighbours" else "within"
+    note = f"rescaled by {result.factor:.6g} (scatter {where} {result.binning})"
     record = {**result.to_dict(), "method": method,
               "geometry": None if geometry is None else geometry.to_dict()}
     new = vis.with_weights(vis.weights * result.factor, note)
