@@ -54,3 +54,12 @@ def test_missing_and_invalid_files(tmp_path):
     bad.write_text("[grid\n")
     with pytest.raises(ValueError, match="not valid TOML"):
         load_config(bad)
+
+
+def test_every_default_passes_its_value_check():
+    from spiralbayes.config import CHECKS
+
+    for section, checks in CHECKS.items():
+        for key, check in checks.items():
+            if key in SCHEMA.get(section, {}):
+                assert check(SCHEMA[section][key][0]) is None, f"default of {section}.{key} fails its check"

@@ -199,6 +199,8 @@ def _check_values(config: dict) -> None:
         for key, check in checks.items():
             if key in config.get(section, {}):
                 value = config[section][key]
+                if key in SCHEMA.get(section, {}) and value == SCHEMA[section][key][0]:
+                    continue  # defaults are valid by construction (and may be sentinels such as 0)
                 error = check(value)
                 if error:
                     raise ConfigError(f"{section}.{key} = {value!r} {error}")
