@@ -415,7 +415,7 @@ def estimate_weight_factor(
                            n_cells=int((counts > 1).sum()), bin_width=float(width), binning=binning)
 
 
-def neighbour_weight_factor(vis: Visibilities, max_points: int = 50_000, seed: int = 0) -> WeightRescaling:
+def neighbour_weight_factor(vis: Visibilities, max_points: int = 20_000, seed: int = 0) -> WeightRescaling:
     """One factor ``f`` such that ``f * weights`` matches the scatter about planes through uv neighbours.
 
     Each visibility is predicted from its three nearest uv neighbours by the plane through them
@@ -425,8 +425,9 @@ def neighbour_weight_factor(vis: Visibilities, max_points: int = 50_000, seed: i
     against the minority of points where the signal curves between neighbours; curvature can only
     add scatter, biasing ``f`` low. No model, geometry or symmetry is assumed. Measured with correct
     weights: 1.02 (fiducial synthetic set-up), 0.98 (Taurus set-up), 1.01 (high-sensitivity set-up,
-    4.4e5 visibilities, 0.9 s), 0.93 (3000 random baselines at peak S/N 1000), 0.89 (the 196-point
-    AS 209 sample); with weights 1.1e4 times too small it returned 1.14e4. For comparison,
+    4.4e5 visibilities, ~1 s on 2 busy cores; ``benchmarks/bench_guards.py``), 0.93 (3000 random
+    baselines at peak S/N 1000), 0.89 (the 196-point AS 209 sample); with weights 1.1e4 times too
+    small it returned 1.14e4 (true: 1.13e4). For comparison,
     :func:`estimate_weight_factor` in uv cells gave 0.024 on the fiducial set-up (the bright disc
     varies within a cell) and in deprojected annuli 1.00 there but 0.67 on a disc with a spiral.
 
@@ -454,7 +455,8 @@ def neighbour_weight_factor(vis: Visibilities, max_points: int = 50_000, seed: i
     rows = np.arange(vis.n)
     if vis.n > max_points:
         rows = np.sort(np.random.default_rng(seed).choice(vis.n, max_points, replace=False))
-    nb = cKDTree(uv).query(uv[rows], k=4)[1][:, 1:] if vis.n >= 4 else np.zeros((0, 3), int)
+    tree = cKDTree(uv, balanced_tree=False, compact_nodes=False)  # twice as fast to build, as fast to query
+    nb = tree.query(uv[rows], k=4)[1][:, 1:] if vis.n >= 4 else np.zeros((0, 3), int)
     rows = rows[: nb.shape[0]]
     # barycentric weights b of each point in its neighbours' triangle: [x_m; y_m; 1] b = [x; y; 1]
     A = np.concatenate([uv[nb].transpose(0, 2, 1), np.ones((rows.size, 1, 3))], axis=1)
