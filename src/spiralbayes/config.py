@@ -5,7 +5,8 @@ description with units; unknown sections or keys are rejected with the list of v
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
 drives both commands: ``scan`` reads ``[data]`` to ``[scan]``, ``sample`` adds ``[sample]`` and
-``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``. Relative input
+``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``; ``compare`` runs the
+scan and the image-space baselines of ``[compare]`` (needs CASA). Relative input
 paths are taken relative to the configuration file.
 """
 
@@ -88,6 +89,18 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "PA_sigma": (5.0, "width of the Gaussian prior on the position angle [deg]"),
         "dRA_sigma": (0.05, "width of the Gaussian prior on the RA offset [arcsec]"),
         "dDec_sigma": (0.05, "width of the Gaussian prior on the Dec offset [arcsec]"),
+    },
+    "compare": {
+        "residuals": ("visibilities", "'visibilities': CLEAN image of the residual visibilities (data - frank model); 'difference': CLEAN image of the data minus that of the frank model at the same baselines (carries CLEAN artefacts)"),
+        "weighting": ("briggs", "tclean weighting: 'natural', 'briggs' or 'uniform'"),
+        "robust": (0.5, "Briggs robust parameter"),
+        "deconvolver": ("hogbom", "tclean deconvolver: 'hogbom' or 'multiscale' (scales 0, 5, 15 pixels)"),
+        "niter": (20000, "CLEAN iteration limit"),
+        "threshold_sigma": (2.0, "CLEAN down to this many natural-weighted image noises 1/sqrt(sum w)"),
+        "imsize": (0, "image size [pixels] (0: at least 6 r_out and 4 arcsec across)"),
+        "cell": (0.0, "pixel [arcsec] (0: 1/(3 u_max))"),
+        "r_out": (0.0, "outer disc radius [arcsec] for the residual statistic and the profile (0: 1.1 R_99 of the frank profile)"),
+        "keep_casa_files": (True, "keep the Measurement Sets, CASA images and CASA log in OUTPUT/casa"),
     },
     "output": {
         "dir": ("spiralbayes-output", "directory for results and plots"),
