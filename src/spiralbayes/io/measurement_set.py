@@ -38,7 +38,7 @@ import numpy as np
 from ..exceptions import InputError, MissingFileError
 from ..units import C_LIGHT
 from ..visibilities import Visibilities
-from ._common import _json, _loads_provenance
+from ._common import _loads_provenance
 
 __all__ = ["read_ms", "write_ms", "CORR_TYPES"]
 

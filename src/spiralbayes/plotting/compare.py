@@ -103,7 +103,7 @@ def _profile_panel(ax, gap, verdict, distance, r_out):
     ax.axvline(verdict.r_p * scale, color="c", ls="--", label="scan's planet")
     ax.set_xlabel(f"deprojected radius [{unit}]")
     ax.set_ylabel("azimuthal mean [mJy/beam]")
-    ax.set_title(f"CLEAN profile: gap depth $\\delta$ = {gap.delta:.2f} ({gap.verdict})")
+    ax.set_title(f"CLEAN profile\ngap depth $\\delta$ = {gap.delta:.2f}: {gap.verdict}")
     ax.set_xlim(0.0, 1.1 * r_out * scale)
     ax.set_ylim(bottom=0.0)
     ax.legend(fontsize=8)

@@ -28,11 +28,20 @@ uv coverage         TMS eqs. 4.1/4.15 at latitude -23.0234       CASA measures a
                                                                  position), epoch ``refdate`` 2000-01-01
 ==================  ===========================================  ===========================================
 
-Measured for the fiducial preset (``tests/simulate/test_casa_backend.py``, marker ``casa``): the
-rows match one to one (CASA's UVW = minus the package's, antenna order equal); the noise-free
-visibilities agree to a small fraction of the disc's flux (the number is in the test); CASA's
-noise at PWV 0.9 mm is ~7 % above the preset's (35 uJy/beam requested; CASA's Tsys 139 K at
-zenith and its efficiencies give ~37 uJy/beam).
+simobserve's ``hourangle`` is not the hour angle of the mean sidereal time: at refdate 2000/01/01
+and RA 240 deg its integrations are centred 69 s early. The first configuration is therefore
+observed twice: once to measure the offset (from the ``TIME`` column, with the sidereal time of
+:mod:`spiralbayes.io.ms_writer`), once with the centre moved by it; the offsets left (< 1 s) are
+in the provenance. simobserve runs in a child Python process: in a process where
+python-casacore has written a table (:func:`~spiralbayes.io.write_ms`), CASA 6.7's simulator
+crashes (segmentation fault in ``sm.setdata``).
+
+Measured for the fiducial preset (``tests/simulate/test_casa_backend.py`` and
+``benchmarks/bench_casa.py``, marker ``casa``): the rows match one to one, CASA's UVW = minus
+the package's (u, v) to 1.7e-5 of the baseline (CASA stores ``uvw(ANTENNA1) - uvw(ANTENNA2)``);
+the noise-free visibilities differ by 0.27 % RMS (0.06 % low at the shortest baselines: the
+primary beam; 0.26 % low beyond 2 Mlambda: the 4-mas model pixels); CASA's noise at PWV 0.9 mm
+is 6.4 % above the preset's (Stokes I 7.08 vs 6.65 mJy per visibility, 37.2 vs 35.0 uJy/beam).
 
 Units: as :mod:`spiralbayes.simulate` (arcsec, deg, m, s, Jy).
 """
@@ -47,8 +56,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._casa import casa_log, import_casa, working_directory
-from ..exceptions import InputError
+from .._casa import INSTALL_HINT, casa_available
+from ..exceptions import InputError, MissingDependencyError
 from ..fourier import image_axes
 from ..geometry import DiscGeometry
 from ..io.ms_writer import gmst_deg
@@ -122,44 +131,72 @@ def _antenna_list(config, cycle: int, path: Path) -> Path:
     return path
 
 
-def _observe_one(casatasks, k: int, config, hours, preset, fits_path: Path, pixel: float, frequency: float,
-                 dec: float, seed: int, thermalnoise: str, pwv: float, workdir: Path, shift_s: float = 0.0) -> dict:
-    """simobserve one configuration; DATA of the noise-free and the noisy set, UVW, antennas.
+# simobserve runs in a child process: in a process where python-casacore has written a table
+# (e.g. write_ms), CASA 6.7's simulator crashes with a segmentation fault in sm.setdata.
+_WORKER = """
+import json, sys, time
+from spiralbayes._casa import import_casa
+_, casatasks = import_casa(logfile=sys.argv[2])
+walls = []
+for kwargs in json.load(open(sys.argv[1])):
+    t0 = time.perf_counter()
+    casatasks.simobserve(**kwargs)
+    walls.append(time.perf_counter() - t0)
+print("SIMOBSERVE_WALL_S", json.dumps(walls))
+"""
 
-    ``shift_s`` [s of hour angle] is added to the requested centre hour angle (see :func:`_simulate`).
-    """
-    import casacore.tables as tables
 
+def _simobserve_kwargs(k: int, config, hours, preset, fits_path: Path, pixel: float, frequency: float, dec: float,
+                       seed: int, thermalnoise: str, pwv: float, workdir: Path, shift_s: float) -> dict:
+    """simobserve's arguments for configuration ``k``; ``shift_s`` [s] moves the centre hour angle."""
     step_h = preset.integration_time * SIDEREAL_RATE / 3600.0
     n_int = int(np.floor((hours[1] - hours[0]) / step_h + 1e-9))
     centre_h = 0.5 * (hours[0] + hours[1]) + shift_s / 3600.0
     antennas = _antenna_list(config, preset.cycle, workdir / f"config{k}.cfg")
-    project = f"config{k}"
-    t0 = time.perf_counter()
-    casatasks.simobserve(
-        project=project, skymodel=str(fits_path), inbright="", indirection=f"J2000 {_RA_DEG}deg {dec}deg",
+    return dict(
+        project=f"config{k}", skymodel=str(fits_path), inbright="", indirection=f"J2000 {_RA_DEG}deg {dec}deg",
         incell=f"{pixel}arcsec", incenter=f"{frequency}Hz", inwidth=f"{CASA_BANDWIDTH}Hz",
         setpointings=True, integration=f"{preset.integration_time}s", direction=f"J2000 {_RA_DEG}deg {dec}deg",
         obsmode="int", refdate="2000/01/01", hourangle=f"{centre_h:.9f}h",
         totaltime=f"{n_int * preset.integration_time}s", antennalist=str(antennas), thermalnoise=thermalnoise,
         user_pwv=pwv, seed=int(seed) + k, graphics="none", verbose=False, overwrite=True)
-    wall = time.perf_counter() - t0
-    stem = workdir / project / f"{project}.config{k}"
+
+
+def _run_simobserve(jobs: list, workdir: Path) -> list:
+    """Run simobserve for each argument dict in a child Python; its wall times [s]."""
+    import json
+    import subprocess
+    import sys
+
+    spec = workdir / "simobserve_jobs.json"
+    spec.write_text(json.dumps(jobs))
+    done = subprocess.run([sys.executable, "-c", _WORKER, str(spec), str(workdir / "casa.log")], cwd=workdir,
+                          capture_output=True, text=True)
+    walls = [line.split(" ", 1)[1] for line in done.stdout.splitlines() if line.startswith("SIMOBSERVE_WALL_S")]
+    if done.returncode != 0 or not walls:
+        raise InputError(f"simobserve failed (exit {done.returncode}): {done.stderr.strip()[-800:]} "
+                         f"(CASA log: {workdir / 'casa.log'})")
+    return json.loads(walls[0])
+
+
+def _read_run(k: int, hours, workdir: Path) -> dict:
+    """DATA of the noise-free and noisy sets of configuration ``k``, UVW, and simobserve's hour-angle offset."""
+    import casacore.tables as tables
+
+    stem = workdir / f"config{k}" / f"config{k}.config{k}"
     clean_ms, noisy_ms = Path(f"{stem}.ms"), Path(f"{stem}.noisy.ms")
     if not clean_ms.exists():
         raise InputError(f"simobserve wrote no {clean_ms}: see the CASA log in {workdir / 'casa.log'}")
     with tables.table(str(clean_ms), ack=False) as t:
         cross = t.getcol("ANTENNA1") != t.getcol("ANTENNA2")
-        out = {"uvw": t.getcol("UVW")[cross], "clean": t.getcol("DATA")[cross].astype(complex),
-               "antenna1": t.getcol("ANTENNA1")[cross], "antenna2": t.getcol("ANTENNA2")[cross]}
+        out = {"uvw": t.getcol("UVW")[cross], "clean": t.getcol("DATA")[cross].astype(complex)}
         times = np.unique(t.getcol("TIME"))
-    hour_angle = ((gmst_deg(times / 86400.0) + _CASA_ALMA_LONGITUDE - _RA_DEG + 180.0) % 360.0 - 180.0) / 15.0
-    out["ha_offset_s"] = (0.5 * (hour_angle[0] + hour_angle[-1]) - 0.5 * (hours[0] + hours[1])) * 3600.0
     out["noisy"] = out["clean"]
     if noisy_ms.exists():
         with tables.table(str(noisy_ms), ack=False) as t:
             out["noisy"] = t.getcol("DATA")[cross].astype(complex)
-    out["simobserve_s"] = wall
+    hour_angle = ((gmst_deg(times / 86400.0) + _CASA_ALMA_LONGITUDE - _RA_DEG + 180.0) % 360.0 - 180.0) / 15.0
+    out["ha_offset_s"] = float((0.5 * (hour_angle[0] + hour_angle[-1]) - 0.5 * (hours[0] + hours[1])) * 3600.0)
     return out
 
 
@@ -203,20 +240,21 @@ def simulate_casa(preset, disc: DiscModel, geometry: DiscGeometry, perturbation=
     if thermalnoise not in ("tsys-atm", "tsys-manual"):
         raise InputError(f"thermalnoise must be 'tsys-atm' or 'tsys-manual', got {thermalnoise!r} "
                          "(the weights are measured from the noise CASA adds)")
-    _, casatasks = import_casa()
+    if not casa_available():
+        raise MissingDependencyError(f"the CASA backend needs CASA: {INSTALL_HINT}")
     keep = workdir is not None
     workdir = Path(workdir if keep else tempfile.mkdtemp(prefix="spiralbayes-casa-")).resolve()
     workdir.mkdir(parents=True, exist_ok=True)
     try:
-        return _simulate(casatasks, preset, disc, geometry, perturbation, r_p, phi_p, seed, add_noise, thermalnoise,
-                         pwv, pixel_size, supersample, workdir)
+        return _simulate(preset, disc, geometry, perturbation, r_p, phi_p, seed, add_noise, thermalnoise, pwv,
+                         pixel_size, supersample, workdir)
     finally:
         if not keep:
             shutil.rmtree(workdir, ignore_errors=True)
 
 
-def _simulate(casatasks, p, disc, geometry, perturbation, r_p, phi_p, seed, add_noise, thermalnoise, pwv,
-              pixel_size, supersample, workdir: Path) -> Visibilities:
+def _simulate(p, disc, geometry, perturbation, r_p, phi_p, seed, add_noise, thermalnoise, pwv, pixel_size,
+              supersample, workdir: Path) -> Visibilities:
     frequency = C_LIGHT / p.wavelength
     t0 = time.perf_counter()
     image, pix = sky_image(disc, geometry, p.wavelength, perturbation=perturbation, r_p=r_p, phi_p=phi_p,
@@ -224,24 +262,31 @@ def _simulate(casatasks, p, disc, geometry, perturbation, r_p, phi_p, seed, add_
     fits_path = write_fits_model(image, pix, workdir / "model.fits", frequency=frequency, ra_deg=_RA_DEG,
                                  dec_deg=p.declination)
     timings = {"sky_model_s": time.perf_counter() - t0}
+    configs = list(zip(p.configurations, p.hour_angles))
+
+    def jobs(indices, shift):
+        return [_simobserve_kwargs(k, *configs[k], p, fits_path, pix, frequency, p.declination, seed, thermalnoise,
+                                   pwv, workdir, shift) for k in indices]
+
+    walls = _run_simobserve(jobs([0], 0.0), workdir)
+    shift, offset0 = 0.0, _read_run(0, configs[0][1], workdir)["ha_offset_s"]
+    rest = list(range(1, len(configs)))
+    if abs(offset0) > 0.5:
+        # simobserve's hour angles are offset from those of the mean sidereal time (by -69 s at refdate
+        # 2000/01/01, RA 240 deg): observe again with the centre moved by as much
+        shift = -offset0
+        log.info("simobserve's hour angles are %.1f s off; observing again with that correction", offset0)
+        rest = [0] + rest
+    if rest:
+        walls = (walls if rest[0] else []) + _run_simobserve(jobs(rest, shift), workdir)
+    timings.update({f"simobserve_{k}_s": w for k, w in enumerate(walls)})
     parts, sigmas, offsets = [], [], []
-    shift = 0.0
-    with working_directory(workdir), casa_log(workdir / "casa.log"):
-        for k, (config, hours) in enumerate(zip(p.configurations, p.hour_angles)):
-            args = (casatasks, k, config, hours, p, fits_path, pix, frequency, p.declination, seed, thermalnoise,
-                    pwv, workdir)
-            part = _observe_one(*args, shift_s=shift)
-            if k == 0 and abs(part["ha_offset_s"]) > 0.5:
-                # simobserve's hour angles are offset from the mean sidereal time's (by -69 s at refdate
-                # 2000/01/01, RA 240 deg): observe again with the centre moved by as much
-                shift = -part["ha_offset_s"]
-                log.info("simobserve's hour angles are %.1f s off; observing again with that correction", -shift)
-                part = _observe_one(*args, shift_s=shift)
-            offsets.append(part["ha_offset_s"])
-            V, sigma_corr = _stokes_i(part, add_noise)
-            parts.append((part["uvw"], V, np.full(V.size, 2.0 / sigma_corr**2)))
-            sigmas.append(sigma_corr)
-            timings[f"simobserve_{k}_s"] = part["simobserve_s"]
+    for k, (_, hours) in enumerate(configs):
+        part = _read_run(k, hours, workdir)
+        offsets.append(part["ha_offset_s"])
+        V, sigma_corr = _stokes_i(part, add_noise)
+        parts.append((part["uvw"], V, np.full(V.size, 2.0 / sigma_corr**2)))
+        sigmas.append(sigma_corr)
     uvw = np.concatenate([x[0] for x in parts])
     prov = {
         "source": "spiralbayes.simulate (CASA simobserve)", "backend": "casa",
@@ -252,7 +297,7 @@ def _simulate(casatasks, p, disc, geometry, perturbation, r_p, phi_p, seed, add_
         "casa": {"thermalnoise": thermalnoise, "user_pwv_mm": pwv, "seed": seed, "refdate": "2000/01/01",
                  "bandwidth_hz": CASA_BANDWIDTH, "phase_centre_deg": [_RA_DEG, p.declination]},
         "noise": {"added": bool(add_noise), "sigma_per_correlation_jy": sigmas,
-                  "sigma_stokes_i_jy": [s / np.sqrt(2.0) for s in sigmas],
+                  "sigma_stokes_i_jy": [float(s / np.sqrt(2.0)) for s in sigmas],
                   "weights": "2 / s^2, s = RMS of (noisy - noise-free) DATA per configuration "
                              "(simobserve leaves WEIGHT = 1)"},
         "timings": timings,
