@@ -31,7 +31,7 @@ import sys
 
 from .exceptions import MissingDependencyError
 
-__all__ = ["INSTALL_HINT", "casa_available", "casa_log", "import_casa"]
+__all__ = ["INSTALL_HINT", "casa_available", "casa_log", "import_casa", "working_directory"]
 
 log = logging.getLogger(__name__)
 
