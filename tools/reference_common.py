@@ -1,0 +1,184 @@
+"""Shared pieces of the reference-map scripts (``make_wakeflow_references.py``,
+``make_fargo3d_references.py``): the common polar grid, the brightness residuals through the
+package's own radiative transfer, diagnostics, and the HDF5 writer.
+
+Not part of the package; run with a venv where ``spiralbayes`` is installed (``pip install -e .``).
+
+Conventions (docs/conventions.md): ``x = r/r_p``; ``phi`` in ``[-π, π)``, planet at ``φ = 0``;
+right-handed (R) = planet orbiting towards increasing φ with trailing arms, so the outer arm lies
+at ``φ < 0`` just outside ``r_p`` and the inner arm at ``φ > 0`` just inside.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+
+# Common reference grid: log-spaced radial cell centres in [X_MIN, X_MAX] (edges), uniform azimuths.
+X_MIN, X_MAX = 0.2, 3.0
+N_X, N_PHI = 200, 450          # 0.8 deg in φ; Δln x = 0.0135 (about 5 cells per H at x = 1, h = 0.07)
+TAU0S = (0.3, 3.0)
+WAVELENGTH = 0.87e-3           # ALMA Band 7 [m], the package default
+MSTAR, R_P_AU, MU_GAS = 0.8, 50.0, 2.34
+FLARING, SIGMA_SLOPE = 0.25, 1.0
+
+
+def reference_grid(n_x: int = N_X, n_phi: int = N_PHI, x_min: float = X_MIN, x_max: float = X_MAX):
+    """``(x, phi)``: log-spaced cell centres (edges ``geomspace(x_min, x_max, n_x + 1)``) and
+    ``phi_k = -π + 2πk/n_phi`` (``n_phi`` even, so ``φ = 0`` is a grid point)."""
+    if n_phi % 2:
+        raise ValueError("n_phi must be even so that the planet (φ = 0) is a grid point")
+    edges = np.geomspace(x_min, x_max, n_x + 1)
+    x = np.sqrt(edges[1:] * edges[:-1])
+    phi = -np.pi + 2.0 * np.pi * np.arange(n_phi) / n_phi
+    return x, phi
+
+
+def normalise_to_azimuthal_mean(sigma_over_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(Σ/<Σ>_φ − 1, <Σ>_φ/Σ_ref)`` from ``Σ/Σ_ref`` on an (x, φ) grid (mean along axis 1)."""
+    mean = sigma_over_ref.mean(axis=1)
+    return sigma_over_ref / mean[:, None] - 1.0, mean
+
+
+def brightness_residuals(x, phi, dsigma, sigma_axisym, h_p, tau0s=TAU0S, wavelength=WAVELENGTH):
+    """``{tau0: δ}`` with ``δ = I/<I>_φ − 1`` from the package's isothermal radiative transfer,
+    :func:`spiralbayes.templates.wake.template_from_perturbation` (``I = B_ν(T)(1 − e^{−τ})``,
+    ``τ = τ0 Σ/Σ_0(r_p)``, ``T = T_0(x)``: no temperature perturbation).
+
+    ``dsigma`` must be finite; ``sigma_axisym`` is ``<Σ>_φ/Σ_0(r_p)`` (the gap, if any, enters here).
+    """
+    from spiralbayes.templates.wake import template_from_perturbation
+
+    out = {}
+    for tau0 in tau0s:
+        tmpl = template_from_perturbation(
+            x, phi, dsigma, float(tau0), sigma_axisym=np.asarray(sigma_axisym, float), hand="R",
+            h_p=h_p, flaring=FLARING, sigma_slope=SIGMA_SLOPE, wavelength=wavelength, mstar=MSTAR,
+            r_p_au=R_P_AU, mu=MU_GAS, store_brightness=False,
+        )
+        out[float(tau0)] = np.asarray(tmpl.delta, dtype=np.float32)
+    return out
+
+
+def linear_wake_phase(x, h_p: float, flaring: float = FLARING) -> np.ndarray:
+    """Linear wake ridge (Rafikov 2002 eq. 44), hand R, from the package (``wake_shape``)."""
+    from spiralbayes.templates.wake import wake_shape
+
+    return wake_shape(np.asarray(x, float), h_p=h_p, flaring=flaring, hand="R")
+
+
+def wrap(a):
+    """Wrap angles into ``[-π, π)``."""
+    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def diagnostics(x, phi, dsigma, h_p, valid=None, probes=(0.7, 0.8, 1.2, 1.5)) -> dict:
+    """Peak δΣ/Σ and the azimuth of the maximum at a few radii, against the linear wake.
+
+    For each probe radius (nearest grid radius): ``peak`` = max over φ of δΣ/Σ, ``phi_peak``
+    [deg], ``phi_linear`` [deg] = linear ridge wrapped into [-180, 180), and ``offset`` [deg] =
+    wrap(phi_peak − phi_linear) (> 0: the density maximum lies ahead of the linear ridge in the
+    direction of rotation).
+    """
+    out = {}
+    lin = linear_wake_phase(x, h_p)
+    for xp in probes:
+        i = int(np.argmin(np.abs(np.log(x / xp))))
+        if valid is not None and not valid[i]:
+            continue
+        row = dsigma[i]
+        j = int(np.argmax(row))
+        out[f"x={xp:g}"] = {
+            "x": round(float(x[i]), 4),
+            "peak": round(float(row[j]), 4),
+            "trough": round(float(row.min()), 4),
+            "phi_peak_deg": round(float(np.degrees(phi[j])), 2),
+            "phi_linear_deg": round(float(np.degrees(wrap(lin[i]))), 2),
+            "offset_deg": round(float(np.degrees(wrap(phi[j] - lin[i]))), 2),
+        }
+    return out
+
+
+def check_orientation(x, phi, dsigma, h_p) -> dict:
+    """Hand-R check: the δΣ/Σ maximum just outside the planet (x ≈ 1 + 3h_p) lies at φ < 0 and
+    just inside (x ≈ 1 − 3h_p) at φ > 0. Returns the azimuths [deg]; raises if the sense is wrong."""
+    res = {}
+    for name, xp, sign in (("outer", 1.0 + 3.0 * h_p, -1.0), ("inner", 1.0 - 3.0 * h_p, 1.0)):
+        i = int(np.argmin(np.abs(x - xp)))
+        phi_max = float(phi[int(np.argmax(dsigma[i]))])
+        res[name] = {"x": float(x[i]), "phi_max_deg": float(np.degrees(phi_max))}
+        if np.sign(phi_max) != sign or abs(phi_max) > np.pi / 2:
+            raise RuntimeError(
+                f"orientation check failed: {name} arm at x = {x[i]:.3f} peaks at φ = "
+                f"{np.degrees(phi_max):.1f} deg, expected sign {sign:+.0f} (hand R, trailing)"
+            )
+    return res
+
+
+def git_state() -> dict:
+    def _git(*args):
+        try:
+            return subprocess.run(["git", "-C", str(REPO), *args], capture_output=True, text=True,
+                                  check=True).stdout.strip()
+        except Exception:  # pragma: no cover - outside a checkout
+            return "unknown"
+
+    return {"repo_commit": _git("rev-parse", "HEAD"), "repo_dirty": bool(_git("status", "--porcelain", "--", "tools"))}
+
+
+def utc_now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
+
+
+def _attr(v):
+    if isinstance(v, (dict, list, tuple)) and not (isinstance(v, (list, tuple)) and v and all(
+            isinstance(e, (int, float)) and not isinstance(e, bool) for e in v)):
+        return json.dumps(v)
+    if v is None:
+        return "none"
+    return v
+
+
+def write_reference_file(path, root_attrs: dict, x, phi, cases: dict, x_attrs: dict | None = None):
+    """Write one reference HDF5 file atomically (temporary file, then rename).
+
+    ``cases``: ``{name: {"datasets": {name: array}, "attrs": {...}}}``; 2-D float arrays are stored
+    as gzip-9 + shuffle float32, 1-D ones as given.
+    """
+    import h5py
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    with h5py.File(tmp, "w") as f:
+        for k, v in root_attrs.items():
+            f.attrs[k] = _attr(v)
+        dx = f.create_dataset("x", data=np.asarray(x, np.float64))
+        dx.attrs["description"] = "r/r_p, radial cell centres (log-spaced)"
+        for k, v in (x_attrs or {}).items():
+            dx.attrs[k] = _attr(v)
+        dp = f.create_dataset("phi", data=np.asarray(phi, np.float64))
+        dp.attrs["description"] = ("azimuth [rad], -pi + 2 pi k/n_phi, planet at phi = 0, hand R "
+                                   "(planet moves towards +phi, trailing arms)")
+        for name, case in cases.items():
+            g = f.create_group(name)
+            for k, v in case["attrs"].items():
+                g.attrs[k] = _attr(v)
+            for dname, arr in case["datasets"].items():
+                arr = np.asarray(arr)
+                if arr.ndim == 2:
+                    ds = g.create_dataset(dname, data=arr.astype(np.float32), compression="gzip",
+                                          compression_opts=9, shuffle=True)
+                else:
+                    ds = g.create_dataset(dname, data=arr)
+                for k, v in case.get("dataset_attrs", {}).get(dname, {}).items():
+                    ds.attrs[k] = _attr(v)
+    os.replace(tmp, path)
+    return path
