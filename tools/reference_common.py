@@ -95,6 +95,7 @@ def diagnostics(x, phi, dsigma, h_p, valid=None, probes=(0.7, 0.8, 1.2, 1.5)) ->
             continue
         row = dsigma[i]
         j = int(np.argmax(row))
+        pitch, pitch_lin = ridge_pitch(x, phi, dsigma, i, j, h_p)
         out[f"x={xp:g}"] = {
             "x": round(float(x[i]), 4),
             "peak": round(float(row[j]), 4),
@@ -102,8 +103,36 @@ def diagnostics(x, phi, dsigma, h_p, valid=None, probes=(0.7, 0.8, 1.2, 1.5)) ->
             "phi_peak_deg": round(float(np.degrees(phi[j])), 2),
             "phi_linear_deg": round(float(np.degrees(wrap(lin[i]))), 2),
             "offset_deg": round(float(np.degrees(wrap(phi[j] - lin[i]))), 2),
+            "pitch_deg": round(pitch, 2),
+            "pitch_linear_deg": round(pitch_lin, 2),
         }
     return out
+
+
+def ridge_pitch(x, phi, dsigma, i, j, h_p, half_width: float = 0.04, window_deg: float = 20.0):
+    """Pitch angle [deg] of the density ridge through grid cell ``(i, j)``, and that of the linear
+    wake there: the ridge is followed by the local maximum (within ±``window_deg`` of the previous
+    radius's) over ``|ln x − ln x_i| < half_width``; ``tan(pitch) = 1/(x |dφ/dx|)`` from a
+    straight-line fit of the unwrapped ridge azimuth against x."""
+    n_phi = phi.size
+    win = max(1, int(round(np.radians(window_deg) / (2 * np.pi / n_phi))))
+    sel = np.nonzero(np.abs(np.log(x / x[i])) < half_width)[0]
+    ridge = {i: float(phi[j])}
+    for step in (1, -1):
+        jj = j
+        k = i + step
+        while k in sel:
+            idx = (jj + np.arange(-win, win + 1)) % n_phi
+            jj = int(idx[np.argmax(dsigma[k, idx])])
+            ridge[k] = float(phi[jj])
+            k += step
+    ks = np.array(sorted(ridge))
+    ph = np.unwrap(np.array([ridge[k] for k in ks]))
+    slope = np.polyfit(x[ks], ph, 1)[0] if ks.size >= 3 else np.nan
+    q = 0.5 - FLARING
+    slope_lin = -abs(x[i] ** -1.5 - 1.0) * x[i] ** q / h_p
+    pitch = float(np.degrees(np.arctan(1.0 / (x[i] * abs(slope))))) if np.isfinite(slope) and slope else float("nan")
+    return pitch, float(np.degrees(np.arctan(1.0 / (x[i] * abs(slope_lin)))))
 
 
 def check_orientation(x, phi, dsigma, h_p) -> dict:
