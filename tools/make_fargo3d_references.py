@@ -42,9 +42,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import reference_common as rc  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-RUNS = {  # name: (mu = M_p/M_th, h_p)
-    "spiralref_mu1_h007": (1.0, 0.07),
-    "spiralref_mu0.3_h007": (0.3, 0.07),
+RUNS = {  # name: (mu = M_p/M_th, h_p, reference output or None for the last)
+    "spiralref_mu1_h007": (1.0, 0.07, 8),
+    "spiralref_mu0.3_h007": (0.3, 0.07, None),
+}
+OUTPUT_NOTES = {
+    "spiralref_mu1_h007": "output 8 (40 orbits): the wake is steady from ~20 orbits (arm peak changes of "
+                          "1-3 % between 20, 30 and 40 orbits); from ~45 orbits a non-steady, vortex-like "
+                          "m ~ 3-5 pattern grows at the outer gap edge (x ~ 1.1-1.3) and makes the arm "
+                          "amplitude fluctuate by ~10-30 %, so the map at 40 orbits is the reference and "
+                          "the last output (60 orbits) is kept as dsigma_last",
 }
 FARGO3D_URL_DEFAULT = "/work/.mirror/FARGO3D+fargo3d/repo"   # or https://github.com/FARGO3D/fargo3d
 FARGO3D_COMMIT = "f359328107f0f3ec6a8e99e623582485276f6bff"
@@ -192,10 +199,10 @@ def main(argv=None):
     x, phi = rc.reference_grid(args.n_x, args.n_phi)
     cases = {}
     for name in args.runs:
-        mu, h_p = RUNS[name]
+        mu, h_p, n_ref = RUNS[name]
         run = args.runs_dir / name
         outs = outputs_available(run)
-        n = outs[-1] if args.output is None else args.output
+        n = args.output if args.output is not None else (n_ref if n_ref in outs else outs[-1])
         if n < 1:
             raise SystemExit(f"{run}: no output after the initial condition yet")
         from spiralbayes.templates.fargo3d import read_variables
@@ -210,8 +217,18 @@ def main(argv=None):
         for back in (2, 4):  # outputs every 5 orbits: 10 and 20 orbits earlier
             if n - back >= 1 and n - back in outs:
                 d_old, _, _, t_old, _ = reduce_output(run, n - back, x, phi, valid)
-                steady[f"rms_rel_diff_vs_orbit_{t_old / TWO_PI:.0f}"] = round(steadiness(dsigma, d_old, x, valid), 4)
-                steady[f"diagnostics_orbit_{t_old / TWO_PI:.0f}"] = rc.diagnostics(x, phi, d_old, h_p, valid)
+                tag = f"orbit_{t_old / TWO_PI:.0f}"
+                steady[f"rms_rel_diff_vs_{tag}"] = round(steadiness(dsigma, d_old, x, valid), 4)
+                steady[f"arm_vs_{tag}"] = rc.arm_steadiness(x, phi, dsigma, d_old, h_p, valid)
+                steady[f"diagnostics_{tag}"] = rc.diagnostics(x, phi, d_old, h_p, valid)
+        last = outs[-1]
+        d_last, later = None, {}
+        if last != n:  # the run went on: keep its final state too
+            d_last, _, _, t_last, _ = reduce_output(run, last, x, phi, valid)
+            later = {"output": int(last), "orbits": round(t_last / TWO_PI, 2),
+                     "rms_rel_diff_vs_reference_output": round(steadiness(d_last, dsigma, x, valid), 4),
+                     "arm_vs_reference_output": rc.arm_steadiness(x, phi, d_last, dsigma, h_p, valid),
+                     "diagnostics": rc.diagnostics(x, phi, d_last, h_p, valid)}
         orient = rc.check_orientation(x, phi, dsigma, h_p)
         sig_ax = np.where(valid, mean, x**-rc.SIGMA_SLOPE)
         deltas = {}
@@ -241,14 +258,20 @@ def main(argv=None):
             "valid_x_min": float(x[valid].min()), "valid_x_max": float(x[valid].max()),
             "outside_valid": "dsigma and delta set to 0 (damping zones / outside the run)",
             "steadiness": steady, "orientation_check": orient, "diagnostics": diag,
+            "last_output": later or "the reference output is the run's last",
+            "output_choice": OUTPUT_NOTES.get(name, "the run's last output"),
             "package_reader": reader, "tau0": list(deltas),
         }
         datasets = {"dsigma": dsigma, "sigma_axisym": np.where(valid, mean, np.nan).astype(np.float32),
                     "valid": valid}
         for tau0, d in deltas.items():
             datasets[f"delta_tau{tau0:g}"] = d
+        if d_last is not None:
+            datasets["dsigma_last"] = d_last
         cases[f"h{h_p:.2f}_mu{mu:g}"] = {"datasets": datasets, "attrs": attrs, "dataset_attrs": {
             "dsigma": {"description": "Sigma/<Sigma>_phi - 1 of the gas (zero azimuthal mean per x); 0 where not valid"},
+            "dsigma_last": {"description": "Sigma/<Sigma>_phi - 1 at the run's last output (see attribute "
+                                           "last_output); 0 where not valid"},
             "sigma_axisym": {"description": "<Sigma>_phi / Sigma_0(r_p) (the gap); NaN where not valid"},
             "valid": {"description": "x inside the undamped domain of the run"},
             **{f"delta_tau{t:g}": {"description": f"I/<I>_phi - 1 for tau0 = {t:g}, isothermal, gap included "
@@ -256,7 +279,7 @@ def main(argv=None):
                for t in deltas},
         }}
         print(f"{name}: output {n} ({orbits:.1f} orbits, {state}, wall {wall} s); orientation {orient}")
-        print(f"    steadiness {({k: v for k, v in steady.items() if k.startswith('rms')})}")
+        print(f"    steadiness {({k: v for k, v in steady.items() if not k.startswith('diag')})}")
         print(f"    reader: {reader}")
         for k, v in diag.items():
             print(f"    {k}: {v}")

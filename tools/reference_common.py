@@ -109,6 +109,63 @@ def diagnostics(x, phi, dsigma, h_p, valid=None, probes=(0.7, 0.8, 1.2, 1.5)) ->
     return out
 
 
+def track_arms(x, phi, dsigma, h_p, valid=None, start: float = 3.0, window_deg: float = 12.0):
+    """Follow the primary outer and inner arms outwards/inwards from ``x = 1 ± start·h_p``.
+
+    At each radius the ridge is predicted from the previous one with the linear-wake slope
+    ``dφ/dx = −|x^{-3/2} − 1| x^q / h_p`` and corrected to the δΣ/Σ maximum within
+    ±``window_deg``. Returns ``(index, peak, phi)`` arrays sorted by x (both arms together).
+    """
+    n_phi = phi.size
+    dphi = 2.0 * np.pi / n_phi
+    win = max(1, int(round(np.radians(window_deg) / dphi)))
+    q = 0.5 - FLARING
+    ok = np.ones(x.size, bool) if valid is None else np.asarray(valid, bool)
+    idx, peaks, phis = [], [], []
+    for sign in (+1, -1):
+        i = int(np.argmin(np.abs(x - (1.0 + sign * start * h_p))))
+        # seed: the maximum within ±90° of the linear ridge
+        lin = linear_wake_phase(x[i:i + 1], h_p)[0]
+        j0 = int(round((wrap(lin) + np.pi) / dphi)) % n_phi
+        cand = (j0 + np.arange(-n_phi // 4, n_phi // 4 + 1)) % n_phi
+        j = int(cand[np.argmax(dsigma[i, cand])])
+        phi_cur = phi[0] + j * dphi
+        while 0 <= i < x.size and ok[i]:
+            idx.append(i)
+            peaks.append(float(dsigma[i, j]))
+            phis.append(float(wrap(phi_cur)))
+            k = i + sign
+            if not (0 <= k < x.size):
+                break
+            slope = -abs(x[i] ** -1.5 - 1.0) * x[i] ** q / h_p
+            pred = phi_cur + slope * (x[k] - x[i])
+            jp = int(np.round((pred - phi[0]) / dphi))
+            cand = (jp + np.arange(-win, win + 1)) % n_phi
+            j = int(cand[np.argmax(dsigma[k, cand])])
+            phi_cur = pred + wrap(phi[j] - pred)
+            i = k
+    order = np.argsort(x[idx])
+    return np.asarray(idx)[order], np.asarray(peaks)[order], np.asarray(phis)[order]
+
+
+def arm_steadiness(x, phi, d_new, d_old, h_p, valid, x_lo=0.5, x_hi=2.0) -> dict:
+    """Compare the primary arms of two maps: median relative change of the ridge peak δΣ/Σ and
+    median |change| of the ridge azimuth [deg] over ``x_lo <= x <= x_hi``."""
+    i1, p1, f1 = track_arms(x, phi, d_new, h_p, valid)
+    i0, p0, f0 = track_arms(x, phi, d_old, h_p, valid)
+    common = np.intersect1d(i1, i0)
+    common = common[(x[common] >= x_lo) & (x[common] <= x_hi)]
+    a = {i: (p, f) for i, p, f in zip(i1, p1, f1)}
+    b = {i: (p, f) for i, p, f in zip(i0, p0, f0)}
+    dp = np.array([abs(a[i][0] - b[i][0]) / abs(a[i][0]) for i in common])
+    df = np.array([abs(np.degrees(wrap(a[i][1] - b[i][1]))) for i in common])
+    return {"arm_peak_median_rel_change": round(float(np.median(dp)), 4),
+            "arm_peak_p90_rel_change": round(float(np.percentile(dp, 90)), 4),
+            "arm_phase_median_abs_change_deg": round(float(np.median(df)), 2),
+            "arm_phase_p90_abs_change_deg": round(float(np.percentile(df, 90)), 2),
+            "n_radii": int(common.size)}
+
+
 def ridge_pitch(x, phi, dsigma, i, j, h_p, half_width: float = 0.04, window_deg: float = 20.0):
     """Pitch angle [deg] of the density ridge through grid cell ``(i, j)``, and that of the linear
     wake there: the ridge is followed by the local maximum (within ±``window_deg`` of the previous
