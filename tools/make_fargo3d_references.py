@@ -162,6 +162,9 @@ def reader_check(run: Path, n: int, tau0: float, x, phi, delta_ref, valid):
             "reader_mass_Mth": float(tmpl.mass), "reader_h_p": float(tmpl.h_p),
             "max_abs_delta_difference_vs_reference_grid": float(diff.max()),
             "max_abs_delta_difference_beyond_0.1_rp_of_planet": float(diff[far].max()),
+            "rms_delta_difference_over_rms_delta": float(np.sqrt(np.mean(diff**2) / np.mean(delta_ref[sel] ** 2))),
+            "note": "differences come from interpolating before (ours) or after (reader) the transfer; "
+                    "largest at the arm's shock front",
             "reader_grid": [int(tmpl.x.size), int(tmpl.phi.size)]}
 
 
