@@ -216,7 +216,9 @@ def git_state() -> dict:
         except Exception:  # pragma: no cover - outside a checkout
             return "unknown"
 
-    return {"repo_commit": _git("rev-parse", "HEAD"), "repo_dirty": bool(_git("status", "--porcelain", "--", "tools"))}
+    # dirty: the scripts themselves differ from the commit (docs do not count)
+    return {"repo_commit": _git("rev-parse", "HEAD"),
+            "repo_dirty": bool(_git("status", "--porcelain", "--", "tools/*.py", "tools/fargo3d"))}
 
 
 def utc_now() -> str:
