@@ -137,7 +137,8 @@ def _cmd_templates(args) -> int:
     from .templates import default_bank
 
     bank = default_bank(rebuild=args.rebuild)
-    print(f"{len(bank)} templates in the default bank")
+    h_ps = sorted({float(t.h_p) for t in bank})
+    print(f"{len(bank)} templates in the default bank (H/r = {', '.join(f'{h:g}' for h in h_ps)})")
     if args.plot:
         from .pipeline import save_figure
         from .plotting.templates import plot_bank_overview

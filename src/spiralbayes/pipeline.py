@@ -63,13 +63,13 @@ class DemoResult:
     timings: dict
 
 
-def select_templates(bank, mass=(), tau0=(), beta=(), hand=()):
+def select_templates(bank, mass=(), tau0=(), beta=(), hand=(), h_p=()):
     """The templates of ``bank`` matching every non-empty criterion (lists of allowed values)."""
     chosen = bank.select(mass=list(mass) or None, tau0=list(tau0) or None, beta=list(beta) or None,
-                         hand=list(hand) or None)
+                         hand=list(hand) or None, h_p=list(h_p) or None)
     if not len(chosen):
         raise InputError(f"no template matches mass={list(mass)}, tau0={list(tau0)}, beta={list(beta)}, "
-                         f"hand={list(hand)}; the bank has {bank.names}")
+                         f"hand={list(hand)}, h_p={list(h_p)}; the bank has {bank.names}")
     return list(chosen)
 
 
@@ -176,7 +176,8 @@ def load_data(data: dict, geometry: DiscGeometry | None = None):
 def load_templates(templates: dict) -> list:
     """The templates chosen by the ``[templates]`` section of a configuration."""
     bank = default_bank() if templates["bank"] == "default" else TemplateBank.load(templates["bank"])
-    return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"])
+    return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"],
+                            templates.get("h_p", ()))
 
 
 def _geometry(config: dict) -> DiscGeometry:

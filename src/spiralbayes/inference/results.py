@@ -143,10 +143,10 @@ class PosteriorResult:
         return dict(zip(self.names, (p / p.sum()).tolist()))
 
     def marginals(self) -> dict:
-        """Posterior probabilities of each value of hand, mass, beta and tau0 (summed over templates)."""
+        """Posterior probabilities of each value of hand, mass, beta, tau0 and h_p (summed over templates)."""
         probs = self.template_probabilities
         out: dict = {}
-        for key in ("hand", "mass", "beta", "tau0"):
+        for key in ("hand", "mass", "beta", "tau0", "h_p"):
             table: dict = {}
             for r in self.runs:
                 value = r.metadata.get(key)

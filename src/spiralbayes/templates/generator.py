@@ -121,30 +121,35 @@ def _make_from_settings(mass, tau0, beta, hand, st: WakeSettings, backend="built
         x, phi, dsig, tau0, temperature_factor=tfac, sigma_axisym=sig_ax, hand="R", mass=mass,
         beta=beta, h_p=st.h_p, flaring=st.flaring, sigma_slope=st.sigma_slope,
         wavelength=st.wavelength, mstar=st.mstar, r_p_au=st.r_p_au, mu=st.mu,
-        name=template_name(mass, tau0, beta, "R"), provenance=prov, store_brightness=store_brightness,
+        name=template_name(mass, tau0, beta, "R", h_p=st.h_p), provenance=prov, store_brightness=store_brightness,
     )
     return tmpl if hand == "R" else tmpl.mirror()
 
 
 def paper_grid(
-    masses=PAPER_MASSES, taus=PAPER_TAUS, betas=PAPER_BETAS, hands=("R", "L"),
+    masses=PAPER_MASSES, taus=PAPER_TAUS, betas=PAPER_BETAS, hands=("R", "L"), h_ps=None,
     *, store_brightness: bool = False, progress: bool = False, **options,
 ) -> list[SpiralTemplate]:
     """The paper's template grid: ``M_p/M_th ∈ {0.1, 0.3, 1, 3} × τ0 ∈ {0.1, 0.3, 1, 3} ×
-    β ∈ {0, 10} × {R, L}`` = 64 templates (Stevenson et al. 2024, sec. 2.3).
+    β ∈ {0, 10} × {R, L}`` = 64 templates (Stevenson et al. 2024, sec. 2.3) for each disc aspect
+    ratio in ``h_ps`` (default: ``options["h_p"]``, else 0.07 as in the paper).
 
-    ``options`` go to :class:`WakeSettings` (e.g. ``n_x``, ``n_phi``, ``h_p``). Ordered by mass,
+    ``options`` go to :class:`WakeSettings` (e.g. ``n_x``, ``n_phi``). Ordered by H/r, then mass,
     then τ0, then β, then hand.
     """
-    st = WakeSettings(**options)
-    combos = [(m, t, b, h) for m in masses for t in taus for b in betas for h in hands]
+    if h_ps is None:
+        h_ps = (options.pop("h_p", WakeSettings.h_p),)
+    elif "h_p" in options:
+        raise InputError("paper_grid: give the aspect ratios as h_ps=..., not h_p=")
+    settings = [WakeSettings(h_p=float(hp), **options) for hp in h_ps]
+    combos = [(st, m, t, b, h) for st in settings for m in masses for t in taus for b in betas for h in hands]
     it = combos
     if progress:
         from tqdm.auto import tqdm
 
         it = tqdm(combos, desc="templates", unit="tmpl")
     out = []
-    for m, t, b, h in it:
+    for st, m, t, b, h in it:
         out.append(_make_from_settings(float(m), float(t), float(b), validate_hand(h), st,
                                        store_brightness=store_brightness))
     return out

@@ -154,6 +154,8 @@ class WakeSettings:
     x_max: float = 2.2
     profile_amp: float = 0.5
     profile_width: float = 0.8
+    lobe_offset: float = -2.5
+    lobe_width: float = 1.5
     m_eff_factor: float = 0.5
     secondary: bool = True
     gap: bool = True
@@ -177,6 +179,7 @@ class WakeSettings:
             "x_max": self.x_max > 1,
             "profile_amp": self.profile_amp >= 0,
             "profile_width": self.profile_width > 0,
+            "lobe_width": self.lobe_width > 0,
             "m_eff_factor": self.m_eff_factor > 0,
             "n_eta": int(self.n_eta) >= 64,
             "cfl": 0 < self.cfl <= 1,
@@ -342,7 +345,8 @@ def gap_profile(x, mass: float, settings: WakeSettings | None = None) -> np.ndar
     return 1.0 - (1.0 - depth) * 2.0 ** (-((np.abs(x - 1.0) / (0.5 * width)) ** 4))
 
 
-def linear_profile(eta, amp: float = 0.5, width: float = 0.8) -> np.ndarray:
+def linear_profile(eta, amp: float = 0.5, width: float = 0.8, lobe_offset: float = -2.5,
+                   lobe_width: float = 1.5) -> np.ndarray:
     """Model of the linear wake profile Λ(η) for ``M_p = M_1`` (zero mean).
 
     A positive Gaussian of peak ``amp`` and width ``width`` centred on η = 0 (the linear ridge)
@@ -351,9 +355,9 @@ def linear_profile(eta, amp: float = 0.5, width: float = 0.8) -> np.ndarray:
     Rafikov (2002). Positive η is the side the wave propagates towards (where the shock forms).
     """
     eta = np.asarray(eta, dtype=float)
-    w2 = 1.5 * width
+    w2 = lobe_width * width
     pos = np.exp(-0.5 * (eta / width) ** 2)
-    neg = (width / w2) * np.exp(-0.5 * ((eta + 2.5 * width) / w2) ** 2)
+    neg = (width / w2) * np.exp(-0.5 * ((eta - lobe_offset * width) / w2) ** 2)
     return amp * (pos - neg)
 
 
@@ -410,7 +414,9 @@ def _primary_and_secondary(x, phi, mass, beta, st: WakeSettings) -> np.ndarray:
     n_eta = st.n_eta
     d_eta = L / n_eta
     eta = -0.5 * L + d_eta * np.arange(n_eta)
-    chi0 = (gamma_B + 1.0) * beta_p * linear_profile(eta, st.profile_amp, st.profile_width) / 2.0**0.75
+    lam = linear_profile(eta, st.profile_amp, st.profile_width, st.lobe_offset, st.lobe_width)
+    lam -= lam.mean()  # zero mean on the period, also when a wide lobe is cut by it
+    chi0 = (gamma_B + 1.0) * beta_p * lam / 2.0**0.75
     chi = solve_burgers(chi0, d_eta, tau, st.cfl)  # row i ↔ radius i
     side = np.where(x < 1.0, -1.0, 1.0)
     scale = 2.0 / ((gamma_B + 1.0) * g)
