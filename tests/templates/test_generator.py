@@ -75,11 +75,6 @@ def test_make_template_bad_inputs(args, kwargs, match):
         make_template(*args, **{**SMALL, **kwargs})
 
 
-def test_wakeflow_backend_is_optional():
-    try:
-        import wakeflow  # noqa: F401
-    except ImportError:
-        with pytest.raises(ImportError, match="wakeflow"):
-            make_template(1.0, 1.0, 0.0, backend="wakeflow", **SMALL)
-    else:  # pragma: no cover
-        pytest.skip("wakeflow installed")
+def test_wakeflow_backend_was_removed_with_a_pointer():
+    with pytest.raises(ValueError, match="template_from_perturbation"):
+        make_template(1.0, 1.0, 0.0, backend="wakeflow", **SMALL)
