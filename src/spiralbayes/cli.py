@@ -36,6 +36,9 @@ def _cmd_demo(args) -> int:
           f"{'pass' if demo.verdict.test1_passed else 'fail'}; test 2 (handedness and compactness): "
           f"{'pass' if demo.verdict.test2_passed else 'fail'}")
     print("timings: " + ", ".join(f"{k} {v:.1f}" for k, v in demo.timings.items()))
+    print("templates: the built-in wake model at H/r = 0.07 (the default bank spans H/r 0.05, 0.07, 0.10 x "
+          "4 masses x 4 tau0 x 2 beta x 2 hands = 192), calibrated against wakeflow and FARGO3D maps: "
+          "docs/templates.md")
     print("wrote:\n  " + "\n  ".join(str(f) for f in demo.files))
     return 0
 

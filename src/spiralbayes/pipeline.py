@@ -119,6 +119,10 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
     power-law disc (10-110 au) whose optical depth at 50 au is the template's tau0 = 3, of
     inclination 30 deg and PA 60 deg. The scan uses the masses given, tau0 = 3 and
     beta = 10, both hands, on the paper's grid (25 radii from 0.02 to 0.5 arcsec, 90 azimuths).
+
+    The templates are the default bank's at H/r = 0.07 (``wake_m{M}_tau3_b10_h0.07_{R,L}``); the
+    full default bank also spans H/r = 0.05 and 0.10 (192 templates). The wake generator is
+    calibrated against wakeflow and FARGO3D reference maps (docs/templates.md).
     """
     out_dir = Path(out_dir)
     timings = {}
