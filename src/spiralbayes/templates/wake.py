@@ -47,13 +47,17 @@ speed ``c_s ∝ r^{-q}`` with ``q = 1/2 − f``; ``Σ ∝ r^{-p}``; rotation ant
    ridge by ``∝ √(β_p t)``, which opens the spiral with mass. (Cimerman & Rafikov 2021 note that
    pure Burgers decay over-damps far from the planet.)
 4. **Inner secondary arm** (Miranda & Rafikov 2019; Bae & Zhu 2018; separation from Fung & Dong
-   2015, ``φ_sep ≈ 102° (q_p/10⁻³)^{0.2}``): a copy of the primary inner arm behind it by φ_sep,
+   2015, ``φ_sep ≈ 102° (q_p/10⁻³)^{0.2}``): a copy of the primary inner arm at ``φ_wake + φ_sep``
+   (towards +φ for hand R, further along the winding: our FARGO3D run
+   ``fargo3d_isothermal.h5:h0.07_mu1`` has its secondary arm 78–86° from the primary at
+   x = 0.4–0.55, where Fung & Dong give 82°; version 1 put the copy at ``φ_wake − φ_sep``),
    switched on below ``x ≈ 0.75`` and fully on by ``x = 0.5``, for ``M_p ≳ M_th`` (weight rising
    from 0 at 0.3 M_th to 1 at 1 M_th). No outer secondary arm (Miranda & Rafikov 2019).
-   **Off by default since issue 9** (``secondary=False``): against our FARGO3D run
-   ``fargo3d_isothermal.h5:h0.07_mu1`` (40 orbits) the copy lowers the beam-smoothed recovery at
-   τ0 = 0.3 from 0.43 to 0.38 (its secondary arm is not where Fung & Dong's separation puts it,
-   or weaker), and wakeflow has no secondary arm.
+   **Off by default since issue 9** (``secondary=False``): against that FARGO3D run (40 orbits)
+   the copy, on either side, changes the beam-smoothed recovery little (τ0 = 0.3: 0.36 without,
+   0.33 with it at +φ_sep, 0.31 at −φ_sep; τ0 = 3: 0.54 in all three), FARGO3D's secondary arm
+   being twice the primary's amplitude at x ≈ 0.5 where the copy has the primary's, and
+   wakeflow has no secondary arm (its mean recovery drops from 0.81 to 0.79 with the copy).
 5. **Gap** (Kanagawa et al. 2016, PASJ 68, 43; 2015 ApJL 806 L15): depth
    ``Σ_min/Σ_0 = 1/(1 + 0.04 K)``, ``K = q_p² h_p⁻⁵ α⁻¹``, full width
    ``Δ = 0.41 r_p (q_p² h_p⁻³ α⁻¹)^{1/4}``, with α = 10⁻² by default (**calibrated, issue 9**:
@@ -477,5 +481,5 @@ def _primary_and_secondary(x, phi, mass, beta, st: WakeSettings) -> np.ndarray:
             if sel.size:
                 qp = mass * h**3
                 phi_sep = np.radians(102.0) * (qp / 1e-3) ** 0.2  # Fung & Dong (2015)
-                dsig[sel] += (w_mass * w_x[sel])[:, None] * primary(phi + phi_sep, sel)
+                dsig[sel] += (w_mass * w_x[sel])[:, None] * primary(phi - phi_sep, sel)
     return dsig
