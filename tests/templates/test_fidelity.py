@@ -10,6 +10,8 @@ for those that do not (they are listed in the closing note of issue 9).
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 import pytest
 
@@ -78,3 +80,47 @@ def test_map_metrics_against_brute_force():
     assert m["rms_ratio"] == pytest.approx(np.sqrt(sbb / saa), rel=1e-9)
     assert F.map_metrics(ref, ref)["ncc"] == pytest.approx(1.0)
     assert F.beam_metrics(ref, ref)["beam_recovery"] == pytest.approx(1.0)
+
+
+# --------------------------------------------------------------------------- scan level (slow)
+SETUP_IDS = ["face-on", "inclined"]
+MEETS_ISSUE = {
+    # (case, tau0, setup) whose recovery, position and mass meet the issue's thresholds
+    # (measured with tests/templates/fidelity.py; the table is in the closing note of issue 9)
+    ("wakeflow:h0.07_mu0.3", 3.0, "inclined"), ("wakeflow:h0.10_mu0.1", 3.0, "inclined"),
+    ("wakeflow:h0.10_mu0.3", 3.0, "inclined"), ("wakeflow:h0.10_mu1", 0.3, "inclined"),
+}
+WRONG_MASS = {("fargo3d:h0.07_mu1", 0.3)}
+"""The bank's 0.3 M_th template fits FARGO3D's 1 M_th τ0 = 0.3 spiral better than the 1 M_th one."""
+
+
+@lru_cache(maxsize=None)
+def _scan_row(label: str, tau0: float, setup: str) -> dict:
+    case = next(c for c in CASES if c.label == label)
+    inc, phi_p = F.SETUPS[SETUP_IDS.index(setup)]
+    return F.evaluate_case(case, tau0, inc, phi_p)
+
+
+SCAN_PARAMS = [(c.label, t, s) for c in CASES for t in F.TAUS for s in SETUP_IDS]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("label,tau0,setup", sorted(MEETS_ISSUE))
+def test_scan_meets_issue_thresholds(label, tau0, setup):
+    row = _scan_row(label, tau0, setup)
+    assert F.passes(row), row
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("label,tau0,setup", SCAN_PARAMS)
+def test_scan_position_mass_and_recovery_floor(label, tau0, setup):
+    """Every reference case: the true-mass template's best fit is within one r_p step and 4° of
+    the truth, the best bank mass is the true one (but for WRONG_MASS), and the recovery has not
+    fallen below what the calibration reached (wakeflow ≥ 0.45, FARGO3D 0.3 M_th ≥ 0.7,
+    FARGO3D 1 M_th τ0 = 3 ≥ 0.4; FARGO3D 1 M_th τ0 = 0.3, -0.14 inclined, has no floor)."""
+    row = _scan_row(label, tau0, setup)
+    assert row["dr_steps"] <= 1.0 + 1e-9 and row["dphi_deg"] <= 4.0 + 1e-9, row
+    if (label, tau0) not in WRONG_MASS:
+        assert row["best_mass"] == pytest.approx(row["mu"]), row
+    floor = {"fargo3d:h0.07_mu0.3": 0.7, "fargo3d:h0.07_mu1": 0.4 if tau0 == 3.0 else -np.inf}
+    assert row["recovery"] >= floor.get(label, 0.45), row
