@@ -87,8 +87,10 @@ SETUP_IDS = ["face-on", "inclined"]
 MEETS_ISSUE = {
     # (case, tau0, setup) whose recovery, position and mass meet the issue's thresholds
     # (measured with tests/templates/fidelity.py; the table is in the closing note of issue 9)
-    ("wakeflow:h0.07_mu0.3", 3.0, "inclined"), ("wakeflow:h0.10_mu0.1", 3.0, "inclined"),
-    ("wakeflow:h0.10_mu0.3", 3.0, "inclined"), ("wakeflow:h0.10_mu1", 0.3, "inclined"),
+    (label, tau0, setup)
+    for label, tau0 in [("wakeflow:h0.07_mu0.3", 3.0), ("wakeflow:h0.10_mu0.1", 3.0),
+                        ("wakeflow:h0.10_mu0.3", 3.0), ("wakeflow:h0.10_mu1", 0.3)]
+    for setup in SETUP_IDS
 }
 WRONG_MASS = {("fargo3d:h0.07_mu1", 0.3)}
 """The bank's 0.3 M_th template fits FARGO3D's 1 M_th τ0 = 0.3 spiral better than the 1 M_th one."""
@@ -116,11 +118,12 @@ def test_scan_meets_issue_thresholds(label, tau0, setup):
 def test_scan_position_mass_and_recovery_floor(label, tau0, setup):
     """Every reference case: the true-mass template's best fit is within one r_p step and 4° of
     the truth, the best bank mass is the true one (but for WRONG_MASS), and the recovery has not
-    fallen below what the calibration reached (wakeflow ≥ 0.45, FARGO3D 0.3 M_th ≥ 0.7,
-    FARGO3D 1 M_th τ0 = 3 ≥ 0.4; FARGO3D 1 M_th τ0 = 0.3, -0.14 inclined, has no floor)."""
+    fallen below what the calibration reached (wakeflow ≥ 0.42, FARGO3D 0.3 M_th ≥ 0.7,
+    FARGO3D 1 M_th τ0 = 3 ≥ 0.4; FARGO3D 1 M_th τ0 = 0.3, -0.14 inclined and -0.16 face-on, has
+    no floor)."""
     row = _scan_row(label, tau0, setup)
     assert row["dr_steps"] <= 1.0 + 1e-9 and row["dphi_deg"] <= 4.0 + 1e-9, row
     if (label, tau0) not in WRONG_MASS:
         assert row["best_mass"] == pytest.approx(row["mu"]), row
     floor = {"fargo3d:h0.07_mu0.3": 0.7, "fargo3d:h0.07_mu1": 0.4 if tau0 == 3.0 else -np.inf}
-    assert row["recovery"] >= floor.get(label, 0.45), row
+    assert row["recovery"] >= floor.get(label, 0.42), row
