@@ -40,8 +40,9 @@ speed ``c_s ∝ r^{-q}`` with ``q = 1/2 − f``; ``Σ ∝ r^{-p}``; rotation ant
    at r_p (g → ∞): wakeflow's linear box holds 6× the version-1 smoothed power at 0.9–1.1 r_p;
    0.5, 0.8, 4/3, 2 and 3 H_p were tried (mean wakeflow recovery 0.74, 0.75, 0.77, 0.78, 0.78
    with the first pulse fit; FARGO3D's 1 M_th case falls beyond 4/3). Pure Burgers decay is kept:
-   Cimerman & Rafikov (2021) find it over-damps far from the planet, but at x ≈ 2 the generator's
-   amplitude already equals or exceeds both references'.
+   Cimerman & Rafikov (2021) find it over-damps far from the planet, but at x = 1.5–2 the
+   generator's peak δΣ/Σ already equals wakeflow's (within 5 %, h0.05–0.10 × 0.1–1 M_th) and
+   exceeds FARGO3D's (by 15–60 %, h0.07 × 0.3 and 1 M_th), so no slower decay was fitted.
    Solved numerically (MUSCL–Godunov, second order, periodic in η), so shocks form and the wave
    decays as an N-wave, ``δΣ/Σ ∝ β_p^{1/2} t^{-1/2}``; the shock front moves ahead of the linear
    ridge by ``∝ √(β_p t)``, which opens the spiral with mass. (Cimerman & Rafikov 2021 note that
