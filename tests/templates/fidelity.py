@@ -10,8 +10,8 @@ compared with the built-in generator's template at the same (M_p, H/r, τ0), β 
   and the ratio of their RMS (generator / reference), over the fiducial disc's extent;
 * observation level (the issue's criteria): the reference spiral is injected into the fiducial
   synthetic observation (planet at 50 au, 140 pc) face-on or at 30° inclination (no noise and
-  the true axisymmetric disc by default: expectation values; see :func:`observe_and_scan`), and :func:`spiralbayes.inference.scan.scan` scans the reference template and
-  the generator's templates of every bank mass near the truth (5 radii one paper grid step apart,
+  the true axisymmetric disc by default: expectation values; see :func:`observe_and_scan`), and
+  :func:`spiralbayes.inference.scan.scan` scans the reference template and the generator's templates of every bank mass near the truth (5 radii one paper grid step apart,
   the full 90 azimuths). Recovery = generator's Δχ² at the truth / reference's Δχ² at the truth;
   position error of the true-mass template's best fit; best mass = the bank mass with the
   highest peak Δχ².
@@ -28,7 +28,9 @@ import numpy as np
 
 VERSION1 = dict(profile_amp=0.5, profile_width=0.8, lobe_offset=-2.5, lobe_width=1.5, alpha=1e-3,
                 secondary=True, near_planet=0.0)
-"""Generator options that reproduce GENERATOR_VERSION 1 (before the issue-9 calibration)."""
+"""Generator options that reproduce GENERATOR_VERSION 1 (before the issue-9 calibration), but
+for the side of the optional secondary arm (φ_wake − φ_sep in version 1, + since), which changes
+the 1 M_th maps inside 0.75 r_p only; the issue-9 report's "before" table ran version 1 itself."""
 
 REF_DIR = Path(__file__).resolve().parents[1] / "data" / "references"
 TAUS = (0.3, 3.0)
