@@ -39,8 +39,9 @@ def test_posterior_recovers_planet_geometry_and_hand(setup, tmp_path):
     assert result.p_right_handed > 0.99
     assert result.best.name == template.name
     marg = result.marginals()
-    assert set(marg) == {"hand", "mass", "beta", "tau0"}
+    assert set(marg) == {"hand", "mass", "beta", "tau0", "h_p"}
     assert marg["mass"][3.0] == pytest.approx(1.0)
+    assert marg["h_p"] == {template.h_p: pytest.approx(1.0)}
     # two evidence estimators agree for a well-sampled unimodal posterior
     assert abs(run.ln_evidence - run.ln_evidence_laplace) < 1.0
     assert run.diagnostics["tau_max"] > 0 and "arviz" in run.diagnostics
