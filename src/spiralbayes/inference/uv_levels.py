@@ -144,13 +144,15 @@ def theta_count(rho_max: float, r_out: float, multiple: int, tolerance: float = 
 
 def lagrange_weights(t: np.ndarray, points: int) -> np.ndarray:
     """Weights of the nodes ``-points/2 + 1 .. points/2`` at fractional offsets ``t`` in [0, 1),
-    shape ``(points, t.size)``."""
-    nodes = np.arange(-points // 2 + 1, points // 2 + 1)
-    out = np.ones((points, t.size))
-    for a, xa in enumerate(nodes):
-        for xb in nodes:
-            if xb != xa:
-                out[a] *= (t - xb) / (xa - xb)
+    shape ``(points, t.size)`` (the node polynomial times barycentric weights; exact at the nodes)."""
+    nodes = np.arange(-points // 2 + 1, points // 2 + 1, dtype=float)
+    bary = np.array([1.0 / np.prod([a - b for b in nodes if b != a]) for a in nodes])
+    diff = t[None, :] - nodes[:, None]
+    hit = diff == 0.0
+    diff[hit] = 1.0
+    out = np.prod(diff, axis=0)[None, :] * (bary[:, None] / diff)
+    columns = np.flatnonzero(hit.any(axis=0))
+    out[:, columns] = hit[:, columns]
     return out
 
 
@@ -193,7 +195,7 @@ def uv_weight_coefficients(rho, theta, weights, d_rho: float, n_theta, points: i
             out.append(np.zeros(n, dtype=complex))
             continue
         out.append(ducc0.nufft.nu2u(points=values.astype(complex), coord=angles[:, None], out=np.empty(n, complex),
-                                    forward=False, epsilon=1e-13, nthreads=nthreads, fft_order=True))
+                                    forward=False, epsilon=1e-11, nthreads=nthreads, fft_order=True))
     return out
 
 

@@ -49,6 +49,9 @@ class ProductQuadrature:
         Longest baseline [lambda] the rule is exact for.
     support : float or None
         Radius [arcsec] beyond which the profile vanishes (frank's ``Rmax``), or None.
+    x_cover : float
+        The basis interpolates the kernel on ``[x_template[0], x_cover]``; the integration may not
+        reach beyond.
     """
 
     r_p: float
@@ -60,6 +63,7 @@ class ProductQuadrature:
     uv_max: float
     support: float | None = None
     fine_order: int = FINE_ORDER
+    x_cover: float = np.inf
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     kind = "product"
@@ -68,7 +72,7 @@ class ProductQuadrature:
     def x_end(self) -> float:
         """Outer edge of the integration in x: ``min(x_template[-1], support / r_p)``."""
         end = float(self.x_template[-1])
-        if self.support is not None:
+        if self.support is not None and self.r_p > 0:
             end = min(end, max(self.support / self.r_p, float(self.x_template[0]) * (1 + 1e-12)))
         return end
 
@@ -131,13 +135,20 @@ class ProductQuadrature:
         """Node positions ``(xi, eta)`` [rad], shape ``(size, 2)`` (flat order, cached)."""
         return self._positions
 
-    def at(self, r_p: float) -> "ProductQuadrature":
+    def at(self, r_p: float, support: float | None = None) -> "ProductQuadrature":
         """The same nodes in ``x`` at a planet radius ``r_p <= self.r_p`` (still exact: the kernel's
-        phase per unit x and the angular bandwidth only shrink)."""
+        phase per unit x and the angular bandwidth only shrink), for a profile vanishing beyond
+        ``support`` [arcsec] (default: this rule's). Build the rule without ``support`` when it
+        serves smaller radii: a profile edge at ``support / r_p`` moves outwards as ``r_p`` shrinks,
+        and the nodes must cover it."""
         if r_p > self.r_p * (1 + 1e-12):
             raise ValueError(f"the rule was built for r_p <= {self.r_p} arcsec, asked for {r_p}")
         other = ProductQuadrature(float(r_p), self.x_template, self.x, self.groups, self.basis, self.kernel_bound,
-                                  self.uv_max, self.support, self.fine_order)
+                                  self.uv_max, self.support if support is None else float(support),
+                                  self.fine_order, self.x_cover)
+        if other.x_end > self.x_cover * (1 + 1e-12):
+            raise ValueError(f"at r_p = {r_p} arcsec the profile reaches x = {other.x_end:.4g}, beyond the nodes "
+                             f"(x <= {self.x_cover:.4g}): build the rule without support")
         if other.x_end == self.x_end and "_fine" in self.__dict__:
             other.__dict__["_fine"] = self._fine  # profile-independent, in units of x
         return other
@@ -199,11 +210,15 @@ class ProductQuadrature:
         return cached[1], cached[2], cached[3]
 
     # -- the template on the rule ----------------------------------------------------------------------
+    def weights(self, profile, spectrum: TemplateSpectrum) -> np.ndarray:
+        """Node weights in units of ``r_p^2``: ``(2 pi / n_phi) sum_t C[a, t] delta~_t(phi_j)`` [Jy/sr],
+        flat; :meth:`flux` is this times ``r_p^2`` [sr]."""
+        C, _, _ = self.radial_matrix(profile)
+        return np.concatenate([((C[a:b] @ spectrum.rows(n)) * (TWO_PI / n)).ravel() for a, b, n in self.blocks])
+
     def flux(self, profile, spectrum: TemplateSpectrum) -> np.ndarray:
         """Node fluxes [Jy] (face on), planet at ``phi = 0``, flat (:meth:`split` gives the groups)."""
-        C, _, _ = self.radial_matrix(profile)
-        scale = TWO_PI * (self.r_p * ARCSEC) ** 2
-        return np.concatenate([((C[a:b] @ spectrum.rows(n)) * (scale / n)).ravel() for a, b, n in self.blocks])
+        return self.weights(profile, spectrum) * (self.r_p * ARCSEC) ** 2
 
     def error_bound(self, profile, spectrum: TemplateSpectrum) -> dict:
         """Bounds [Jy] on ``|ΔV_rule(q) - ΔV_exact(q)|`` at every ``|q| <= uv_max`` and planet azimuth
@@ -268,4 +283,4 @@ def make_product_quadrature(template, r_p: float, uv_max: float, *, phi_multiple
     x = basis.nodes()
     groups = _ring_groups(kappa * np.abs(x), phi_multiple, phi_tolerance)
     return ProductQuadrature(float(r_p), x_t, x, groups, basis, float(kernel_bound), float(uv_max),
-                             None if support is None else float(support))
+                             None if support is None else float(support), FINE_ORDER, x1)
