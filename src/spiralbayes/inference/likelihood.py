@@ -11,7 +11,8 @@ Model (Stevenson et al. 2024, sec. 2.2)::
 
 with ``q = (xi, eta)`` the baseline in the disc frame (:meth:`DiscGeometry.disc_frame_uv`),
 ``V_A`` the face-on visibility curve of the axisymmetric profile and ``P_hat`` the transform of
-the perturbation ``I_A delta`` on the polar quadrature of :mod:`spiralbayes.model`.
+the perturbation ``I_A delta`` on the product-integration rule of :mod:`spiralbayes.quadrature`
+(exact to ~1e-11 of its L1 norm; ``SpiralLikelihood.quadrature_error`` reports its bound).
 
 **The axisymmetric profile is held fixed** (the frank fit) while its visibilities are
 re-evaluated under each sampled geometry: ``V_A`` is precomputed once, on a fine uniform grid of
@@ -36,15 +37,17 @@ from __future__ import annotations
 
 import logging
 import time
+import warnings
 
 import numpy as np
 
-from ..exceptions import InputError
+from ..exceptions import AccuracyWarning, InputError
 from ..fourier import sample_image
 from ..geometry import DiscGeometry
 from ..model import (
     DEFAULT_CELL_FACTOR,
     perturbation_visibilities,
+    profile_support,
     render_perturbation_image,
 )
 from ..units import ARCSEC, TWO_PI
@@ -98,7 +101,15 @@ class SpiralLikelihood:
     rp_step : float, optional
         Fix the node spacing [arcsec] instead of refining.
     cell_factor : float
-        Quadrature fineness (:func:`spiralbayes.model.make_quadrature`).
+        Unused (the product rule needs no cell size); kept for compatibility.
+
+    Attributes
+    ----------
+    quadrature_error : float
+        Bound on the quadrature's error in the norm of ``rp_tolerance``, ``sqrt(sum w |δV|^2)``,
+        over the table's radii (``cos i`` times the rule's bound on ``|δΔV|`` times
+        ``sqrt(sum w)``); an :class:`~spiralbayes.exceptions.AccuracyWarning` is raised when it
+        exceeds ``rp_tolerance``.
     """
 
     def __init__(self, vis, axisymmetric, template, r_range, *, reference_geometry: DiscGeometry | None = None,
@@ -125,13 +136,15 @@ class SpiralLikelihood:
         self._V_sqrt_w = self.V * self._sqrt_w
         self.uv_max = float(np.max(np.hypot(self.u, self.v)))
         self.axis_table = AxisymmetricTable.build(axisymmetric, self.uv_max)
-        self._cells = _Cells.build(template, r_hi, self.uv_max, cell_factor)
-        x_max = float(self._cells.x_edges[-1])
+        r_cells = r_hi + 2.0 * (float(rp_step) if rp_step is not None else (r_hi - r_lo) / 8.0)  # last table node
+        self._cells = _Cells.build(template, r_cells, self.uv_max, support=profile_support(self.profile))
+        x_max = self._cells.x_max
         self._builder = _TableBuilder(self._cells, self.profile, r_hi * ARCSEC * self.uv_max, x_max, oversample)
         self._delta = self._builder.delta
         self._complex = np.complex64 if self.epsilon >= 1e-6 else np.complex128
         self.table = self._build_table(rp_step, rp_tolerance, progress)
         self.table.build_time_s = time.perf_counter() - t0
+        self.quadrature_error = self._quadrature_error(rp_tolerance)
         self.chi2_ref = 0.0
         self.chi2_ref = -2.0 * self.log_likelihood_axisymmetric(self.reference_geometry)
         log.info("likelihood for %s: %d r_p nodes, %d x %d grids, %.1f MB, built in %.1f s",
@@ -168,6 +181,18 @@ class SpiralLikelihood:
                     log.warning("r_p nodes refined to %.2g arcsec, error %.3g > tolerance %.3g", h, err, tol)
                 return table
             h /= 2.0
+
+    def _quadrature_error(self, tolerance: float) -> float:
+        """The rule's bound over the radii the table was built from, as ``sqrt(sum w |δV|^2)``."""
+        bound = max(self._cells.bounds.values(), default=0.0)
+        error = self.reference_geometry.cos_inc * bound * float(np.sqrt(np.sum(self.weights)))
+        if error > tolerance:
+            msg = (f"the quadrature's error bound sqrt(sum w |dV|^2) <= {error:.3g} exceeds rp_tolerance = "
+                   f"{tolerance:.3g} for {getattr(self.template, 'name', 'the template')}: the profile may jump "
+                   "inside the disc (give a smooth one)")
+            log.warning(msg)
+            warnings.warn(msg, AccuracyWarning, stacklevel=3)
+        return error
 
     def _midpoint_error(self, table: PerturbationTable, node) -> float:
         """Largest data-weighted norm of the r_p-interpolation error at node midpoints."""
@@ -338,6 +363,7 @@ class SpiralLikelihood:
             "build_time_s": self.table.build_time_s,
             "refinement": self.table.refinement,
             "n_cells": int(self._cells.positions.shape[0]),
+            "quadrature_error": float(getattr(self, "quadrature_error", float("nan"))),
         }
 
     def __getstate__(self):

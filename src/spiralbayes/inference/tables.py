@@ -6,11 +6,13 @@ In the scaled baseline ``sigma = r_p R(-phi_p) q`` (``r_p`` in radians, dimensio
 
     P_hat = r_p^2 T(sigma; r_p),   T(sigma; r_p) = sum_c delta_c I_A(r_p x_c) a_c exp(2 pi i sigma . x_c)
 
-where ``x_c`` are the quadrature cells in units of ``r_p`` (|x_c| <= x_max = 2.2) and ``a_c`` their
-areas in those units. So moving the planet in azimuth is a rotation and changing ``r_p`` a
-scaling of the *points*, and ``T`` depends on ``r_p`` only through the profile samples
-``I_A(r_p x_c)`` — smooth, so ``T`` is tabulated at a few ``r_p`` nodes and interpolated (cubic
-Lagrange) between them. ``T`` is only needed for ``|sigma| <= sigma_max = r_p,max u_max``, where
+where ``x_c`` are the nodes of the product-integration rule in units of ``r_p``
+(:mod:`spiralbayes.quadrature`; the same nodes serve every ``r_p`` up to the largest) and
+``delta_c a_c I_A(r_p x_c)`` stands for their weights, the exact integrals of template and profile
+against the rule's basis. So moving the planet in azimuth is a rotation and changing ``r_p`` a
+scaling of the *points*, and ``T`` depends on ``r_p`` only through the profile in those integrals
+— smooth, so ``T`` is tabulated at a few ``r_p`` nodes and interpolated (cubic Lagrange) between
+them. ``T`` is only needed for ``|sigma| <= sigma_max = r_p,max u_max``, where
 it is multiplied by a smooth radial window ``W`` (1 to 1e-8 inside ``sigma_max``), so that
 ``T W`` has a rapidly converging Fourier series on a small uniform grid of "pseudo-pixels" ``x_k``
 (spacing ``Delta = 1 / (2 oversample sigma_max)``, ``N ~ 100-200`` per side):
@@ -31,7 +33,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..geometry import DiscGeometry
-from ..model import PolarQuadrature, make_quadrature, template_on_quadrature
+from ..model import make_quadrature
+from ..quadrature import TemplateSpectrum
 from ..units import ARCSEC, TWO_PI
 
 __all__ = ["AxisymmetricTable", "PerturbationTable"]
@@ -124,33 +127,38 @@ class AxisymmetricTable:
 # ---------------------------------------------------------------------------------------------
 # perturbation: Fourier-series grids of T(sigma; r_p) at r_p nodes
 # ---------------------------------------------------------------------------------------------
-@dataclass
 class _Cells:
-    """The template on its quadrature, in units of r_p: positions, areas, delta."""
+    """The template on the product-integration rule (:mod:`spiralbayes.quadrature`), in units of r_p.
 
-    x: np.ndarray  # ring radii (x = r / r_p)
-    positions: np.ndarray  # (n_cells, 2)
-    delta_area: np.ndarray  # (n_x, n_phi): delta * cell area (x^2 units)
-    x_edges: np.ndarray
-    n_phi: int
+    One set of nodes in ``x = r / r_p`` serves every ``r_p <= r_max`` (the rule stays exact as the
+    radius shrinks); the exact integrals of template and profile are redone per ``r_p``. Each call
+    of :meth:`fluxes` also records the rule's error bound [Jy, face on] at that radius in
+    ``bounds`` (the likelihood reports the largest).
+    """
+
+    def __init__(self, template, r_max: float, uv_max: float, support: float | None = None):
+        self.template = template
+        self.support = support  # cut per radius; the nodes cover the whole template (see ProductQuadrature.at)
+        self.quad = make_quadrature(template, r_max, uv_max)
+        self.spectrum = TemplateSpectrum(template)
+        self.positions = self.quad.positions_x()  # (n_nodes, 2), units of r_p
+        self.x_max = self.quad.extent  # nodes may lie beyond the template (sinc basis)
+        self.bounds: dict[float, float] = {}
 
     @classmethod
-    def build(cls, template, r_max: float, uv_max: float, cell_factor: float) -> "_Cells":
-        quad = make_quadrature(template, r_max, uv_max, cell_factor=cell_factor)
-        delta = template_on_quadrature(template, quad)
-        xe = quad.x_edges
-        area = 0.5 * (xe[1:] ** 2 - xe[:-1] ** 2) * (TWO_PI / quad.n_phi)
-        phi = quad.phi
-        pos = np.stack([(quad.x[:, None] * np.cos(phi)).ravel(), (quad.x[:, None] * np.sin(phi)).ravel()], -1)
-        return cls(quad.x, pos, delta * area[:, None], xe, quad.n_phi)
+    def build(cls, template, r_max: float, uv_max: float, cell_factor: float | None = None,
+              support: float | None = None) -> "_Cells":
+        """``cell_factor`` is accepted for compatibility and unused (the product rule needs none)."""
+        return cls(template, r_max, uv_max, support)
 
     def fluxes(self, profile, r_p: float) -> np.ndarray:
-        """``delta_c a_c I_A(r_p x_c)`` (T's point weights), complex, ring-major."""
-        bright = np.asarray(profile(max(r_p, 0.0) * self.x), dtype=float)
-        return (self.delta_area * bright[:, None]).ravel().astype(complex)
+        """T's point weights (units of r_p^2 x Jy/sr), complex, in node order."""
+        quad = self.quadrature(r_p)
+        self.bounds[float(r_p)] = quad.error_bound(profile, self.spectrum)["total"]
+        return quad.weights(profile, self.spectrum).astype(complex)
 
-    def quadrature(self, r_p: float) -> PolarQuadrature:
-        return PolarQuadrature(float(r_p), self.x_edges, self.n_phi)
+    def quadrature(self, r_p: float):
+        return self.quad.at(max(float(r_p), 0.0), support=self.support)
 
 
 @dataclass
