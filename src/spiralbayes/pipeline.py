@@ -214,7 +214,8 @@ def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool =
     amplitude = "free" if s["amplitude"] == "free" else None
     result = scan(vis, axisym, templates, axisym.geometry, r_p=r_p, n_phi_p=grid["n_phi_p"],
                   distance=config["geometry"]["distance"], checkpoint=checkpoint, client=s["dask"] or None,
-                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume)
+                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume,
+                  rule=s["quadrature"], power_path=s["power_path"])
     verdict = detect(result, amplitude)
     files = write_scan_outputs(result, verdict, out_dir, config["output"]["plots"], amplitude)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))

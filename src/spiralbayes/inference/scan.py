@@ -279,8 +279,8 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     x_max = max(float(np.max(t.x)) for t in templates)
     context = ScanContext.build(vis, axisymmetric, geometry, r_p, n_phi_p, x_max=x_max, nthreads=nthreads,
                                 settings=settings)
-    log.info("scan set-up (%s power path, %d uv grids): %.2f s", context.power_path, len(context.levels),
-             time.perf_counter() - t0)
+    setup_s = time.perf_counter() - t0
+    log.info("scan set-up (%s power path, %d uv grids): %.2f s", context.power_path, len(context.levels), setup_s)
     _warn_if_weights_too_small(context.chi2_AO, vis.n)
     result = _empty_result(context, templates, vis, distance)
     result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context)
@@ -290,9 +290,11 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     if todo and settings.rule == "product":
         context.algorithm_error = check_terms(context, templates[0])
         result.provenance["power_check"] = context.algorithm_error
+    t1 = time.perf_counter()
     runner = _run_dask if client is not None else _run_serial
     runner(context, templates, todo, result, checkpoint, progress, client)
     result.provenance["scan_time_s"] = time.perf_counter() - t0
+    result.provenance["timing_s"] = {"setup": setup_s, "check": t1 - t0 - setup_s, "templates": time.perf_counter() - t1}
     warn_if_inaccurate(result)
     return result
 
