@@ -21,7 +21,7 @@ def test_described_defaults_read_back_as_defaults(tmp_path):
 
 def test_paper_defaults():
     cfg = default_config()
-    assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (200, 1.2, 1.05)
+    assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (0, 1.2, 1.05)  # 0: automatic
     assert (cfg["frank"]["p0"], cfg["frank"]["weights_smooth"]) == (1e-15, 0.1)
     assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"], cfg["grid"]["n_r_p"], cfg["grid"]["n_phi_p"]) == (0.02, 0.5, 25, 90)
     assert all(desc for section in SCHEMA.values() for _, desc in section.values())
@@ -41,6 +41,7 @@ def test_relative_data_path_is_relative_to_the_config(tmp_path):
     ({"grid": {"nrp": 3}}, r"unknown option grid.nrp.*n_r_p"),
     ({"grid": {"n_r_p": "many"}}, "grid.n_r_p must be a number"),
     ({"data": {"conjugated": 1}}, "data.conjugated must be true or false"),
+    ({"frank": {"N": 1}}, r"frank.N = 1 must be 0 \(automatic\) or an integer >= 2"),
 ])
 def test_bad_configuration_is_refused(user, match):
     with pytest.raises(ValueError, match=match):

@@ -44,7 +44,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "distance": (140.0, "distance [pc], for au axes and planet masses"),
     },
     "frank": {
-        "N": (200, "number of radial collocation points"),
+        "N": (0, "number of radial collocation points; 0: the paper's 200, or for fewer than 200 visibilities the count their longest baseline needs (x1.25)"),
         "Rmax": (1.2, "outer radius of the fit [arcsec]"),
         "alpha": (1.05, "order parameter of the power-spectrum prior"),
         "p0": (1e-15, "scale parameter of the power-spectrum prior [Jy^2]"),
@@ -130,6 +130,10 @@ def _int_at_least(low):
     return lambda v: None if v >= low else f"must be an integer >= {low}"
 
 
+def _zero_or_at_least(low):
+    return lambda v: None if v == 0 or v >= low else f"must be 0 (automatic) or an integer >= {low}"
+
+
 def _even_positive(v):
     return None if v >= 2 and v % 2 == 0 else "must be a positive, even integer (the paper uses 90: 4 deg steps)"
 
@@ -177,7 +181,7 @@ _UV_UNITS = ("", "lambda", "klambda", "m", "λ", "kλ", "wavelengths", "wle", "k
 CHECKS: dict[str, dict[str, object]] = {
     "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative},
     "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _positive},
-    "frank": {"N": _int_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
+    "frank": {"N": _zero_or_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
               "weights_smooth": _non_negative},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False)))},

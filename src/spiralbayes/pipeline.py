@@ -187,7 +187,7 @@ def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> Axisymmetr
     f = config["frank"]
     if f["model"]:
         return AxisymmetricModel.load(f["model"])
-    axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"], Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
+    axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"] or None, Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
                               weights_smooth=f["weights_smooth"], nonnegative=f["nonnegative"],
                               fit_geometry="nonparametric" if config["geometry"]["fit"] else None, progress=progress)
     return axisym.nonnegative() if f["nonnegative"] else axisym

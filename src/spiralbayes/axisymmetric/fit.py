@@ -282,7 +282,8 @@ def _collocation_count(vis: Visibilities, geometry: DiscGeometry, Rmax: float, N
     if N > vis.n and sparse < N:
         warnings.warn(f"frank's N = {N} exceeds the {vis.n} visibilities: the extra coefficients are set by the "
                       f"prior alone while each of frank's ~500-800 iterations costs O(N^3); N = {sparse} covers the "
-                      "longest baseline and fits ~5x faster with the profile within ~1 % (leave N unset for that)",
+                      "longest baseline and fits ~5x faster with the profile within ~1 % "
+                      "(leave N unset, or N = 0 in [frank], for that)",
                       DataWarning, stacklevel=3)
     return int(N)
 
