@@ -41,7 +41,6 @@ def test_relative_data_path_is_relative_to_the_config(tmp_path):
     ({"grid": {"nrp": 3}}, r"unknown option grid.nrp.*n_r_p"),
     ({"grid": {"n_r_p": "many"}}, "grid.n_r_p must be a number"),
     ({"data": {"conjugated": 1}}, "data.conjugated must be true or false"),
-    ({"frank": {"N": 1}}, r"frank.N = 1 must be 0 \(automatic\) or an integer >= 2"),
 ])
 def test_bad_configuration_is_refused(user, match):
     with pytest.raises(ValueError, match=match):

@@ -288,7 +288,7 @@ def test_cli_refuses_a_stale_checkpoint_and_force_resume_overrides(setup, tmp_pa
     ("grid", "r_p_max = -0.5", "grid.r_p_max = -0.5 must be a positive"),
     ("grid", "r_p_min = 0.6", "grid.r_p_min = 0.6 must be smaller than grid.r_p_max"),
     ("frank", "alpha = 0.5", "frank.alpha = 0.5 must be a finite number >= 1"),
-    ("frank", "N = 1", "frank.N = 1 must be an integer >= 2"),
+    ("frank", "N = 1", "frank.N = 1 must be 0 \\(automatic\\) or an integer >= 2"),
     ("geometry", "inc = 95.0", r"geometry.inc = 95.0 must be an inclination in degrees in \[0, 90\)"),
     ("geometry", "distance = 0", "geometry.distance = 0.0 must be a positive"),
     ("templates", 'hand = ["R", "X"]', "templates.hand = \\['R', 'X'\\] has element 'X'"),
