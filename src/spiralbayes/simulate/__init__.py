@@ -58,6 +58,7 @@ times [s]; wavelength [m]; brightness [Jy/sr]; images [Jy/pixel]; distances [pc]
 :class:`DiscModel` [au].
 """
 
+from .asymmetric import ExactAxisymmetric, eccentric_ring, lopsided_disc, vortex_arc
 from .coverage import (
     ALMA_LATITUDE,
     UVCoverage,
@@ -95,6 +96,7 @@ from .presets import (
 __all__ = [
     "ALMA_LATITUDE",
     "DiscModel",
+    "ExactAxisymmetric",
     "PRESETS",
     "Preset",
     "Radiometer",
@@ -102,6 +104,7 @@ __all__ = [
     "available_configurations",
     "baseline_uvw",
     "disc_visibilities",
+    "eccentric_ring",
     "elevation",
     "fit_beam",
     "get_preset",
@@ -109,6 +112,7 @@ __all__ = [
     "image_visibilities",
     "image_noise",
     "load_configuration",
+    "lopsided_disc",
     "measure_image_noise",
     "observe",
     "planck",
@@ -118,4 +122,5 @@ __all__ = [
     "sigma_for_sensitivity",
     "simulate_observation",
     "uv_coverage",
+    "vortex_arc",
 ]
