@@ -4,7 +4,7 @@ Every option has a default (from Stevenson et al. 2024 where the paper sets one)
 description with units; unknown sections or keys are rejected with the list of valid ones, and
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
-drives both commands: ``scan`` reads ``[data]`` to ``[scan]``, ``sample`` adds ``[sample]`` and
+drives both commands: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]`` and
 ``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``. Relative input
 paths are taken relative to the configuration file.
 """
@@ -65,6 +65,13 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "nthreads": (1, "threads per template for the NUFFTs"),
         "cell_factor": (20.0, "quadrature cells are at most 1/(cell_factor u_max) across"),
         "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
+    },
+    "alternatives": {
+        "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = 2) and apply test 3"),
+        "models": ([], "which of geometry, arc, lopsided, eccentric_ring, m2 to fit (empty: all)"),
+        "threshold": (10.0, "test 3: the spiral's Delta BIC must exceed the best alternative's by more than this"),
+        "n_starts": (2, "optimiser starts per alternative model (the shapes that best match the residual image)"),
+        "refit_geometry": (True, "if no spiral is detected and the geometry alternative has Delta BIC > 10: refit frank at its geometry, rescan and decide again (OUTPUT/refit_geometry/)"),
     },
     "sample": {
         "run_name": ("posterior", "chains go to OUTPUT/chains/<run_name>.h5"),
