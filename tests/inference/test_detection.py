@@ -105,7 +105,9 @@ def test_test3_prefers_the_spiral_only_by_more_than_the_threshold():
             assert verdict.delta_bic_vs_alternative == pytest.approx(9.0)
             assert "not clearly preferred over the arc model" in text
     assert "explains the data better" in verdict.summary()
-    assert json.loads(json.dumps(verdict.to_dict()))["alternatives"]["arc"]["delta_chi2"] == 900.0
+    stored = json.loads(json.dumps(verdict.to_dict()))["alternatives"]
+    assert stored["arc"]["delta_chi2"] == 900.0
+    assert stored["geometry"]["spiral_delta_bic_minus_this"] == pytest.approx(spiral_bic - (10.0 - 4 * np.log(N_DATA)))
 
 
 def test_without_alternatives_test3_is_not_run_and_other_data_are_refused():

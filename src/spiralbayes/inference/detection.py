@@ -166,9 +166,11 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max
     return best
 
 
-def _alternatives_summary(alternatives) -> dict:
+def _alternatives_summary(alternatives, spiral_delta_bic: float) -> dict:
+    """Each alternative's Δχ², ΔBIC against the axisymmetric model and against the best spiral."""
     n = alternatives.n_data
     return {name: {"label": f.label, "delta_chi2": float(f.delta_chi2), "delta_bic": float(f.delta_bic(n)),
+                   "spiral_delta_bic_minus_this": float(spiral_delta_bic - f.delta_bic(n)),
                    "n_params": int(f.n_params), "params": dict(f.params)}
             for name, f in alternatives.fits.items()}
 
@@ -179,7 +181,8 @@ class Verdict:
 
     ``test3_passed`` is None when no alternatives were given; ``delta_bic_vs_alternative`` is
     ``ΔBIC_spiral − ΔBIC_alternative`` (positive favours the spiral); ``alternatives`` holds each
-    alternative's Δχ², ΔBIC, parameter count and fitted parameters; ``candidate`` the best
+    alternative's Δχ², ΔBIC against the axisymmetric model and the spiral's ΔBIC minus it,
+    parameter count and fitted parameters; ``candidate`` the best
     handed, compact candidate when the global peak fails test 2 (:func:`best_handed_candidate`).
     """
 
@@ -306,7 +309,8 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
         margin = float(best["delta_bic"]) - alt_bic
         extra.update(test3_passed=bool(margin > alternative_threshold), best_alternative=alt.name,
                      best_alternative_label=alt.label, alternative_delta_bic=alt_bic,
-                     delta_bic_vs_alternative=margin, alternatives=_alternatives_summary(alternatives))
+                     delta_bic_vs_alternative=margin,
+                     alternatives=_alternatives_summary(alternatives, float(best["delta_bic"])))
     if not test2:
         extra["candidate"] = best_handed_candidate(result, amplitude, neighbourhood=neighbourhood,
                                                    max_handedness_ratio=max_handedness_ratio,
