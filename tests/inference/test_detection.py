@@ -157,3 +157,4 @@ def test_peak_region_fraction_is_the_connected_area_above_half():
     expected = (3 + 3 + 4) / (r_p.sum() * 8)
     assert peak_region_fraction(values, r_p, 2, 0) == pytest.approx(expected)
     assert best_handed_candidate(fake_scan(values, np.zeros_like(values))) is not None
+    assert best_handed_candidate(fake_scan(values, np.zeros_like(values)), min_delta_bic=10.0) is None  # 10 < 6 ln N

@@ -25,8 +25,9 @@ against the same axisymmetric model and data, so their difference is ``BIC_alt �
 When it fails the verdict names the alternative.
 
 When the global peak fails test 2, :func:`detect` also looks for the best *handed, compact*
-candidate — the highest local maximum of any template whose mirror ratio and local peak area pass
-test 2 — so that a planet behind a false peak (e.g. from a phase-centre error) is not hidden.
+candidate — the highest local maximum of any template that passes test 1 and whose mirror ratio
+and local peak area pass test 2 — so that a planet behind a false peak (e.g. from a phase-centre
+error) is not hidden.
 Its ``localisation`` is the area of its own connected region above half its Δχ² (for the global
 peak of a map with one peak this equals the paper's measure above).
 """
@@ -137,13 +138,13 @@ def _local_maxima(values: np.ndarray, top: int) -> list[tuple[int, int]]:
 
 
 def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max_handedness_ratio: float = 0.5,
-                          max_localisation: float = 0.1) -> dict | None:
+                          max_localisation: float = 0.1, min_delta_bic: float = -np.inf) -> dict | None:
     """The highest local Δχ² maximum of any template that passes test 2 on its own, or None.
 
     For each template with a mirror image, its ``CANDIDATES_PER_TEMPLATE`` highest local maxima
-    are tried: a candidate passes when the mirror template's best Δχ² at nearby radii is below
-    ``max_handedness_ratio`` times its Δχ² and its own peak region (:func:`peak_region_fraction`)
-    is smaller than ``max_localisation`` of the scanned area.
+    with ΔBIC above ``min_delta_bic`` are tried: a candidate passes when the mirror template's best
+    Δχ² at nearby radii is below ``max_handedness_ratio`` times its Δχ² and its own peak region
+    (:func:`peak_region_fraction`) is smaller than ``max_localisation`` of the scanned area.
     """
     dchi2 = result.delta_chi2(amplitude)
     threshold = result.best(amplitude=amplitude)
@@ -154,7 +155,7 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max
             continue
         for i, j in _local_maxima(dchi2[t], CANDIDATES_PER_TEMPLATE):
             value = float(dchi2[t, i, j])
-            if best is not None and value <= best["delta_chi2"]:
+            if (best is not None and value <= best["delta_chi2"]) or value - offset <= min_delta_bic:
                 break
             ratio = handedness_ratio(result, t, i, j, neighbourhood, amplitude)
             area = peak_region_fraction(dchi2[t], result.r_p, i, j)
@@ -314,7 +315,8 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
     if not test2:
         extra["candidate"] = best_handed_candidate(result, amplitude, neighbourhood=neighbourhood,
                                                    max_handedness_ratio=max_handedness_ratio,
-                                                   max_localisation=max_localisation)
+                                                   max_localisation=max_localisation,
+                                                   min_delta_bic=bic_threshold_value)
     detected = test1 and test2 and extra.get("test3_passed") is not False
     return Verdict(
         detected=bool(detected), delta_bic=best["delta_bic"], test1_passed=test1,
