@@ -14,7 +14,9 @@ from spiralbayes.config import (
 def test_described_defaults_read_back_as_defaults(tmp_path):
     path = tmp_path / "default.toml"
     path.write_text(describe_config())
-    assert load_config(path) == default_config()
+    expected = default_config()
+    expected["output"]["dir"] = str(tmp_path / "spiralbayes-output")  # relative to the file, as every path
+    assert load_config(path) == expected
 
 
 def test_paper_defaults():
@@ -52,3 +54,22 @@ def test_missing_and_invalid_files(tmp_path):
     bad.write_text("[grid\n")
     with pytest.raises(ValueError, match="not valid TOML"):
         load_config(bad)
+
+
+def test_every_default_passes_its_value_check():
+    from spiralbayes.config import CHECKS
+
+    for section, checks in CHECKS.items():
+        for key, check in checks.items():
+            if key in SCHEMA.get(section, {}):
+                assert check(SCHEMA[section][key][0]) is None, f"default of {section}.{key} fails its check"
+
+
+@pytest.mark.parametrize("user,match", [
+    ({"alternatives": {"models": ["vortex"]}}, r"alternatives.models .* 'arc'"),
+    ({"alternatives": {"n_starts": 0}}, "alternatives.n_starts = 0 must be an integer >= 1"),
+])
+def test_bad_alternatives_options_are_refused(user, match):
+    with pytest.raises(ValueError, match=match):
+        merge_config(user)
+    assert merge_config({"alternatives": {"models": ["geometry", "arc"], "n_starts": 3}})["alternatives"]["n_starts"] == 3

@@ -3,18 +3,21 @@
 Every result file carries ``kind`` (what it holds, e.g. ``"spiralbayes.ScanResult"``) and
 ``format_version`` root attributes. :func:`write_file` writes through a temporary file that is
 renamed into place (:func:`~spiralbayes._provenance.atomic_path`); :func:`open_file` checks the
-path, the HDF5 signature and the kind, and turns each failure into one line that names the file.
+path, the HDF5 signature and the kind, and turns each failure into one line that names the file —
+also failures while reading inside the ``with`` block (a truncated file often opens but cannot
+give its datasets back; a missing attribute or an unparsable JSON attribute means the same).
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 from pathlib import Path
 
 from ._provenance import FORMAT_VERSION, atomic_path
-from .exceptions import DataFileError, MissingFileError
+from .exceptions import DataFileError, MissingFileError, SpiralbayesError
 
-__all__ = ["open_file", "read_kind", "require_file", "write_file"]
+__all__ = ["checked_dataset", "open_file", "read_kind", "require_file", "write_file"]
 
 
 def require_file(path, what: str, hint: str = "") -> Path:
@@ -23,6 +26,21 @@ def require_file(path, what: str, hint: str = "") -> Path:
     if not path.exists():
         raise MissingFileError(f"{what} {path} does not exist" + (f": {hint}" if hint else ""))
     return path
+
+
+def checked_dataset(group, name: str, data, **kwargs):
+    """Create dataset ``name`` with a Fletcher-32 checksum, so that a corrupted file fails to read.
+
+    HDF5 verifies the checksum of every chunk it reads and raises ``OSError`` on a mismatch, which
+    :func:`open_file` reports as a corrupt file; without it flipped bytes in raw data would be read
+    back as wrong numbers. Scalars and empty arrays (which cannot be chunked) are stored plainly.
+    """
+    import numpy as np
+
+    data = np.asarray(data)
+    if data.ndim == 0 or data.size == 0:
+        return group.create_dataset(name, data=data, **kwargs)
+    return group.create_dataset(name, data=data, fletcher32=True, **kwargs)
 
 
 @contextlib.contextmanager
@@ -45,7 +63,9 @@ def open_file(path, kind: str | tuple[str, ...], what: str, mode: str = "r"):
     MissingFileError
         No file at ``path``.
     DataFileError
-        Not an HDF5 file (or truncated), or written as another kind of result.
+        Not an HDF5 file (or truncated), written as another kind of result, or unreadable while
+        the block reads it (``OSError``, a missing dataset or attribute, bad JSON, or a content
+        check of the caller failing: all re-raised with the file's name and the fix).
     """
     import h5py
 
@@ -60,7 +80,17 @@ def open_file(path, kind: str | tuple[str, ...], what: str, mode: str = "r"):
         found = read_kind(f)
         if found not in kinds:
             raise DataFileError(f"{path} is not a spiralbayes {what} (kind = {found!r}, expected {kinds[0]!r})")
-        yield f
+        try:
+            yield f
+        except DataFileError:
+            raise
+        except SpiralbayesError as exc:  # the content failed the reader's checks
+            raise DataFileError(f"{path}: {exc}") from None
+        except (OSError, KeyError, json.JSONDecodeError, ValueError, TypeError) as exc:
+            # h5py raises OSError/KeyError for truncated or half-written files, ValueError/TypeError
+            # for datasets of the wrong shape or type
+            raise DataFileError(f"{path} is an incomplete or corrupt {what} ({exc.__class__.__name__}: "
+                                f"{_reason(exc)}); re-create it, or delete it to start afresh") from None
 
 
 def read_kind(f) -> str:
@@ -69,7 +99,9 @@ def read_kind(f) -> str:
     return kind.decode() if isinstance(kind, bytes) else str(kind)
 
 
-def _reason(exc: OSError) -> str:
-    text = str(exc).split("(", 1)[0].strip()
-    return text or exc.__class__.__name__
+def _reason(exc: Exception) -> str:
+    """The exception's message on one line (at most 200 characters)."""
+    text = " ".join(str(exc).split()).strip("'\"")
+    text = text or exc.__class__.__name__
+    return text if len(text) <= 200 else text[:197] + "..."
 

@@ -1,10 +1,18 @@
-"""Atomic file writing and provenance records shared by every writer."""
+"""Atomic file writing, provenance records, content hashes and strict JSON, shared by every writer.
+
+Files are written through :func:`atomic_path` (a temporary file beside the target, renamed into
+place only on success, with the permissions the user's umask gives new files). JSON written by
+spiralbayes is strict (RFC 8259): :func:`to_json` turns NaN and infinities into ``null``, which
+every JSON reader accepts, instead of Python's bare ``NaN``.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import datetime as _dt
 import hashlib
+import json
+import math
 import os
 import platform
 import tempfile
@@ -14,7 +22,8 @@ import numpy as np
 
 from ._version import __version__
 
-__all__ = ["atomic_path", "provenance_record", "data_hash", "json_default", "FORMAT_VERSION"]
+__all__ = ["atomic_path", "content_hash", "provenance_record", "data_hash", "json_default", "json_safe", "to_json",
+           "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
 """Version of spiralbayes' HDF5 layouts; bumped when a layout changes."""
@@ -29,7 +38,12 @@ def atomic_path(path):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    try:
+        # mkstemp makes the file private (0600); results on a shared machine should be readable
+        # by whoever the user's umask allows, as with a plain open().
+        os.fchmod(fd, 0o666 & ~_umask())
+    finally:
+        os.close(fd)
     try:
         yield Path(tmp)
         os.replace(tmp, path)
@@ -38,11 +52,43 @@ def atomic_path(path):
             os.remove(tmp)
 
 
+def _umask() -> int:
+    """The process's umask (read from /proc where possible: setting it to query it is not thread-safe)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def data_hash(*arrays) -> str:
     """Short SHA-256 of the given arrays' bytes, to tie results to their input data."""
     h = hashlib.sha256()
     for a in arrays:
         h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()[:16]
+
+
+def content_hash(*items) -> str:
+    """Short SHA-256 of arrays (values, dtype and shape) and JSON-able objects, in order.
+
+    Used for resume keys: two inputs that give different results must hash differently, so the
+    array's dtype and shape are hashed with its bytes, and dicts with sorted keys.
+    """
+    h = hashlib.sha256()
+    for item in items:
+        if isinstance(item, np.ndarray) or np.isscalar(item) and isinstance(item, np.generic):
+            a = np.ascontiguousarray(item)
+            h.update(f"{a.dtype.str}{a.shape}".encode())
+            h.update(a.tobytes())
+        else:
+            h.update(to_json(item, sort_keys=True).encode())
+        h.update(b"|")
     return h.hexdigest()[:16]
 
 
@@ -69,3 +115,25 @@ def json_default(obj):
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     return str(obj)
+
+
+def json_safe(obj):
+    """``obj`` with NumPy values made Python values and non-finite floats made ``None`` (recursively)."""
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_safe(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if obj is None or isinstance(obj, (str, int, bool)):
+        return obj
+    return json_safe(json_default(obj))
+
+
+def to_json(obj, **kwargs) -> str:
+    """Strict JSON text of ``obj`` (:func:`json_safe`: NaN and infinities become ``null``)."""
+    return json.dumps(json_safe(obj), allow_nan=False, **kwargs)

@@ -1,4 +1,9 @@
-"""The ``spiralbayes`` command: demo, simulate, axisym, scan, sample, templates."""
+"""The ``spiralbayes`` command: demo, simulate, axisym, scan, sample, templates.
+
+User errors (bad input files, configuration values, missing optional dependencies, a checkpoint
+for other inputs) are printed as one line, ``spiralbayes: error: ...``, with exit status 2;
+``--debug`` shows the traceback instead. Ctrl-C exits with status 130 (scans resume when rerun).
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,16 @@ from pathlib import Path
 __all__ = ["main"]
 
 log = logging.getLogger("spiralbayes")
+
+DESCRIPTION = """Search ALMA visibilities for planet-driven dust spirals (Stevenson et al. 2024) and
+turn the search into Bayesian inference. Commands: demo (an end-to-end example), simulate
+(synthetic ALMA data), axisym (frank fit), scan (grid scan of spiral templates, verdict and
+heatmaps), sample (emcee posterior), templates (the built-in template bank). Run
+'spiralbayes COMMAND -h' for a command's options; 'spiralbayes scan --print-config' writes a
+documented configuration file."""
+
+USER_ERRORS = (ValueError, LookupError, OSError, ImportError)
+"""Exceptions reported as one line (spiralbayes' own errors subclass these or SpiralbayesError)."""
 
 
 def _cmd_demo(args) -> int:
@@ -64,7 +79,8 @@ def _cmd_axisym(args) -> int:
     geometry = DiscGeometry(args.inc, args.pa, args.dra, args.ddec)
     model = run_axisym(vis, args.out, geometry, distance=args.distance,
                        fit_geometry="nonparametric" if args.fit_geometry else None, progress=not args.quiet)
-    print(f"total flux {model.total_flux:.4g} Jy, R_eff(95%) {model.R_eff():.3f} arcsec; outputs in {args.out}")
+    print(f"sky (projected) flux {model.total_flux * model.geometry.cos_inc:.4g} Jy, face-on (deprojected) flux "
+          f"{model.total_flux:.4g} Jy, R_eff(95%) {model.R_eff():.3f} arcsec; outputs in {args.out}")
     return 0
 
 
@@ -77,7 +93,7 @@ def _cmd_scan(args) -> int:
         return 0
     if not args.config:
         raise SystemExit("spiralbayes scan: give a CONFIG file (write a documented one with --print-config)")
-    run = run_scan(load_config(args.config), progress=not args.quiet)
+    run = run_scan(load_config(args.config), progress=not args.quiet, force_resume=args.force_resume)
     print(run.verdict.summary())
     if run.follow_up is not None:
         g = run.follow_up.geometry
@@ -109,9 +125,10 @@ def _cmd_templates(args) -> int:
     bank = default_bank(rebuild=args.rebuild)
     print(f"{len(bank)} templates in the default bank")
     if args.plot:
+        from .pipeline import save_figure
         from .plotting.templates import plot_bank_overview
 
-        plot_bank_overview(bank).savefig(args.plot, dpi=120, bbox_inches="tight")
+        save_figure(plot_bank_overview(bank), args.plot, dpi=120, bbox_inches="tight")
         print(f"wrote {args.plot}")
     return 0
 
@@ -124,8 +141,9 @@ def _geometry_args(p):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="spiralbayes", description=__doc__)
+    parser = argparse.ArgumentParser(prog="spiralbayes", description=DESCRIPTION)
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    parser.add_argument("--debug", action="store_true", help="show the full traceback of errors")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars, warnings only")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -157,13 +175,23 @@ def build_parser() -> argparse.ArgumentParser:
     _geometry_args(p)
     p.set_defaults(func=_cmd_axisym)
 
-    p = sub.add_parser("scan", help="grid scan of a template bank over planet positions (TOML config)")
-    p.add_argument("config", nargs="?")
+    p = sub.add_parser("scan", help="grid scan of a template bank over planet positions (TOML config)",
+                       description="Grid scan of spiral templates over planet positions, then the verdict "
+                                   "(Delta BIC and the handedness test) and heatmaps. An interrupted scan "
+                                   "resumes from OUTPUT/scan_checkpoint.h5 when run again with the same inputs.")
+    p.add_argument("config", nargs="?", metavar="CONFIG",
+                   help="TOML configuration file (write a documented one with --print-config); relative "
+                        "paths in it are taken relative to its folder")
     p.add_argument("--print-config", action="store_true", help="print the documented default config")
+    p.add_argument("--force-resume", action="store_true",
+                   help="resume the checkpoint even if it was written for other inputs (data, frank model, "
+                        "templates, geometry, quadrature); its completed templates are kept as they are")
     p.set_defaults(func=_cmd_scan)
 
     p = sub.add_parser("sample", help="emcee posterior over planet position and geometry (TOML config)")
-    p.add_argument("config", nargs="?")
+    p.add_argument("config", nargs="?", metavar="CONFIG",
+                   help="TOML configuration file (the scan's, with [sample] and [priors]; --print-config "
+                        "writes a documented one)")
     p.add_argument("--print-config", action="store_true", help="print the documented default config")
     p.set_defaults(func=_cmd_sample)
 
@@ -180,9 +208,25 @@ def main(argv=None) -> int:
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     try:
         return args.func(args)
-    except (ValueError, FileNotFoundError, KeyError) as exc:
-        log.error("%s", exc)
+    except KeyboardInterrupt:
+        if args.debug:
+            raise
+        print("spiralbayes: interrupted (a scan resumes from its checkpoint when run again)", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        from .exceptions import SpiralbayesError
+
+        if args.debug or not isinstance(exc, (SpiralbayesError, *USER_ERRORS)):
+            raise
+        print(f"spiralbayes: error: {_message(exc)} (--debug shows the traceback)", file=sys.stderr)
         return 2
+
+
+def _message(exc: Exception) -> str:
+    """One line: KeyError's quotes removed, newlines folded."""
+    text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+    text = " ".join(str(text).split())
+    return text or exc.__class__.__name__
 
 
 if __name__ == "__main__":  # pragma: no cover

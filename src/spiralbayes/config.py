@@ -4,21 +4,28 @@ Every option has a default (from Stevenson et al. 2024 where the paper sets one)
 description with units; unknown sections or keys are rejected with the list of valid ones, and
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
-drives both commands: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]`` and
-``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``. Relative input
-paths are taken relative to the configuration file.
+drives both commands: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
+and ``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``. Relative paths —
+inputs and ``[output] dir`` alike — are taken relative to the configuration file, so a
+configuration means the same wherever it is run from.
+
+Values are checked when the file is read (:data:`CHECKS`): a wrong type, a value out of range or
+an unknown choice raises :class:`~spiralbayes.exceptions.ConfigError` naming the option and what
+it accepts, before any data is read or any fit is run.
 """
 
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 
 import tomllib
 
-from .exceptions import InputError, MissingFileError
+from .asymmetries import ALTERNATIVE_MODELS
+from .exceptions import ConfigError, MissingFileError
 
-__all__ = ["PATH_KEYS", "SCHEMA", "default_config", "describe_config", "load_config", "merge_config"]
+__all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "default_config", "describe_config", "load_config", "merge_config"]
 
 # section -> key -> (default, description)
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
@@ -103,9 +110,118 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
 }
 
 
-PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("sample", "scan"))
-"""Input paths; relative ones are resolved against the configuration file's folder (``[output] dir``, an
-output, is relative to the working directory)."""
+PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("sample", "scan"), ("output", "dir"))
+"""Every path option; relative ones are resolved against the configuration file's folder (``~`` is
+expanded). ``templates.bank = "default"`` names the built-in bank, not a file."""
+
+
+# --- value checks: each returns an error text (what the option accepts) or None ---------------------
+def _finite(v):
+    return None if math.isfinite(v) else "must be a finite number"
+
+
+def _positive(v):
+    return None if math.isfinite(v) and v > 0 else "must be a positive, finite number"
+
+
+def _non_negative(v):
+    return None if math.isfinite(v) and v >= 0 else "must be a finite number >= 0"
+
+
+def _at_least(low):
+    return lambda v: None if math.isfinite(v) and v >= low else f"must be a finite number >= {low:g}"
+
+
+def _int_at_least(low):
+    return lambda v: None if v >= low else f"must be an integer >= {low}"
+
+
+def _even_positive(v):
+    return None if v >= 2 and v % 2 == 0 else "must be a positive, even integer (the paper uses 90: 4 deg steps)"
+
+
+def _inclination(v):
+    return None if math.isfinite(v) and 0 <= v < 90 else "must be an inclination in degrees in [0, 90)"
+
+
+def _choice(*allowed, case=True):
+    def check(v):
+        value = v if case else v.upper()
+        return None if value in allowed else f"must be one of {', '.join(repr(a) for a in allowed)}"
+    return check
+
+
+def _each(check):
+    def each(values):
+        for v in values:
+            if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+                return f"must be a list of values, got element {v!r}"
+            error = check(v)
+            if error:
+                return f"has element {v!r} that {error}"
+        return None
+    return each
+
+
+def _number(check):
+    def number(v):
+        if isinstance(v, (str, bool)):
+            return "must be a list of numbers"
+        return check(v)
+    return number
+
+
+def _string(check):
+    def string(v):
+        return check(v) if isinstance(v, str) else "must be a list of strings"
+    return string
+
+
+_UV_UNITS = ("", "lambda", "klambda", "m", "λ", "kλ", "wavelengths", "wle", "kilolambda", "metre", "metres",
+             "meter", "meters")
+
+CHECKS: dict[str, dict[str, object]] = {
+    "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative},
+    "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _positive},
+    "frank": {"N": _int_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
+              "weights_smooth": _non_negative},
+    "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
+                  "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False)))},
+    "grid": {"r_p_min": _positive, "r_p_max": _positive, "n_r_p": _int_at_least(1), "n_phi_p": _even_positive},
+    "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive},
+    "alternatives": {"models": _each(_string(_choice(*ALTERNATIVE_MODELS))), "threshold": _finite,
+                     "n_starts": _int_at_least(1)},
+    "sample": {"n_walkers": _int_at_least(2), "n_steps": _int_at_least(0), "max_steps": _int_at_least(1),
+               "check_every": _int_at_least(1), "convergence": _choice("raise", "warn", "ignore"),
+               "min_ess": _positive, "processes": _int_at_least(1), "seed": _int_at_least(0),
+               "prune_delta_lnL": _positive, "evidence_draws": _int_at_least(1),
+               "mcmc_templates": _each(_string(lambda v: None))},
+    "priors": {"r_p_min": _non_negative, "r_p_max": _non_negative, "inc_sigma": _positive, "PA_sigma": _positive,
+               "dRA_sigma": _positive, "dDec_sigma": _positive},
+    "output": {"dir": lambda v: None if v.strip() else "must name a directory"},
+}
+"""section -> option -> check of its (already type-coerced) value; options without one take any value
+of their type. Sections added to :data:`SCHEMA` may add their checks here."""
+
+
+def _check_values(config: dict) -> None:
+    for section, checks in CHECKS.items():
+        for key, check in checks.items():
+            if key in config.get(section, {}):
+                value = config[section][key]
+                if key in SCHEMA.get(section, {}) and value == SCHEMA[section][key][0]:
+                    continue  # defaults are valid by construction (and may be sentinels such as 0)
+                error = check(value)
+                if error:
+                    raise ConfigError(f"{section}.{key} = {value!r} {error}")
+    grid = config.get("grid", {})
+    if {"r_p_min", "r_p_max"} <= set(grid) and grid["r_p_min"] >= grid["r_p_max"]:
+        raise ConfigError(f"grid.r_p_min = {grid['r_p_min']!r} must be smaller than grid.r_p_max = "
+                          f"{grid['r_p_max']!r} [arcsec]")
+    priors = config.get("priors", {})
+    if priors.get("r_p_min") and priors.get("r_p_max") and priors["r_p_min"] >= priors["r_p_max"]:
+        raise ConfigError(f"priors.r_p_min = {priors['r_p_min']!r} must be smaller than priors.r_p_max = "
+                          f"{priors['r_p_max']!r} [arcsec] (or 0 for the default)")
 
 
 def default_config() -> dict:
@@ -114,40 +230,53 @@ def default_config() -> dict:
 
 
 def merge_config(user: dict, schema: dict = SCHEMA) -> dict:
-    """Defaults overlaid with ``user``; unknown sections/keys and wrong types raise ValueError."""
+    """Defaults overlaid with ``user``; unknown sections/keys, wrong types and bad values raise ConfigError."""
     config = default_config() if schema is SCHEMA else {s: {k: v[0] for k, v in ks.items()} for s, ks in schema.items()}
     for section, values in user.items():
         if section not in schema:
-            raise InputError(f"unknown config section [{section}]; valid sections: {sorted(schema)}")
+            raise ConfigError(f"unknown config section [{section}]; valid sections: {sorted(schema)}")
         if not isinstance(values, dict):
-            raise InputError(f"[{section}] must be a table of options")
+            raise ConfigError(f"[{section}] must be a table of options")
         for key, value in values.items():
             if key not in schema[section]:
-                raise InputError(f"unknown option {section}.{key}; valid options of [{section}]: {sorted(schema[section])}")
+                raise ConfigError(f"unknown option {section}.{key}; valid options of [{section}]: "
+                                  f"{sorted(schema[section])}")
             config[section][key] = _coerce(section, key, value, schema[section][key][0])
+    _check_values(config)
     return config
 
 
 def _coerce(section: str, key: str, value, default):
     if isinstance(default, bool):
         if not isinstance(value, bool):
-            raise InputError(f"{section}.{key} must be true or false, got {value!r}")
+            raise ConfigError(f"{section}.{key} must be true or false, got {value!r}")
         return value
     if isinstance(default, (int, float)) and not isinstance(default, bool):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise InputError(f"{section}.{key} must be a number, got {value!r}")
-        return type(default)(value) if isinstance(default, float) else value
+            raise ConfigError(f"{section}.{key} must be a number, got {value!r}")
+        if isinstance(default, float):
+            return float(value)
+        if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
+            raise ConfigError(f"{section}.{key} must be an integer, got {value!r}")
+        return int(value)
     if isinstance(default, list) and not isinstance(value, list):
         return [value]
     if isinstance(default, str) and not isinstance(value, str):
-        raise InputError(f"{section}.{key} must be a string, got {value!r}")
+        raise ConfigError(f"{section}.{key} must be a string, got {value!r}")
     return value
 
 
 def load_config(path, schema: dict = SCHEMA) -> dict:
-    """Read a TOML configuration file and merge it with the defaults.
+    """Read a TOML configuration file, merge it with the defaults and check every value.
 
-    Relative data paths are taken relative to the configuration file.
+    Relative paths (:data:`PATH_KEYS`) are taken relative to the configuration file.
+
+    Raises
+    ------
+    MissingFileError
+        No file at ``path``.
+    ConfigError
+        Not valid TOML, an unknown section or option, or a bad value (the message names it).
     """
     path = Path(path)
     if not path.exists():
@@ -155,12 +284,19 @@ def load_config(path, schema: dict = SCHEMA) -> dict:
     try:
         user = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path} is not valid TOML: {exc}") from None
-    config = merge_config(user, schema)
+        raise ConfigError(f"{path} is not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path} is not a text (TOML) file") from None
+    try:
+        config = merge_config(user, schema)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
     for section, key in PATH_KEYS:
         value = config.get(section, {}).get(key)
-        if value and value != "default" and not Path(value).expanduser().is_absolute():
-            config[section][key] = str((path.parent / value).resolve())
+        if not value or (section, key, value) == ("templates", "bank", "default"):
+            continue
+        resolved = Path(value).expanduser()
+        config[section][key] = str(resolved if resolved.is_absolute() else (path.parent / resolved).resolve())
     return config
 
 

@@ -1,12 +1,13 @@
 """Every end-to-end run: the demo, the frank fit with plots, and scan and sample from a configuration.
 
 The command line (:mod:`spiralbayes.cli`) only parses arguments and calls these; notebooks can call
-them too. Outputs are written atomically (temporary file, then rename).
+them too. Outputs are written atomically (temporary file, then rename, with the user's umask), JSON
+outputs are strict (NaN written as ``null``), and a scan's configuration record is written only
+once the scan it describes has finished.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import time
 from dataclasses import dataclass
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._provenance import atomic_path, json_default
+from ._provenance import atomic_path, to_json
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric
 from .config import describe_config
 from .exceptions import InputError
@@ -46,6 +47,7 @@ __all__ = [
     "run_sample_config",
     "run_scan",
     "run_scan_config",
+    "save_figure",
     "select_templates",
     "write_scan_outputs",
 ]
@@ -86,11 +88,16 @@ def select_templates(bank, mass=(), tau0=(), beta=(), hand=()):
     return list(chosen)
 
 
-def _save_figure(fig, path: Path, dpi: int = 120) -> Path:
-    """Write a Figure as PNG through a temporary file (no pyplot state is touched)."""
+def save_figure(fig, path, dpi: int = 120, **kwargs) -> Path:
+    """Write a Figure through a temporary file (format from the suffix, default PNG; no pyplot state)."""
+    path = Path(path)
+    fmt = path.suffix.lstrip(".").lower() or "png"
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
+        fig.savefig(tmp, format=fmt, dpi=dpi, **kwargs)
     return path
+
+
+_save_figure = save_figure
 
 
 def _write_text(path: Path, text: str) -> Path:
@@ -109,7 +116,7 @@ def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, ampli
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [result.save(out_dir / "scan.h5")]
-    files.append(_write_text(out_dir / "verdict.json", json.dumps(verdict.to_dict(), indent=2, default=json_default)))
+    files.append(_write_text(out_dir / "verdict.json", to_json(verdict.to_dict(), indent=2)))
     files.append(_write_text(out_dir / "verdict.txt", verdict.summary() + "\n"))
     if alternatives is not None:
         files.append(alternatives.save(out_dir / "alternatives.h5"))
@@ -176,8 +183,17 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
     return DemoResult(verdict, result, files, timings, alts)
 
 
-def load_data(data: dict):
-    """A :class:`Visibilities` from the ``[data]`` section of a configuration."""
+def load_data(data: dict, geometry: DiscGeometry | None = None):
+    """A :class:`Visibilities` from the ``[data]`` section of a configuration.
+
+    With ``estimate_weights = true`` the weights are rescaled by one factor from the scatter of
+    each visibility about the plane through its uv neighbours (``method="neighbours"`` of
+    :func:`~spiralbayes.visibilities.estimate_weights`: no model, geometry or symmetry assumed;
+    uv cells, the ``"scatter"`` method without a geometry, were measured 40x off on the fiducial
+    set-up, where the bright disc's structure dominates the scatter within a cell); otherwise they
+    are checked on load and a DataWarning gives this fix when they do not look statistical.
+    ``geometry`` is kept for callers that pass it; the estimate does not use it.
+    """
     if not data["path"]:
         raise InputError("data.path is empty: give the visibility file in the [data] section")
     kwargs = {}
@@ -187,8 +203,8 @@ def load_data(data: dict):
         kwargs["wavelength"] = data["wavelength"]
     if data["conjugated"]:
         kwargs["conjugated"] = True
-    vis = load_visibilities(data["path"], **kwargs).standardised()
-    return estimate_weights(vis) if data["estimate_weights"] else vis
+    vis = load_visibilities(data["path"], check_weights_on_load=not data["estimate_weights"], **kwargs).standardised()
+    return estimate_weights(vis, method="neighbours") if data["estimate_weights"] else vis
 
 
 def load_templates(templates: dict) -> list:
@@ -213,39 +229,43 @@ def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> Axisymmetr
     return axisym.nonnegative() if f["nonnegative"] else axisym
 
 
-def run_scan_config(config: dict, *, progress: bool = True):
+def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool = False):
     """Run a scan described by a merged configuration (:func:`spiralbayes.config.load_config`).
 
     Returns ``(verdict, scan, files)`` of the scan at the configured geometry; :func:`run_scan`
-    also returns the alternatives and the geometry follow-up.
+    (which this calls) also returns the alternatives and the geometry follow-up.
     """
-    run = run_scan(config, progress=progress)
+    run = run_scan(config, progress=progress, force_resume=force_resume)
     return run.verdict, run.scan, run.files
 
 
-def run_scan(config: dict, *, progress: bool = True) -> ScanRun:
+def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False) -> ScanRun:
     """The scan of a configuration, the alternatives of test 3, the verdict and, when needed, the follow-up.
 
-    Writes the scan's outputs to ``[output] dir`` (:func:`write_scan_outputs`). With
-    ``[alternatives] refit_geometry`` on, no detection and the geometry alternative significant
-    (ΔBIC > 10), frank is refitted at the fitted geometry and the scan, alternatives and verdict are
-    repeated there (:func:`~spiralbayes.inference.refit.rescan_at_fitted_geometry`), with their
-    outputs and ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
+    A checkpoint left in ``[output] dir`` is checked for integrity before anything slow runs,
+    and resumed only if it was written for the same inputs (``force_resume`` overrides; see
+    :func:`~spiralbayes.inference.scan.scan`). Writes the scan's outputs to ``[output] dir``
+    (:func:`write_scan_outputs`). With ``[alternatives] refit_geometry`` on, no detection and the
+    geometry alternative significant (ΔBIC > 10), frank is refitted at the fitted geometry and the
+    scan, alternatives and verdict are repeated there
+    (:func:`~spiralbayes.inference.refit.rescan_at_fitted_geometry`), with their outputs and
+    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
     """
-    vis = load_data(config["data"])
+    out_dir = Path(config["output"]["dir"])
+    s = config["scan"]
+    checkpoint = out_dir / "scan_checkpoint.h5" if s["checkpoint"] else None
+    if checkpoint is not None and checkpoint.exists():
+        ScanResult.load(checkpoint)  # a truncated or foreign file fails now, not after the frank fit
+    vis = load_data(config["data"], _geometry(config))
     axisym = load_axisymmetric(config, vis, progress=progress)
     templates = load_templates(config["templates"])
     grid = config["grid"]
     r_p = np.linspace(grid["r_p_min"], grid["r_p_max"], grid["n_r_p"])
-    out_dir = Path(config["output"]["dir"])
     out_dir.mkdir(parents=True, exist_ok=True)
-    _write_text(out_dir / "config_used.toml", describe_config(config))
-    s = config["scan"]
     amplitude = "free" if s["amplitude"] == "free" else None
     result = scan(vis, axisym, templates, axisym.geometry, r_p=r_p, n_phi_p=grid["n_phi_p"],
-                  distance=config["geometry"]["distance"],
-                  checkpoint=out_dir / "scan_checkpoint.h5" if s["checkpoint"] else None,
-                  client=s["dask"] or None, progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"])
+                  distance=config["geometry"]["distance"], checkpoint=checkpoint, client=s["dask"] or None,
+                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume)
     a = config["alternatives"]
     alt_kwargs = {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"],
                   "progress": progress}
@@ -256,6 +276,7 @@ def run_scan(config: dict, *, progress: bool = True) -> ScanRun:
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
                                axisymmetric=axisym, templates=templates)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
+    files.append(_write_text(out_dir / "config_used.toml", describe_config(config)))
     follow = None
     if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
         follow = rescan_at_fitted_geometry(vis, axisym, templates, alts, previous_scan=result, amplitude=amplitude,
@@ -297,7 +318,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     out_dir.mkdir(parents=True, exist_ok=True)
     s = config["sample"]
     run_name = s["run_name"]
-    vis = load_data(config["data"])
+    vis = load_data(config["data"], _geometry(config))
     scanned = out_dir / "axisymmetric.h5"
     if not config["frank"]["model"] and scanned.exists():
         config = {**config, "frank": {**config["frank"], "model": str(scanned)}}
@@ -314,7 +335,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
                               mcmc_templates=s["mcmc_templates"] or None, progress=progress, **sampler)
     result.save(out_dir / f"{run_name}_posterior.h5")
     summary = {**result.to_json(), "summary": result.summary()}
-    _write_text(out_dir / f"{run_name}_summary.json", json.dumps(summary, indent=2, default=json_default))
+    _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))
     _save_figure(plot_corner(result), out_dir / f"{run_name}_corner.png")
     _save_figure(plot_template_probabilities(result), out_dir / f"{run_name}_templates.png")
     return result

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from spiralbayes.exceptions import ResumeMismatchError
 from spiralbayes.fourier import sample_image
 from spiralbayes.inference.scan import ScanResult, scan
 from spiralbayes.inference.scan_engine import direct_delta_chi2
@@ -87,7 +88,7 @@ def test_checkpoint_for_other_inputs_is_refused(tmp_path, planet_observation, sm
     vis, axisym = planet_observation
     checkpoint = tmp_path / "scan.h5"
     scan(vis, axisym, small_bank[:2], GEOMETRY, r_p=[0.2, 0.3], n_phi_p=10, progress=False, checkpoint=checkpoint)
-    with pytest.raises(ValueError, match="different inputs"):
+    with pytest.raises(ResumeMismatchError, match=r"other inputs — the planet grid \(2 r_p from 0.2 to 0.3 arcsec"):
         scan(vis, axisym, small_bank[:2], GEOMETRY, r_p=[0.2, 0.4], n_phi_p=10, progress=False,
              checkpoint=checkpoint)
 

@@ -150,19 +150,25 @@ def test_klambda_units(tmp_path):
 
 def test_explicit_units_override_header_with_warning(tmp_path, caplog):
     path, rows = _uvplot_file(tmp_path)
+    rows = rows.copy()
+    rows[:, :2] /= 0.87e-3  # the header says metres but the numbers are wavelengths
+    lam = _write_rows(tmp_path / "lam.txt", "wavelength[m] = 0.00087\nColumns: u[m] v[m] Re(V)[Jy] Im(V)[Jy] weight",
+                      rows, fmt="%.17g")
     with caplog.at_level(logging.WARNING, logger="spiralbayes"):
-        vis = read_uvtable(path, uv_units="lambda")
+        vis = read_uvtable(lam, uv_units="lambda")
     np.testing.assert_array_equal(vis.u, rows[:, 0])
     assert "header declares u, v in m" in caplog.text
-    assert "look" not in caplog.text or "metres" in caplog.text
+    with pytest.raises(ValueError, match="look like metres"):  # a false override of real metres is refused
+        read_uvtable(path, uv_units="lambda")
 
 
-def test_short_baselines_in_lambda_warn_about_metres(tmp_path, caplog):
+def test_short_baselines_in_lambda_warn_about_metres(tmp_path):
+    from spiralbayes.exceptions import DataWarning
+
     rows = np.column_stack([np.full(4, 300.0), np.zeros(4), np.ones(4), np.zeros(4), np.ones(4)])
     path = _write_rows(tmp_path / "short.txt", "", rows)
-    with caplog.at_level(logging.WARNING, logger="spiralbayes"):
+    with pytest.warns(DataWarning, match="if u, v are in metres, pass uv_units='m'"):
         read_uvtable(path)
-    assert "if u, v are in metres pass uv_units='m'" in caplog.text
 
 
 def test_comma_separated_and_comments(tmp_path):

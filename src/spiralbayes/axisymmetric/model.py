@@ -14,8 +14,8 @@ from typing import Callable
 
 import numpy as np
 
-from .._hdf5 import open_file, write_file
-from .._provenance import json_default, provenance_record
+from .._hdf5 import checked_dataset, open_file, write_file
+from .._provenance import provenance_record, to_json
 from ..exceptions import InputError
 from ..geometry import DiscGeometry
 from ..units import ARCSEC
@@ -384,9 +384,9 @@ class AxisymmetricModel:
             f.attrs["Rmax"] = self.Rmax
             f.attrs["frank_version"] = self.frank_version or ""
             f.attrs["fit_time_s"] = np.nan if self.fit_time_s is None else float(self.fit_time_s)
-            f.attrs["hyperparameters"] = json.dumps(self.hyperparameters, default=json_default)
-            f.attrs["provenance"] = json.dumps(self.provenance, default=json_default)
-            f.attrs["saved_by"] = json.dumps(provenance_record(), default=json_default)
+            f.attrs["hyperparameters"] = to_json(self.hyperparameters)
+            f.attrs["provenance"] = to_json(self.provenance)
+            f.attrs["saved_by"] = to_json(provenance_record())
             g = f.create_group("geometry")
             for key, value in self.geometry.to_dict().items():
                 g.attrs[key] = value
@@ -394,13 +394,25 @@ class AxisymmetricModel:
             for name, unit in units.items():
                 arr = getattr(self, name)
                 if arr is not None:
-                    f.create_dataset(name, data=arr).attrs["unit"] = unit
+                    checked_dataset(f, name, arr).attrs["unit"] = unit
         log.info("saved axisymmetric model to %s", path)
         return Path(path)
 
+    def __repr__(self) -> str:
+        g = self.geometry
+        hp = {k: self.hyperparameters[k] for k in ("alpha", "p0", "weights_smooth") if k in self.hyperparameters}
+        settings = ", ".join(f"{k}={v:g}" for k, v in hp.items())
+        return (f"AxisymmetricModel(N={self.N}, Rmax={self.Rmax:g} arcsec{', ' + settings if settings else ''}; "
+                f"inc={g.inc:.3f} deg, PA={g.PA:.3f} deg, dRA={g.dRA * 1e3:.2f} mas, dDec={g.dDec * 1e3:.2f} mas; "
+                f"face-on flux {self.total_flux:.4g} Jy, sky flux {self.total_flux * g.cos_inc:.4g} Jy)")
+
     @classmethod
     def load(cls, path) -> "AxisymmetricModel":
-        """Read a model written by :meth:`save`."""
+        """Read a model written by :meth:`save`.
+
+        A missing, truncated or corrupt file raises :class:`~spiralbayes.exceptions.MissingFileError`
+        or :class:`~spiralbayes.exceptions.DataFileError` naming it.
+        """
         with open_file(path, AXISYMMETRIC_KIND, "axisymmetric model") as f:
             geometry = DiscGeometry(**{k: float(f["geometry"].attrs[k]) for k in ("inc", "PA", "dRA", "dDec")})
             arrays = {name: (f[name][()] if name in f else None) for name in ("r", "I", "I_err", "I_nonneg")}

@@ -39,6 +39,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .._provenance import json_safe
 from ..exceptions import InputError
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "localisation", "mirror_index",
@@ -59,9 +60,15 @@ def mirror_index(result, template: int) -> int | None:
     other = {"R": "L", "L": "R"}[hand]
     keys = [k for k in ("mass", "tau0", "beta", "h_p", "flaring", "wavelength") if k in meta]
     for j, m in enumerate(result.templates):
-        if m.get("hand") == other and all(m.get(k) == meta[k] for k in keys):
+        if m.get("hand") == other and all(_same(m.get(k), meta[k]) for k in keys):
             return j
     return None
+
+
+def _same(a, b) -> bool:
+    """Equal metadata values; unknown ones (None or NaN, e.g. a FARGO3D run's beta) match each other."""
+    unknown = [x is None or (isinstance(x, float) and np.isnan(x)) for x in (a, b)]
+    return all(unknown) if any(unknown) else bool(a == b)
 
 
 def handedness_ratio(result, template: int, i_rp: int, i_phi: int, neighbourhood: int = 2,
@@ -213,7 +220,8 @@ class Verdict:
         return None if self.distance is None else self.r_p * self.distance
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The fields as strict-JSON values (NaN, e.g. no mirror template scanned, becomes None)."""
+        return json_safe(asdict(self))
 
     def _where(self, r_p: float, phi_deg: float) -> str:
         where = f"r_p = {r_p:.3f} arcsec" + (f" ({r_p * self.distance:.0f} au)" if self.distance else "")

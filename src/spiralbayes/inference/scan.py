@@ -4,6 +4,16 @@
 its exactness are described) over a template bank and the (r_p, phi_p) grid, with checkpoints
 after every template, resume, progress bars and optional Dask parallelism; :class:`ScanResult`
 holds the two terms of Δχ² = 2 cross - power per template and position.
+
+Resume key
+----------
+A checkpoint is resumed only when it was written for the same inputs: :func:`resume_key` records
+a hash of the data, of the axisymmetric profile (its arrays, or the profile sampled on the
+scanned radii) and frank's settings, each template's content hash (x, phi, δ) and metadata, the
+(r_p, phi_p) grid, the geometry, the quadrature settings (``cell_factor`` and the uv grid they
+imply) and spiralbayes' version. Any difference raises :class:`ResumeMismatchError` naming it;
+``force_resume=True`` keeps the completed templates anyway (same grid required). The thread
+count is not part of the key: it changes ``power`` by ~1e-6 relative only.
 """
 
 from __future__ import annotations
@@ -11,21 +21,23 @@ from __future__ import annotations
 import json
 import logging
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .._hdf5 import open_file, write_file
-from .._provenance import data_hash, json_default, provenance_record
-from ..exceptions import InputError
+from .._hdf5 import checked_dataset, open_file, write_file
+from .._provenance import content_hash, data_hash, json_safe, provenance_record, to_json
+from .._version import __version__
+from ..exceptions import DataWarning, InputError, ResumeMismatchError
 from ..geometry import DiscGeometry
 from ..model import DEFAULT_CELL_FACTOR
 from ..templates.template import template_metadata
 from .scan_engine import ScanContext, scan_template
 from .statistics import bic_threshold, delta_chi2_from_terms
 
-__all__ = ["ScanResult", "default_rp_grid", "scan"]
+__all__ = ["ScanResult", "default_rp_grid", "resume_key", "scan"]
 
 SCAN_KIND = "spiralbayes.ScanResult"
 
@@ -123,29 +135,49 @@ class ScanResult:
         """Write to HDF5 (atomically)."""
         with write_file(path, SCAN_KIND) as f:
             for name in ("r_p", "phi_p", "cross", "power"):
-                f.create_dataset(name, data=getattr(self, name))
+                checked_dataset(f, name, getattr(self, name))
             f.attrs["chi2_AO"] = self.chi2_AO
             f.attrs["n_data"] = self.n_data
             f.attrs["geometry"] = json.dumps(self.geometry.to_dict())
             f.attrs["distance"] = -1.0 if self.distance is None else self.distance
-            f.attrs["templates"] = json.dumps(self.templates, default=json_default)
-            f.attrs["provenance"] = json.dumps(self.provenance, default=json_default)
+            f.attrs["templates"] = to_json(self.templates)
+            f.attrs["provenance"] = to_json(self.provenance)
         return Path(path)
 
     @classmethod
     def load(cls, path) -> "ScanResult":
+        """Read a result (or a checkpoint) written by :meth:`save`.
+
+        Raises :class:`~spiralbayes.exceptions.DataFileError` naming the file when it is
+        truncated, corrupt or inconsistent (array shapes that do not match the grid).
+        """
         with open_file(path, SCAN_KIND, "scan result") as f:
             distance = float(f.attrs["distance"])
-            return cls(json.loads(f.attrs["templates"]), f["r_p"][()], f["phi_p"][()], f["cross"][()],
-                       f["power"][()], float(f.attrs["chi2_AO"]), int(f.attrs["n_data"]),
-                       DiscGeometry(**json.loads(f.attrs["geometry"])), None if distance < 0 else distance,
-                       json.loads(f.attrs["provenance"]))
+            result = cls(json.loads(f.attrs["templates"]), f["r_p"][()], f["phi_p"][()], f["cross"][()],
+                         f["power"][()], float(f.attrs["chi2_AO"]), int(f.attrs["n_data"]),
+                         DiscGeometry(**json.loads(f.attrs["geometry"])), None if distance < 0 else distance,
+                         json.loads(f.attrs["provenance"]))
+            shape = (len(result.templates), result.r_p.size, result.phi_p.size)
+            if result.cross.shape != shape or result.power.shape != shape:
+                raise InputError(f"arrays of shape {result.cross.shape} / {result.power.shape} do not match "
+                                 f"{shape[0]} templates x {shape[1]} radii x {shape[2]} azimuths")
+            return result
+
+    def __repr__(self) -> str:
+        done = int(self.completed.sum())
+        head = (f"ScanResult({len(self.templates)} templates ({done} done), {self.r_p.size} r_p from "
+                f"{self.r_p[0]:.3g} to {self.r_p[-1]:.3g} arcsec x {self.phi_p.size} phi_p, N = {self.n_data}, "
+                f"chi2_AO = {self.chi2_AO:.6g}")
+        if done:
+            best = self.best()
+            head += f"; best {best['template']}: Delta chi2 = {best['delta_chi2']:.1f} at r_p = {best['r_p']:.3g}"
+        return head + ")"
 
 
 # --------------------------------------------------------------------------------------------
 def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, r_p=None, n_phi_p: int = 90,
          distance: float | None = None, checkpoint=None, client=None, progress: bool = True,
-         cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1) -> ScanResult:
+         cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1, force_resume: bool = False) -> ScanResult:
     """Δχ² of every template at every planet position.
 
     Parameters
@@ -159,13 +191,17 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     geometry : DiscGeometry, optional
         Defaults to the axisymmetric model's.
     r_p : array_like, optional
-        Planet radii [arcsec]; default 25 radii up to 0.6 R_eff (the paper's 0.02–0.5 arcsec).
+        Planet radii [arcsec], positive, finite and increasing; default 25 radii up to 0.6 R_eff
+        (the paper's 0.02–0.5 arcsec). Radii beyond the model's ``Rmax`` raise a DataWarning.
     n_phi_p : int
-        Number of planet azimuths over 360 deg (default 90: 4 deg steps, as the paper).
+        Number of planet azimuths over 360 deg, a positive even integer (default 90: 4 deg steps,
+        as the paper; the polar uv grid's angular nodes are a multiple of it and come in pairs).
     distance : float, optional
         Distance [pc], recorded for au axes.
     checkpoint : path, optional
-        HDF5 file updated after every template; an existing one with the same inputs is resumed.
+        HDF5 file updated after every template; an existing one with the same inputs (see
+        :func:`resume_key`) is resumed, one for other inputs raises
+        :class:`~spiralbayes.exceptions.ResumeMismatchError`.
     client : dask.distributed.Client, str, or "local", optional
         Run templates in parallel on a Dask cluster (a scheduler address, an existing client, or
         ``"local"`` for a LocalCluster with one single-threaded worker per core); serial when None
@@ -178,6 +214,10 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     nthreads : int
         Threads for the NUFFTs of each template. Results agree to ~1e-6 of ``power`` between
         thread counts (single-precision power term) and are identical for the same count.
+    force_resume : bool
+        Resume a checkpoint even though it was written for other inputs (its completed
+        templates are kept where the names match; the grids must be the same). The
+        differences are logged and recorded in ``provenance["forced_resume"]``.
     """
     templates = list(templates)
     if not templates:
@@ -185,16 +225,19 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     geometry = geometry or getattr(axisymmetric, "geometry", None)
     if geometry is None:
         raise InputError("geometry is needed: pass geometry=DiscGeometry(...) or an AxisymmetricModel")
-    r_p = _default_rp(axisymmetric) if r_p is None else np.atleast_1d(np.asarray(r_p, dtype=float))
-    if np.any(r_p <= 0):
-        raise InputError(f"r_p must be positive radii in arcsec, got {r_p}")
+    r_p = _default_rp(axisymmetric) if r_p is None else _check_rp(r_p)
+    n_phi_p = _check_n_phi(n_phi_p)
+    _check_cell_factor(cell_factor)
+    _warn_beyond_rmax(axisymmetric, r_p)
     t0 = time.perf_counter()
     context = ScanContext.build(vis, axisymmetric, geometry, r_p, n_phi_p, cell_factor, nthreads=nthreads)
     log.info("scan set-up (residual, uv weights on a %d x %d polar grid): %.2f s",
              *context.uv_weights_hat.shape, time.perf_counter() - t0)
+    _warn_if_weights_too_small(context.chi2_AO, vis.n)
     result = _empty_result(context, templates, vis, distance)
+    result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context)
     if checkpoint is not None:
-        result = _resume(checkpoint, result)
+        result = _resume(checkpoint, result, force_resume)
     todo = [i for i in range(len(templates)) if not result.completed[i]]
     runner = _run_dask if client is not None else _run_serial
     runner(context, templates, todo, result, checkpoint, progress, client)
@@ -221,20 +264,160 @@ def _empty_result(context: ScanContext, templates, vis, distance) -> ScanResult:
                       context.geometry, distance, prov)
 
 
-def _resume(checkpoint, fresh: ScanResult) -> ScanResult:
+def _check_rp(r_p) -> np.ndarray:
+    try:
+        r_p = np.atleast_1d(np.asarray(r_p, dtype=float))
+    except (TypeError, ValueError):
+        raise InputError(f"r_p must be planet radii in arcsec (numbers), got {r_p!r}") from None
+    if r_p.ndim != 1 or r_p.size == 0 or not np.all(np.isfinite(r_p)) or np.any(r_p <= 0):
+        raise InputError(f"r_p must be positive, finite radii in arcsec (a 1-D grid), got {r_p}")
+    if np.any(np.diff(r_p) <= 0):
+        raise InputError(f"r_p must be strictly increasing (no repeated radii), got {r_p}")
+    return r_p
+
+
+def _check_n_phi(n_phi_p) -> int:
+    if isinstance(n_phi_p, bool) or not isinstance(n_phi_p, (int, np.integer)) or n_phi_p < 2 or n_phi_p % 2:
+        raise InputError(f"n_phi_p = {n_phi_p!r}: the number of planet azimuths must be a positive, even "
+                         "integer (the paper uses 90, i.e. 4 deg steps)")
+    return int(n_phi_p)
+
+
+def _check_cell_factor(cell_factor) -> None:
+    if isinstance(cell_factor, bool) or not np.isfinite(cell_factor) or cell_factor <= 0:
+        raise InputError(f"cell_factor = {cell_factor!r} must be a positive number (default {DEFAULT_CELL_FACTOR})")
+
+
+def _warn_beyond_rmax(axisymmetric, r_p) -> None:
+    r_max = getattr(axisymmetric, "Rmax", None)
+    if r_max is not None and r_p.max() > r_max:
+        warnings.warn(f"planet radii up to {r_p.max():.3g} arcsec lie beyond frank's Rmax = {r_max:g} arcsec, "
+                      "where the axisymmetric profile is zero (no spiral can show there): lower the largest "
+                      "r_p or refit with a larger Rmax", DataWarning, stacklevel=3)
+
+
+def _warn_if_weights_too_small(chi2_AO: float, n: int) -> None:
+    """chi2_AO far below its expectation 2N means weights too small (it cannot be a poor model)."""
+    ratio = chi2_AO / (2 * n)
+    if ratio < 0.5:
+        warnings.warn(f"the axisymmetric model fits the data with chi2 = {chi2_AO:.4g} for 2N = {2 * n} (Re and Im): "
+                      f"the weights look about {1 / ratio:.3g} times too small (CASA's simobserve leaves WEIGHT = 1), "
+                      "so every Delta chi2 and Delta BIC is too small by that factor; re-estimate them with "
+                      "estimate_weights(vis, method='neighbours') ([data] estimate_weights = true)",
+                      DataWarning, stacklevel=3)
+
+
+def _axisymmetric_key(axisymmetric, r_p) -> tuple[str, dict]:
+    """Hash of the axisymmetric profile and frank's settings (empty for a bare profile)."""
+    if hasattr(axisymmetric, "r") and hasattr(axisymmetric, "I"):
+        profile = content_hash(np.asarray(axisymmetric.r, float), np.asarray(axisymmetric.I, float),
+                               float(getattr(axisymmetric, "Rmax", 0.0)))
+        return profile, json_safe(dict(getattr(axisymmetric, "hyperparameters", {}) or {}))
+    brightness, V_A = axisymmetric if isinstance(axisymmetric, tuple) else (axisymmetric.brightness, None)
+    radii = np.linspace(0.0, 2.5 * float(np.max(r_p)), 2049)  # beyond the templates' reach (2.2 r_p)
+    items = [np.asarray(brightness(radii), dtype=float)]
+    if V_A is not None:
+        items.append(np.asarray(V_A, dtype=complex))
+    return content_hash(*items), {}
+
+
+def resume_key(vis, axisymmetric, templates, context: ScanContext) -> dict:
+    """Everything a checkpoint's numbers depend on, as hashes and small dicts (JSON-able).
+
+    Two scans with equal keys compute identical arrays (for the same thread count).
+    """
+    profile, settings = _axisymmetric_key(axisymmetric, context.r_p)
+    return {
+        "spiralbayes": __version__,
+        "data": data_hash(vis.u, vis.v, vis.V, vis.weights) + ("*" if getattr(vis, "conjugated", False) else ""),
+        "axisymmetric_profile": profile,
+        "axisymmetric_settings": settings,
+        "templates": [content_hash(np.asarray(t.x), np.asarray(t.phi), np.asarray(t.delta), template_metadata(t))
+                      for t in templates],
+        "r_p": content_hash(context.r_p),
+        "n_phi_p": context.n_phi_p,
+        "geometry": context.geometry.to_dict(),
+        "quadrature": {"cell_factor": context.cell_factor, "n_theta": context.n_theta, "d_rho": context.d_rho},
+    }
+
+
+def _describe_differences(old: ScanResult, fresh: ScanResult) -> list[str]:
+    """What differs between a checkpoint and the run that found it, in words."""
+    a, b = old.provenance.get("resume_key"), fresh.provenance["resume_key"]
+    if not isinstance(a, dict):
+        return ["it holds no resume key (written by an older spiralbayes)"]
+    diffs = []
+    if a.get("spiralbayes") != b["spiralbayes"]:
+        diffs.append(f"spiralbayes version ({a.get('spiralbayes')} -> {b['spiralbayes']})")
+    if a.get("data") != b["data"]:
+        diffs.append("the data (u, v, V or weights)")
+    if a.get("axisymmetric_profile") != b["axisymmetric_profile"]:
+        diffs.append("the axisymmetric model's profile")
+    settings = _changed(a.get("axisymmetric_settings") or {}, b["axisymmetric_settings"])
+    if settings:
+        diffs.append(f"frank settings ({settings})")
+    templates = _template_differences(old.templates, a.get("templates"), fresh.templates, b["templates"])
+    if templates:
+        diffs.append(templates)
+    grid_changed = a.get("r_p") != b["r_p"] or a.get("n_phi_p") != b["n_phi_p"]
+    if grid_changed:
+        diffs.append(f"the planet grid ({_grid_text(old)} -> {_grid_text(fresh)})")
+    geometry = _changed(a.get("geometry") or {}, b["geometry"])
+    if geometry:
+        diffs.append(f"geometry ({geometry})")
+    quadrature = a.get("quadrature") or {}
+    if grid_changed:  # n_theta and d_rho follow from the grid; only cell_factor is news then
+        quadrature = {k: v for k, v in quadrature.items() if k == "cell_factor"}
+    quadrature = _changed(quadrature, {k: v for k, v in b["quadrature"].items() if k in quadrature or not grid_changed})
+    if quadrature:
+        diffs.append(f"quadrature settings ({quadrature})")
+    return diffs
+
+
+def _grid_text(result: ScanResult) -> str:
+    return (f"{result.r_p.size} r_p from {result.r_p[0]:.4g} to {result.r_p[-1]:.4g} arcsec x "
+            f"{result.phi_p.size} phi_p")
+
+
+def _changed(a: dict, b: dict) -> str:
+    keys = sorted(set(a) | set(b), key=str)
+    return ", ".join(f"{k}: {a.get(k)!r} -> {b.get(k)!r}" for k in keys if a.get(k) != b.get(k))
+
+
+def _template_differences(old_meta, old_hashes, new_meta, new_hashes) -> str:
+    old = {m["name"]: h for m, h in zip(old_meta, old_hashes or [None] * len(old_meta))}
+    new = {m["name"]: h for m, h in zip(new_meta, new_hashes)}
+    changed = [n for n in new if n in old and old[n] != new[n]]
+    parts = [f"{label}: {', '.join(names[:4])}{' ...' if len(names) > 4 else ''}" for label, names in (
+        ("changed", changed), ("new", [n for n in new if n not in old]),
+        ("only in the checkpoint", [n for n in old if n not in new])) if names]
+    return f"templates ({'; '.join(parts)})" if parts else ""
+
+
+def _resume(checkpoint, fresh: ScanResult, force: bool = False) -> ScanResult:
     checkpoint = Path(checkpoint)
     if not checkpoint.exists():
         return fresh
     old = ScanResult.load(checkpoint)
-    same = (old.provenance.get("data_hash") == fresh.provenance["data_hash"]
-            and old.templates == fresh.templates and np.array_equal(old.r_p, fresh.r_p)
-            and np.array_equal(old.phi_p, fresh.phi_p) and old.geometry == fresh.geometry)
-    if not same:
-        raise InputError(
-            f"checkpoint {checkpoint} was written for different inputs (data, templates, grid or "
-            "geometry): delete it or choose another checkpoint path")
-    log.info("resuming from %s: %d of %d templates done", checkpoint, old.completed.sum(), len(old.templates))
-    fresh.cross, fresh.power = old.cross, old.power
+    diffs = _describe_differences(old, fresh)
+    if diffs and not force:
+        raise ResumeMismatchError(
+            f"checkpoint {checkpoint} was written for other inputs — {'; '.join(diffs)}: delete it (or use "
+            "another checkpoint path) to start afresh, or pass force_resume=True (CLI: --force-resume) to "
+            "keep its completed templates anyway")
+    if diffs:
+        if old.r_p.shape != fresh.r_p.shape or not np.allclose(old.r_p, fresh.r_p, rtol=1e-12, atol=0) \
+                or old.phi_p.size != fresh.phi_p.size:
+            raise ResumeMismatchError(f"checkpoint {checkpoint} cannot be force-resumed: its planet grid differs "
+                                      "(r_p or n_phi_p); delete it to start afresh")
+        log.warning("force-resuming %s although %s differ", checkpoint, "; ".join(diffs))
+        fresh.provenance["forced_resume"] = {"checkpoint": str(checkpoint), "differences": diffs}
+    rows = {m["name"]: i for i, m in enumerate(old.templates)}
+    for i, meta in enumerate(fresh.templates):
+        j = rows.get(meta["name"])
+        if j is not None and old.completed[j]:
+            fresh.cross[i], fresh.power[i] = old.cross[j], old.power[j]
+    log.info("resuming from %s: %d of %d templates done", checkpoint, fresh.completed.sum(), len(fresh.templates))
     return fresh
 
 

@@ -18,16 +18,21 @@ extension. Readers never modify the user's file; writers write to a temporary fi
 the target and rename it into place only on success.
 
 u, v in metres are only ever converted with a wavelength that is given or stated in the file,
-never guessed.
+never guessed; u, v that are clearly metres but claimed to be wavelengths are refused, and
+ambiguous ones warned about (:func:`~spiralbayes.io.checks.check_uv_units`).
+:func:`load_visibilities` also checks that the weights look statistical
+(:func:`~spiralbayes.io.checks.check_weights`) and warns with the fix when they do not.
 """
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 from .._hdf5 import require_file
 from ..exceptions import InputError
 from ..visibilities import Visibilities
+from .checks import WeightCheck, check_uv_units, check_weights
 from .hdf5 import (
     read_hdf5,
     visibilities_from_hdf5_group,
@@ -39,6 +44,9 @@ from .npz import read_npz, write_npz
 from .uvtable import read_uvtable, write_uvtable
 
 __all__ = [
+    "WeightCheck",
+    "check_uv_units",
+    "check_weights",
     "load_visibilities",
     "read_hdf5",
     "read_ms",
@@ -76,20 +84,47 @@ def _format_of(path: Path) -> str:
                      "(or call read_uvtable/read_npz/read_hdf5/read_ms directly)")
 
 
-def load_visibilities(path, **kwargs) -> Visibilities:
+def load_visibilities(path, *, check_weights_on_load: bool = True, **kwargs) -> Visibilities:
     """Read visibilities from any supported file, chosen by extension.
 
     ``.txt/.dat/.csv`` (optionally ``.gz``) → :func:`read_uvtable`; ``.npz`` →
     :func:`read_npz`; ``.h5/.hdf5`` → :func:`read_hdf5`; a directory ending in ``.ms``
     (or any casacore table directory) → :func:`spiralbayes.measurement_set.read_ms`.
-    Keyword arguments go to that reader. The file is never modified.
+    Keyword arguments go to that reader (an option the reader does not take raises
+    :class:`~spiralbayes.exceptions.InputError` listing those it does). The file is never modified.
+
+    With ``check_weights_on_load`` (default) the weights are compared with the scatter of the
+    data and a :class:`~spiralbayes.exceptions.DataWarning` says how to fix them when they do
+    not look statistical (:func:`check_weights`).
     """
     path = require_file(path, "visibility file")
     fmt = _format_of(path)
-    if fmt == "ms":
-        return read_ms(path, **kwargs)
-    reader = {"uvtable": read_uvtable, "npz": read_npz, "hdf5": read_hdf5}[fmt]
-    return reader(path, **kwargs)
+    reader = {"ms": read_ms, "uvtable": read_uvtable, "npz": read_npz, "hdf5": read_hdf5}[fmt]
+    _check_options(reader, fmt, path, kwargs)
+    vis = reader(path, **kwargs)
+    if check_weights_on_load:
+        check_weights(vis, str(path))
+    return vis
+
+
+_OPTION_HINTS = {
+    ("ms", "wavelength"): "a Measurement Set states its frequencies (CHAN_FREQ), from which u, v are converted",
+    ("ms", "uv_units"): "a Measurement Set stores UVW in metres and is converted with its CHAN_FREQ",
+    ("ms", "conjugated"): "Measurement Sets are in the CASA/frank convention",
+    ("hdf5", "wavelength"): "spiralbayes' HDF5 files store u, v in wavelengths and the wavelength itself",
+    ("hdf5", "uv_units"): "spiralbayes' HDF5 files store u, v in wavelengths",
+}
+
+
+def _check_options(reader, fmt: str, path: Path, kwargs: dict) -> None:
+    """Refuse options the chosen reader does not take, with the reason and the ones it does."""
+    accepted = [name for name, p in inspect.signature(reader).parameters.items()
+                if p.kind is inspect.Parameter.KEYWORD_ONLY]
+    for key in kwargs:
+        if key not in accepted:
+            why = _OPTION_HINTS.get((fmt, key), f"{reader.__name__} does not take it")
+            raise InputError(f"{path}: option {key}= does not apply to this {fmt} file ({why}); "
+                             f"options of {reader.__name__}: {', '.join(accepted) or 'none'}")
 
 
 def save_visibilities(vis: Visibilities, path, **kwargs) -> Path:

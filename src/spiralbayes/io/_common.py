@@ -11,9 +11,10 @@ from typing import Any
 import numpy as np
 
 from .._hdf5 import require_file
-from .._provenance import json_default
+from .._provenance import to_json
 from ..exceptions import InputError
 from ..visibilities import Visibilities
+from .checks import check_uv_units
 
 log = logging.getLogger("spiralbayes.io")
 
@@ -23,8 +24,6 @@ _UV_UNIT_ALIASES = {
     "m": "m", "metre": "m", "metres": "m", "meter": "m", "meters": "m",
 }
 _UV_UNIT_SCALE = {"lambda": 1.0, "klambda": 1e3}
-_LOOKS_LIKE_METRES = 3e3
-"""Longest baseline [lambda] below which u, v in 'lambda' are suspiciously short (metres?)."""
 
 def _file_sha256(path: Path) -> str:
     """SHA-256 of a file's bytes (read in chunks; the file is opened read-only)."""
@@ -97,13 +96,10 @@ def _uv_to_lambda(u, v, units: str, wavelength, path: Path) -> tuple[np.ndarray,
     return np.asarray(u, dtype=float), np.asarray(v, dtype=float), []
 
 
-def _warn_if_metres(u, v, path: Path) -> None:
-    qmax = float(np.max(np.hypot(u, v))) if np.size(u) else 0.0
-    if 0 < qmax < _LOOKS_LIKE_METRES:
-        log.warning(
-            "%s: longest baseline is only %.4g lambda; if u, v are in metres pass uv_units='m' "
-            "and the wavelength (they are not converted automatically)", path, qmax,
-        )
+def _guard_uv_units(u, v, path: Path, wavelength=None, explicit: bool = False) -> None:
+    """u, v believed to be wavelengths: refuse clear metres, warn when ambiguous unless the user
+    said they are wavelengths (``explicit``) (:mod:`.checks`)."""
+    check_uv_units(u, v, wavelength, str(path), warn_ambiguous=not explicit)
 
 
 def _scale_weights(weights, weight_factor: float, conversions: list) -> np.ndarray:
@@ -117,7 +113,8 @@ def _scale_weights(weights, weight_factor: float, conversions: list) -> np.ndarr
 
 
 def _json(obj) -> str:
-    return json.dumps(obj, default=json_default, sort_keys=True)
+    """Strict JSON (NaN as null) of a provenance record, for file headers and attributes."""
+    return to_json(obj, sort_keys=True)
 
 
 

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .._hdf5 import checked_dataset
 from .._provenance import FORMAT_VERSION, atomic_path
-from ..exceptions import InputError
+from ..exceptions import DataFileError, InputError
 from ..visibilities import Visibilities
-from ._common import _as_str, _existing_file, _json, _loads_provenance, _source_record
+from ._common import _as_str, _existing_file, _guard_uv_units, _json, _loads_provenance, _source_record
+
 
 __all__ = ["read_hdf5", "write_hdf5", "visibilities_from_hdf5_group", "visibilities_to_hdf5_group"]
 
@@ -28,7 +30,7 @@ def visibilities_to_hdf5_group(vis: Visibilities, group) -> None:
     unknown), ``conjugated``, ``provenance`` (JSON), ``units``.
     """
     for name in _H5_DATASETS:
-        group.create_dataset(name, data=getattr(vis, name))
+        checked_dataset(group, name, getattr(vis, name))  # checksummed: corruption fails to read
     group.attrs["spiralbayes_type"] = _H5_TYPE
     group.attrs["format_version"] = FORMAT_VERSION
     group.attrs["wavelength"] = np.nan if vis.wavelength is None else vis.wavelength
@@ -77,15 +79,20 @@ def read_hdf5(path, *, group: str = "/") -> Visibilities:
     try:
         fh = h5py.File(path, "r")
     except OSError as exc:
-        raise InputError(f"{path}: not a readable HDF5 file ({exc})") from None
+        raise DataFileError(f"{path}: not a readable HDF5 file (truncated or corrupt? {_one_line(exc)}); "
+                            "re-create or re-download it") from None
     with fh:
         if group not in fh:
             raise InputError(f"{path}: no group {group!r} in the file (groups: {list(fh.keys())})")
         try:
             vis = visibilities_from_hdf5_group(fh[group], source=str(path))
+        except (OSError, KeyError, TypeError) as exc:  # h5py on a truncated or half-written file
+            raise DataFileError(f"{path}: incomplete or corrupt visibility file ({_one_line(exc)}); "
+                                "re-create or re-download it") from None
         except ValueError as exc:
             msg = str(exc)
             raise InputError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+    _guard_uv_units(vis.u, vis.v, path, vis.wavelength)
     loaded = _source_record(path, "read_hdf5", format="spiralbayes hdf5")
     return replace(vis, provenance={**vis.provenance, "loaded_from": loaded})
 
@@ -105,3 +112,8 @@ def write_hdf5(vis: Visibilities, path) -> Path:
             visibilities_to_hdf5_group(vis, fh)
     log.info("wrote %d visibilities to %s", vis.n, path)
     return path
+
+
+def _one_line(exc: Exception) -> str:
+    text = " ".join(str(exc).split()) or exc.__class__.__name__
+    return text if len(text) <= 200 else text[:197] + "..."

@@ -38,7 +38,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from ..exceptions import InputError, MissingFileError
+from ..exceptions import InputError, MissingDependencyError, MissingFileError
 from ..units import C_LIGHT
 from ..visibilities import Visibilities
 from ._common import _json, _loads_provenance
@@ -61,11 +61,12 @@ def _tables():
     """Import ``casacore.tables`` lazily, with an install hint."""
     try:
         import casacore.tables as tables
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError(
+    except ImportError:
+        # from None: the user needs the install line, not casacore's import traceback
+        raise MissingDependencyError(
             "reading or writing Measurement Sets needs python-casacore: "
-            'pip install "spiralbayes[ms]"'
-        ) from exc
+            'pip install "spiralbayes[ms]" (or pip install python-casacore)'
+        ) from None
     return tables
 
 
@@ -111,8 +112,8 @@ def read_ms(
     ValueError
         A needed column or subtable is missing (naming the MS and the column), an unknown
         spw/field is requested, or no unflagged data remain.
-    ImportError
-        If python-casacore is not installed.
+    MissingDependencyError
+        If python-casacore is not installed (an ``ImportError``; the message gives the install line).
 
     Notes
     -----

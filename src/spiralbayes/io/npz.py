@@ -21,7 +21,7 @@ from ._common import (
     _scale_weights,
     _source_record,
     _uv_to_lambda,
-    _warn_if_metres,
+    _guard_uv_units,
 )
 
 __all__ = ["read_npz", "write_npz"]
@@ -127,13 +127,14 @@ def _npz_layout(path: Path, keys: set, layout: str | None) -> str:
 
 
 def _npz_frank(path: Path, a: dict, units: str | None, wavelength) -> dict:
+    explicit = units is not None
     units = units or "lambda"
     wle = wavelength
     if wle is None and "wavelength" in a and np.isfinite(a["wavelength"]).all():
         wle = float(a["wavelength"])
     u, v, conversions = _uv_to_lambda(a["u"], a["v"], units, wle, path)
     if units != "m":
-        _warn_if_metres(u, v, path)
+        _guard_uv_units(u, v, path, wle, explicit)
     return dict(u=u, v=v, V=a["V"], weights=a["weights"], wavelength=wle, conversions=conversions)
 
 
@@ -159,6 +160,8 @@ def _npz_dsharp(path: Path, a: dict, units: str | None, wavelength) -> dict:
         units = "m"
     wle = _dsharp_wavelength(path, freq, u.size, wavelength)
     u, v, conversions = _uv_to_lambda(u, v, units, wle, path)
+    if units != "m":
+        _guard_uv_units(u, v, path, wle, explicit=True)
     mean_wle = None if wle is None else float(np.mean(wle))
     return dict(u=u, v=v, V=np.ravel(vis), weights=np.ravel(wgt), wavelength=mean_wle,
                 conversions=conversions)

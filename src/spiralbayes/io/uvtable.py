@@ -29,7 +29,7 @@ from ._common import (
     _scale_weights,
     _source_record,
     _uv_to_lambda,
-    _warn_if_metres,
+    _guard_uv_units,
 )
 
 __all__ = ["read_uvtable", "write_uvtable"]
@@ -179,10 +179,10 @@ def read_uvtable(
     u, v, conversions = _uv_to_lambda(
         table[:, cols["u"]], table[:, cols["v"]], units, row_wle if row_wle is not None else wle, path
     )
-    if units != "m":
-        _warn_if_metres(u, v, path)
     if wle is None and row_wle is not None:
         wle = float(np.mean(row_wle))
+    if units != "m":
+        _guard_uv_units(u, v, path, wle, explicit=uv_units is not None)
     weights = _scale_weights(table[:, cols["weight"]], weight_factor, conversions)
     conj = bool(header.conjugated) if conjugated is None else bool(conjugated)
     prov = _source_record(path, "read_uvtable", format="uvtable", uv_units=units,

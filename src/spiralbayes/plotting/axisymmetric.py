@@ -62,7 +62,8 @@ def plot_profile(model: AxisymmetricModel, truth: Callable | tuple | None = None
     ax.set_xlabel("r [arcsec]")
     ax.set_ylabel(r"I [$10^{10}$ Jy sr$^{-1}$]")
     g = model.geometry
-    ax.set_title(f"inc = {g.inc:.2f}°, PA = {g.PA:.2f}°, sky flux = {model.total_flux * g.cos_inc * 1e3:.2f} mJy, "
+    sky_mjy = model.total_flux * g.cos_inc * 1e3  # the flux on the sky (x cos i), as the CLI prints
+    ax.set_title(f"inc = {g.inc:.2f}°, PA = {g.PA:.2f}°, sky (projected) flux = {sky_mjy:.2f} mJy, "
                  f"R$_{{95}}$ = {model.R_eff(0.95):.3f}\"", fontsize=9)
     if distance is not None:
         if not (np.isfinite(distance) and distance > 0):

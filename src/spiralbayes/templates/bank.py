@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .._hdf5 import open_file, write_file
-from .._provenance import FORMAT_VERSION, provenance_record
+from .._provenance import FORMAT_VERSION, provenance_record, to_json
 from ..exceptions import DataFileError, InputError
 from .generator import paper_grid
 from .template import SpiralTemplate, validate_hand
@@ -154,7 +154,7 @@ class TemplateBank(Sequence):
         """
         prov = provenance_record(**{k: v for k, v in self.provenance.items() if k != "created"})
         with write_file(path, BANK_KIND) as f:
-            f.attrs["provenance"] = json.dumps(prov, default=str, sort_keys=True)
+            f.attrs["provenance"] = to_json(prov, sort_keys=True)
             f.attrs["order"] = json.dumps(self.names)
             if "generator_key" in self.provenance:
                 f.attrs["generator_key"] = str(self.provenance["generator_key"])
@@ -166,7 +166,11 @@ class TemplateBank(Sequence):
 
     @classmethod
     def load(cls, path) -> "TemplateBank":
-        """Read a bank written by :meth:`save`."""
+        """Read a bank written by :meth:`save`.
+
+        A missing, truncated or corrupt file raises :class:`~spiralbayes.exceptions.MissingFileError`
+        or :class:`~spiralbayes.exceptions.DataFileError` naming it.
+        """
         with open_file(path, BANK_KIND, "template bank") as f:
             version = int(f.attrs.get("format_version", -1))
             if version > FORMAT_VERSION:

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._provenance import json_default
+from .._hdf5 import checked_dataset
+from .._provenance import json_safe, to_json
 from ..exceptions import InputError
 from ..units import TWO_PI
 
@@ -251,9 +252,9 @@ class SpiralTemplate:
     # ------------------------------------------------------------------ I/O
     def to_hdf5_group(self, group, *, compression: str | None = None) -> None:
         """Store the template in an open ``h5py.Group`` (datasets delta, x, phi; scalars as attributes)."""
-        group.create_dataset("delta", data=np.asarray(self.delta, dtype=np.float32), compression=compression)
-        group.create_dataset("x", data=self.x)
-        group.create_dataset("phi", data=self.phi)
+        checked_dataset(group, "delta", np.asarray(self.delta, dtype=np.float32), compression=compression)
+        checked_dataset(group, "x", self.x)
+        checked_dataset(group, "phi", self.phi)
         for k in SCALAR_FIELDS:
             group.attrs[k] = float(getattr(self, k))
         group.attrs["hand"] = self.hand
@@ -270,7 +271,7 @@ class SpiralTemplate:
 
     def provenance_json(self) -> str:
         """``provenance`` serialised to JSON (non-JSON values become strings)."""
-        return json.dumps(self.provenance, default=str, sort_keys=True)
+        return to_json(self.provenance, sort_keys=True)
 
     def __repr__(self) -> str:  # pragma: no cover - cosmetic
         return (
@@ -325,8 +326,12 @@ def _bilinear(table: np.ndarray, u_grid: np.ndarray, phi_grid: np.ndarray, u, ph
 
 
 def template_metadata(template) -> dict:
-    """JSON-able description of a template (name and physical parameters)."""
+    """JSON-able description of a template (name and physical parameters).
+
+    Unknown values (NaN, e.g. the cooling time of a FARGO3D run) become ``None``, so the
+    metadata is strict JSON and compares equal to itself after a save and load.
+    """
     keys = ("name", "mass", "tau0", "beta", "hand", "h_p", "flaring", "wavelength")
     meta = {k: getattr(template, k) for k in keys if getattr(template, k, None) is not None}
     meta.setdefault("name", f"template{id(template)}")
-    return json.loads(json.dumps(meta, default=json_default))
+    return json_safe(meta)
