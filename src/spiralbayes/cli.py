@@ -1,4 +1,4 @@
-"""The ``spiralbayes`` command: demo, simulate, axisym, scan, sample, templates.
+"""The ``spiralbayes`` command: demo, simulate, axisym, scan, sample, compare, templates.
 
 User errors (bad input files, configuration values, missing optional dependencies, a checkpoint
 for other inputs) are printed as one line, ``spiralbayes: error: ...``, with exit status 2;
@@ -119,6 +119,28 @@ def _cmd_sample(args) -> int:
     return 0
 
 
+def _cmd_compare(args) -> int:
+    from .config import describe_config, load_config
+    from .pipeline import run_compare_config
+
+    if args.print_config:
+        print(describe_config())
+        return 0
+    if not args.config:
+        raise SystemExit("spiralbayes compare: give a CONFIG file (write a documented one with --print-config)")
+    from .exceptions import MissingDependencyError
+
+    try:
+        result = run_compare_config(load_config(args.config), progress=not args.quiet)
+    except MissingDependencyError as exc:  # an ImportError, which main() does not catch
+        log.error("%s", exc)
+        return 2
+    print(result.verdict.summary())
+    print(open(result.files[-2]).read(), end="")
+    print("wrote:\n  " + "\n  ".join(str(f) for f in result.files))
+    return 0
+
+
 def _cmd_templates(args) -> int:
     from .templates import default_bank
 
@@ -194,6 +216,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "writes a documented one)")
     p.add_argument("--print-config", action="store_true", help="print the documented default config")
     p.set_defaults(func=_cmd_sample)
+
+    p = sub.add_parser("compare", help="the scan beside CLEAN residuals and gap depth (needs the casa extra)")
+    p.add_argument("config", nargs="?")
+    p.add_argument("--print-config", action="store_true", help="print the documented default config")
+    p.set_defaults(func=_cmd_compare)
 
     p = sub.add_parser("templates", help="build (or load) the default template bank")
     p.add_argument("--rebuild", action="store_true")

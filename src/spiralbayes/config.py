@@ -5,9 +5,10 @@ description with units; unknown sections or keys are rejected with the list of v
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
 drives both commands: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
-and ``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``. Relative paths —
-inputs and ``[output] dir`` alike — are taken relative to the configuration file, so a
-configuration means the same wherever it is run from.
+and ``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``; ``compare`` runs
+the scan and the image-space baselines of ``[compare]`` (needs CASA). Relative paths — inputs and
+``[output] dir`` alike — are taken relative to the configuration file, so a configuration means
+the same wherever it is run from.
 
 Values are checked when the file is read (:data:`CHECKS`): a wrong type, a value out of range or
 an unknown choice raises :class:`~spiralbayes.exceptions.ConfigError` naming the option and what
@@ -102,6 +103,18 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "PA_sigma": (5.0, "width of the Gaussian prior on the position angle [deg]"),
         "dRA_sigma": (0.05, "width of the Gaussian prior on the RA offset [arcsec]"),
         "dDec_sigma": (0.05, "width of the Gaussian prior on the Dec offset [arcsec]"),
+    },
+    "compare": {
+        "residuals": ("visibilities", "'visibilities': CLEAN image of the residual visibilities (data - frank model); 'difference': CLEAN image of the data minus that of the frank model at the same baselines (carries CLEAN artefacts)"),
+        "weighting": ("briggs", "tclean weighting: 'natural', 'briggs' or 'uniform'"),
+        "robust": (0.5, "Briggs robust parameter"),
+        "deconvolver": ("hogbom", "tclean deconvolver: 'hogbom' or 'multiscale' (scales 0, 5, 15 pixels)"),
+        "niter": (20000, "CLEAN iteration limit"),
+        "threshold_sigma": (2.0, "CLEAN down to this many natural-weighted image noises 1/sqrt(sum w)"),
+        "imsize": (0, "image size [pixels] (0: at least 6 r_out and 4 arcsec across)"),
+        "cell": (0.0, "pixel [arcsec] (0: 1/(3 u_max))"),
+        "r_out": (0.0, "outer disc radius [arcsec] for the residual statistic and the profile (0: 1.1 R_99 of the frank profile)"),
+        "keep_casa_files": (True, "keep the Measurement Sets, CASA images and CASA log in OUTPUT/casa"),
     },
     "output": {
         "dir": ("spiralbayes-output", "directory for results and plots"),
@@ -198,6 +211,9 @@ CHECKS: dict[str, dict[str, object]] = {
                "mcmc_templates": _each(_string(lambda v: None))},
     "priors": {"r_p_min": _non_negative, "r_p_max": _non_negative, "inc_sigma": _positive, "PA_sigma": _positive,
                "dRA_sigma": _positive, "dDec_sigma": _positive},
+    "compare": {"residuals": _choice("visibilities", "difference"), "weighting": _choice("natural", "briggs", "uniform"),
+                "robust": _finite, "deconvolver": _choice("hogbom", "multiscale"), "niter": _int_at_least(0),
+                "threshold_sigma": _positive, "imsize": _int_at_least(0), "cell": _non_negative, "r_out": _non_negative},
     "output": {"dir": lambda v: None if v.strip() else "must name a directory"},
 }
 """section -> option -> check of its (already type-coerced) value; options without one take any value

@@ -53,6 +53,10 @@ to 1.6e-4 relative RMS (5.8e-5 at 2 mas); the perturbation part of a built-in sp
 RMS and 1e-5 in ``sum |Delta V|^2``, whereas 16-mas pixels without supersampling err by 38 %
 and 3 %.
 
+A second backend, ``simulate_observation(..., backend="casa")`` (:mod:`spiralbayes.simulate.casa`,
+optional ``casa`` extra), observes the same sky with CASA's simobserve; that module lists what
+each backend assumes and how far they agree.
+
 Units: u, v [lambda]; angles on the sky [arcsec]; inc, PA, declination [deg]; hour angles [h];
 times [s]; wavelength [m]; brightness [Jy/sr]; images [Jy/pixel]; distances [pc]; disc radii in
 :class:`DiscModel` [au].

@@ -117,7 +117,8 @@ def simulate_observation(preset="fiducial", disc: DiscModel | None = None,
                          r_p: float | None = None, phi_p: float | None = None, seed=0,
                          sensitivity: float | None = None, add_noise: bool = True,
                          coverage: UVCoverage | None = None, method: str = "hankel",
-                         pixel_size: float = 0.004, supersample: int = 3) -> Visibilities:
+                         pixel_size: float = 0.004, supersample: int = 3, backend: str = "package",
+                         casa_options: dict | None = None) -> Visibilities:
     """A synthetic observation of a model disc with one of the paper's set-ups.
 
     Parameters
@@ -139,11 +140,29 @@ def simulate_observation(preset="fiducial", disc: DiscModel | None = None,
     coverage : UVCoverage, optional
         Reuse a coverage computed earlier (must belong to the preset).
     method, pixel_size, supersample
-        See :func:`disc_visibilities`.
+        See :func:`disc_visibilities` (with ``backend="casa"``: the FITS sky model's pixel and
+        sub-sampling).
+    backend : {"package", "casa"}
+        ``"casa"`` observes the same sky with CASA's simobserve (:mod:`spiralbayes.simulate.casa`;
+        needs ``pip install "spiralbayes[casa]"``): noise as CASA adds it (so ``sensitivity`` and
+        ``coverage`` cannot be given), weights measured from that noise.
+    casa_options : dict, optional
+        Keyword arguments of :func:`spiralbayes.simulate.casa.simulate_casa` (``thermalnoise``,
+        ``pwv``, ``workdir``).
     """
     p = get_preset(preset)
     disc = DiscModel() if disc is None else disc
     geometry = DiscGeometry(30.0, 60.0) if geometry is None else geometry
+    if backend not in ("package", "casa"):
+        raise InputError(f"backend must be 'package' or 'casa', got {backend!r}")
+    if backend == "casa":
+        if sensitivity is not None or coverage is not None:
+            raise InputError("backend='casa' sets the noise and the uv coverage as CASA does: "
+                             "drop sensitivity= and coverage=")
+        from .casa import simulate_casa
+
+        return simulate_casa(p, disc, geometry, perturbation, r_p=r_p, phi_p=phi_p, seed=seed, add_noise=add_noise,
+                             pixel_size=pixel_size, supersample=supersample, **(casa_options or {}))
     cov = p.coverage() if coverage is None else coverage
     if not np.isclose(cov.wavelength, p.wavelength):
         raise InputError(
