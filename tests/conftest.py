@@ -40,6 +40,15 @@ def planet_scan(planet_observation, planet_templates):
 
 
 @pytest.fixture(scope="session")
+def planet_alternatives(planet_observation):
+    """The competing asymmetry models fitted to the planet observation (one start each)."""
+    from spiralbayes.inference.alternatives import fit_alternatives
+
+    vis, axisym = planet_observation
+    return fit_alternatives(vis, axisym, n_starts=1)
+
+
+@pytest.fixture(scope="session")
 def setup():
     """The posterior tests' observation (:mod:`tests.posterior_setup`)."""
     return posterior_setup.build_setup()

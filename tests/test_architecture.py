@@ -22,7 +22,7 @@ PACKAGE = Path(spiralbayes.__file__).parent
 LAYERS = {
     "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "_casa": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
-    "axisymmetric": 2, "templates": 2, "model": 2,
+    "axisymmetric": 2, "templates": 2, "model": 2, "asymmetries": 2,
     "simulate": 3,
     "inference": 4,
     "plotting": 5, "baselines": 5,

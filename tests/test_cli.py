@@ -59,7 +59,10 @@ dir = "{tmp_path / 'out'}"
     assert abs(verdict["r_p"] - 60 / 140) <= 0.1 + 1e-9
     assert (out / "scan.h5").exists() and (out / "config_used.toml").exists()
     assert list(out.glob("heatmap_*.png"))
-    assert "Delta BIC" in capsys.readouterr().out
+    # test 3: the competing asymmetry models are fitted, scored and drawn beside the spiral
+    assert verdict["test3_passed"] in (True, False) and verdict["best_alternative"] in verdict["alternatives"]
+    assert (out / "alternatives.h5").exists() and (out / "residual_comparison.png").exists()
+    assert "Test 3" in capsys.readouterr().out
 
 
 def test_errors_are_reported_not_raised(tmp_path, capsys):

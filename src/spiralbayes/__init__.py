@@ -18,9 +18,11 @@ from . import exceptions  # noqa: E402
 from ._version import __version__  # noqa: E402
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
+from .inference.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
 from .inference.detection import Verdict, detect  # noqa: E402
 from .inference.likelihood import SpiralLikelihood  # noqa: E402
 from .inference.priors import Priors  # noqa: E402
+from .inference.refit import rescan_at_fitted_geometry  # noqa: E402
 from .inference.results import PosteriorResult  # noqa: E402
 from .inference.sampler import sample_posterior  # noqa: E402
 from .inference.scan import ScanResult, scan  # noqa: E402
@@ -42,6 +44,7 @@ def __getattr__(name):
 
 
 __all__ = [
+    "AlternativesResult",
     "PRESETS",
     "PosteriorResult",
     "Priors",
@@ -60,11 +63,13 @@ __all__ = [
     "detect",
     "estimate_weights",
     "exceptions",
+    "fit_alternatives",
     "fit_axisymmetric",
     "load_visibilities",
     "make_template",
     "sample_posterior",
     "save_visibilities",
+    "rescan_at_fitted_geometry",
     "scan",
     "simulate_observation",
     "uv_coverage",

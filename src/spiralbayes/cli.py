@@ -34,10 +34,15 @@ def _cmd_demo(args) -> int:
     print(demo.verdict.summary())
     print(f"Delta BIC = {demo.verdict.delta_bic:.1f}; test 1 (Delta BIC > 10): "
           f"{'pass' if demo.verdict.test1_passed else 'fail'}; test 2 (handedness and compactness): "
-          f"{'pass' if demo.verdict.test2_passed else 'fail'}")
+          f"{'pass' if demo.verdict.test2_passed else 'fail'}; test 3 (spiral beats every competing "
+          f"asymmetry model): {_pass(demo.verdict.test3_passed)}")
     print("timings: " + ", ".join(f"{k} {v:.1f}" for k, v in demo.timings.items()))
     print("wrote:\n  " + "\n  ".join(str(f) for f in demo.files))
     return 0
+
+
+def _pass(flag) -> str:
+    return "not run" if flag is None else ("pass" if flag else "fail")
 
 
 def _cmd_simulate(args) -> int:
@@ -81,17 +86,20 @@ def _cmd_axisym(args) -> int:
 
 def _cmd_scan(args) -> int:
     from .config import describe_config, load_config
-    from .pipeline import run_scan_config
+    from .pipeline import run_scan
 
     if args.print_config:
         print(describe_config())
         return 0
     if not args.config:
         raise SystemExit("spiralbayes scan: give a CONFIG file (write a documented one with --print-config)")
-    verdict, _, files = run_scan_config(load_config(args.config), progress=not args.quiet,
-                                        force_resume=args.force_resume)
-    print(verdict.summary())
-    print("wrote:\n  " + "\n  ".join(str(f) for f in files))
+    run = run_scan(load_config(args.config), progress=not args.quiet, force_resume=args.force_resume)
+    print(run.verdict.summary())
+    if run.follow_up is not None:
+        g = run.follow_up.geometry
+        print(f"\nAfter refitting the geometry (inc {g.inc:.3f} deg, PA {g.PA:.3f} deg, dRA {1e3 * g.dRA:.2f} mas, "
+              f"dDec {1e3 * g.dDec:.2f} mas) and scanning again:\n{run.follow_up.verdict.summary()}")
+    print("wrote:\n  " + "\n  ".join(str(f) for f in run.files))
     return 0
 
 

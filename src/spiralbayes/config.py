@@ -4,9 +4,9 @@ Every option has a default (from Stevenson et al. 2024 where the paper sets one)
 description with units; unknown sections or keys are rejected with the list of valid ones, and
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
-drives both commands: ``scan`` reads ``[data]`` to ``[scan]``, ``sample`` adds ``[sample]`` and
-``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``; ``compare`` runs the
-scan and the image-space baselines of ``[compare]`` (needs CASA). Relative paths — inputs and
+drives both commands: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
+and ``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``; ``compare`` runs
+the scan and the image-space baselines of ``[compare]`` (needs CASA). Relative paths — inputs and
 ``[output] dir`` alike — are taken relative to the configuration file, so a configuration means
 the same wherever it is run from.
 
@@ -23,6 +23,7 @@ from pathlib import Path
 
 import tomllib
 
+from .asymmetries import ALTERNATIVE_MODELS
 from .exceptions import ConfigError, MissingFileError
 
 __all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "default_config", "describe_config", "load_config", "merge_config"]
@@ -72,6 +73,13 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "nthreads": (1, "threads per template for the NUFFTs"),
         "cell_factor": (20.0, "quadrature cells are at most 1/(cell_factor u_max) across"),
         "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
+    },
+    "alternatives": {
+        "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = 2) and apply test 3"),
+        "models": ([], "which of geometry, arc, lopsided, eccentric_ring, m2 to fit (empty: all)"),
+        "threshold": (10.0, "test 3: the spiral's Delta BIC must exceed the best alternative's by more than this"),
+        "n_starts": (2, "optimiser starts per alternative model (the shapes that best match the residual image)"),
+        "refit_geometry": (True, "if no spiral is detected and the geometry alternative has Delta BIC > 10: refit frank at its geometry, rescan and decide again (OUTPUT/refit_geometry/)"),
     },
     "sample": {
         "run_name": ("posterior", "chains go to OUTPUT/chains/<run_name>.h5"),
@@ -194,6 +202,8 @@ CHECKS: dict[str, dict[str, object]] = {
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False)))},
     "grid": {"r_p_min": _positive, "r_p_max": _positive, "n_r_p": _int_at_least(1), "n_phi_p": _even_positive},
     "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive},
+    "alternatives": {"models": _each(_string(_choice(*ALTERNATIVE_MODELS))), "threshold": _finite,
+                     "n_starts": _int_at_least(1)},
     "sample": {"n_walkers": _int_at_least(2), "n_steps": _int_at_least(0), "max_steps": _int_at_least(1),
                "check_every": _int_at_least(1), "convergence": _choice("raise", "warn", "ignore"),
                "min_ess": _positive, "processes": _int_at_least(1), "seed": _int_at_least(0),

@@ -20,12 +20,15 @@ from .axisymmetric import AxisymmetricModel, fit_axisymmetric
 from .config import describe_config
 from .exceptions import InputError
 from .geometry import DiscGeometry
-from .inference.detection import detect, mirror_index
+from .inference.alternatives import fit_alternatives
+from .inference.detection import DELTA_BIC_THRESHOLD, detect, mirror_index
 from .inference.priors import DEFAULT_WIDTHS, Priors
+from .inference.refit import GeometryFollowUp, rescan_at_fitted_geometry
 from .inference.results import PosteriorResult
 from .inference.sampler import sample_posterior
 from .inference.scan import ScanResult, scan
 from .io import load_visibilities
+from .plotting.alternatives import plot_residual_comparison
 from .plotting.axisymmetric import plot_binned_visibilities, plot_profile
 from .plotting.posterior import plot_corner, plot_template_probabilities
 from .plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
@@ -36,6 +39,7 @@ from .visibilities import Visibilities, estimate_weights
 __all__ = [
     "CompareResult",
     "DemoResult",
+    "ScanRun",
     "load_axisymmetric",
     "load_data",
     "load_templates",
@@ -43,6 +47,7 @@ __all__ = [
     "run_compare_config",
     "run_demo",
     "run_sample_config",
+    "run_scan",
     "run_scan_config",
     "save_figure",
     "select_templates",
@@ -61,6 +66,18 @@ class DemoResult:
     scan: object
     files: list
     timings: dict
+    alternatives: object = None
+
+
+@dataclass
+class ScanRun:
+    """What :func:`run_scan` produced: the verdict, scan, alternatives, geometry follow-up, files."""
+
+    verdict: object
+    scan: object
+    alternatives: object
+    follow_up: GeometryFollowUp | None
+    files: list
 
 
 def select_templates(bank, mass=(), tau0=(), beta=(), hand=()):
@@ -91,12 +108,21 @@ def _write_text(path: Path, text: str) -> Path:
     return path
 
 
-def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None) -> list[Path]:
-    """Save the scan, the verdict (JSON and text) and the heatmap PNGs; return the paths."""
+def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None, *, alternatives=None,
+                       vis=None, axisymmetric=None, templates=None) -> list[Path]:
+    """Save the scan, the verdict (JSON and text) and the heatmap PNGs; return the paths.
+
+    With ``alternatives`` also ``alternatives.h5`` and ``alternatives.txt`` (the fits of test 3)
+    and, when ``vis``, ``axisymmetric`` and ``templates`` are given and ``plots`` is on,
+    ``residual_comparison.png`` (:func:`~spiralbayes.plotting.alternatives.plot_residual_comparison`).
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [result.save(out_dir / "scan.h5")]
     files.append(_write_text(out_dir / "verdict.json", to_json(verdict.to_dict(), indent=2)))
     files.append(_write_text(out_dir / "verdict.txt", verdict.summary() + "\n"))
+    if alternatives is not None:
+        files.append(alternatives.save(out_dir / "alternatives.h5"))
+        files.append(_write_text(out_dir / "alternatives.txt", alternatives.table() + "\n"))
     if not plots:
         return files
     done = set()
@@ -108,17 +134,21 @@ def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, ampli
         fig = plot_heatmap_pair(result, t, j, amplitude=amplitude)
         files.append(_save_figure(fig, out_dir / f"heatmap_{meta['name']}.png"))
     files.append(_save_figure(plot_chi2_vs_rp(result, amplitude=amplitude), out_dir / "chi2_vs_rp.png"))
+    if alternatives is not None and None not in (vis, axisymmetric, templates):
+        fig = plot_residual_comparison(vis, axisymmetric, result, alternatives, templates, amplitude=amplitude)
+        files.append(_save_figure(fig, out_dir / "residual_comparison.png"))
     return files
 
 
 def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0), progress: bool = True,
-             dask=None) -> DemoResult:
+             dask=None, alternatives: bool = True) -> DemoResult:
     """Simulate a fiducial-set observation with a planet, fit frank, scan, and decide.
 
     The planet: 1 M_th, tau0 = 3, beta = 10, right-handed, at 50 au (140 pc), phi_p = 0, in a
     power-law disc (10-110 au) whose optical depth at 50 au is the template's tau0 = 3, of
     inclination 30 deg and PA 60 deg. The scan uses the masses given, tau0 = 3 and
     beta = 10, both hands, on the paper's grid (25 radii from 0.02 to 0.5 arcsec, 90 azimuths).
+    With ``alternatives`` the competing asymmetry models are fitted too (test 3).
     """
     out_dir = Path(out_dir)
     timings = {}
@@ -141,12 +171,18 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
     result = scan(vis, axisym, templates, geometry, r_p=np.linspace(0.02, 0.5, 25), distance=DEMO_DISTANCE,
                   progress=progress, client=dask)
     timings["scan_s"] = time.perf_counter() - t2
-    verdict = detect(result)
+    alts = None
+    if alternatives:
+        t3 = time.perf_counter()
+        alts = fit_alternatives(vis, axisym, geometry, progress=progress)
+        timings["alternatives_s"] = time.perf_counter() - t3
+    verdict = detect(result, alternatives=alts)
     out_dir.mkdir(parents=True, exist_ok=True)
-    files = write_scan_outputs(result, verdict, out_dir)
+    files = write_scan_outputs(result, verdict, out_dir, alternatives=alts, vis=vis, axisymmetric=axisym,
+                               templates=templates)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
     timings["total_s"] = time.perf_counter() - t0
-    return DemoResult(verdict, result, files, timings)
+    return DemoResult(verdict, result, files, timings, alts)
 
 
 def load_data(data: dict, geometry: DiscGeometry | None = None):
@@ -198,9 +234,24 @@ def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> Axisymmetr
 def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool = False):
     """Run a scan described by a merged configuration (:func:`spiralbayes.config.load_config`).
 
+    Returns ``(verdict, scan, files)`` of the scan at the configured geometry; :func:`run_scan`
+    (which this calls) also returns the alternatives and the geometry follow-up.
+    """
+    run = run_scan(config, progress=progress, force_resume=force_resume)
+    return run.verdict, run.scan, run.files
+
+
+def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False) -> ScanRun:
+    """The scan of a configuration, the alternatives of test 3, the verdict and, when needed, the follow-up.
+
     A checkpoint left in ``[output] dir`` is checked for integrity before anything slow runs,
     and resumed only if it was written for the same inputs (``force_resume`` overrides; see
-    :func:`~spiralbayes.inference.scan.scan`).
+    :func:`~spiralbayes.inference.scan.scan`). Writes the scan's outputs to ``[output] dir``
+    (:func:`write_scan_outputs`). With ``[alternatives] refit_geometry`` on, no detection and the
+    geometry alternative significant (ΔBIC > 10), frank is refitted at the fitted geometry and the
+    scan, alternatives and verdict are repeated there
+    (:func:`~spiralbayes.inference.refit.rescan_at_fitted_geometry`), with their outputs and
+    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
     """
     out_dir = Path(config["output"]["dir"])
     s = config["scan"]
@@ -217,11 +268,32 @@ def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool =
     result = scan(vis, axisym, templates, axisym.geometry, r_p=r_p, n_phi_p=grid["n_phi_p"],
                   distance=config["geometry"]["distance"], checkpoint=checkpoint, client=s["dask"] or None,
                   progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume)
-    verdict = detect(result, amplitude)
-    files = write_scan_outputs(result, verdict, out_dir, config["output"]["plots"], amplitude)
+    a = config["alternatives"]
+    alt_kwargs = {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"],
+                  "progress": progress}
+    alts = fit_alternatives(vis, axisym, axisym.geometry, **alt_kwargs) if a["fit"] else None
+    detect_kwargs = {"alternative_threshold": a["threshold"]}
+    verdict = detect(result, amplitude, alternatives=alts, **detect_kwargs)
+    plots = config["output"]["plots"]
+    files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
+                               axisymmetric=axisym, templates=templates)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
     files.append(_write_text(out_dir / "config_used.toml", describe_config(config)))
-    return verdict, result, files
+    follow = None
+    if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
+        follow = rescan_at_fitted_geometry(vis, axisym, templates, alts, previous_scan=result, amplitude=amplitude,
+                                           nthreads=s["nthreads"], progress=progress, alternative_kwargs=alt_kwargs,
+                                           detect_kwargs=detect_kwargs, client=s["dask"] or None,
+                                           cell_factor=s["cell_factor"])
+        sub = out_dir / "refit_geometry"
+        files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
+                                    vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
+        files.append(follow.axisymmetric.save(sub / "axisymmetric.h5"))
+    return ScanRun(verdict, result, alts, follow, files)
+
+
+def _geometry_error_significant(alternatives) -> bool:
+    return "geometry" in alternatives.fits and alternatives.delta_bic()["geometry"] > DELTA_BIC_THRESHOLD
 
 
 def _priors(config: dict, axisym: AxisymmetricModel) -> Priors:

@@ -3,6 +3,7 @@
 In a notebook the Figure displays itself; elsewhere call ``fig.savefig(path)``.
 """
 
+from .alternatives import plot_residual_comparison
 from .axisymmetric import plot_binned_visibilities, plot_profile
 from .posterior import plot_corner, plot_template_probabilities, plot_trace
 from .scan import plot_chi2_vs_rp, plot_heatmap, plot_heatmap_pair, plot_template_grid_heatmaps
@@ -16,6 +17,7 @@ __all__ = [
     "plot_heatmap",
     "plot_heatmap_pair",
     "plot_profile",
+    "plot_residual_comparison",
     "plot_template",
     "plot_template_grid_heatmaps",
     "plot_template_probabilities",
