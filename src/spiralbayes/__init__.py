@@ -18,7 +18,10 @@ from . import exceptions  # noqa: E402
 from ._version import __version__  # noqa: E402
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
+from .inference.completeness import CompletenessResult, completeness  # noqa: E402
 from .inference.detection import Verdict, detect  # noqa: E402
+from .inference.forecast import Forecast, forecast  # noqa: E402
+from .inference.limits import ExclusionLimits, compute_limits  # noqa: E402
 from .inference.likelihood import SpiralLikelihood  # noqa: E402
 from .inference.priors import Priors  # noqa: E402
 from .inference.results import PosteriorResult  # noqa: E402
@@ -47,8 +50,11 @@ __all__ = [
     "Priors",
     "SpiralLikelihood",
     "AxisymmetricModel",
+    "CompletenessResult",
     "DiscGeometry",
     "DiscModel",
+    "ExclusionLimits",
+    "Forecast",
     "ScanResult",
     "SpiralTemplate",
     "TemplateBank",
@@ -56,11 +62,14 @@ __all__ = [
     "Visibilities",
     "__version__",
     "bin_deprojected",
+    "completeness",
+    "compute_limits",
     "default_bank",
     "detect",
     "estimate_weights",
     "exceptions",
     "fit_axisymmetric",
+    "forecast",
     "load_visibilities",
     "make_template",
     "sample_posterior",

@@ -1,12 +1,12 @@
-"""One configuration schema for every command (``scan``, ``sample``) and for notebooks (TOML files).
+"""One configuration schema for every command (``scan``, ``sample``, ``limits``) and for notebooks (TOML files).
 
 Every option has a default (from Stevenson et al. 2024 where the paper sets one) and a
 description with units; unknown sections or keys are rejected with the list of valid ones, and
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
-drives both commands: ``scan`` reads ``[data]`` to ``[scan]``, ``sample`` adds ``[sample]`` and
-``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``. Relative input
-paths are taken relative to the configuration file.
+drives every command: ``scan`` reads ``[data]`` to ``[scan]``, ``sample`` adds ``[sample]`` and
+``[priors]``, ``limits`` adds ``[limits]``; the last two reuse the scan's outputs when they are in
+``[output] dir``. Relative input paths are taken relative to the configuration file.
 """
 
 from __future__ import annotations
@@ -88,6 +88,23 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "PA_sigma": (5.0, "width of the Gaussian prior on the position angle [deg]"),
         "dRA_sigma": (0.05, "width of the Gaussian prior on the RA offset [arcsec]"),
         "dDec_sigma": (0.05, "width of the Gaussian prior on the Dec offset [arcsec]"),
+    },
+    "limits": {
+        "cl": (0.95, "one-sided confidence level of the exclusion limits, in (0.5, 1)"),
+        "method": ("all_phi", "'all_phi': excluded at r_p when excluded at every phi_p (the paper's reading); 'marginal': phi_p marginalised (uniform prior)"),
+        "hand": ("both", "'both': a planet is excluded only when both hands are; 'R' or 'L' when the disc's rotation fixes the hand"),
+        "mstar": (0.8, "stellar mass [M_sun], for planet masses in M_Jup (M_th = (H/r)^3 M_*)"),
+        "h_ref": (0.0, "H/r at r_ref for the thermal mass (0: the templates' h_p)"),
+        "r_ref": (50.0, "reference radius of H/r [au]"),
+        "flaring": (0.25, "flaring index: H/r = h_ref (r / r_ref)^flaring, so M_th ~ r_p^(3 flaring)"),
+        "resolution": (0.0, "beam FWHM [arcsec] for the 'unresolved' flag (0: fitted to the data's natural-weighted beam)"),
+        "resolution_factor": (1.0, "radii below resolution_factor x resolution are flagged 'unresolved', not excluded"),
+        "extent_fraction": (0.95, "radii beyond the radius holding this fraction of the disc's flux are flagged, not excluded"),
+        "completeness": (True, "injection-recovery (fast path) for the minimum detectable mass"),
+        "n_azimuths": (8, "injection azimuths per radius, evenly spaced on the scan grid"),
+        "inject_hand": (["R"], "hands of the injected planets"),
+        "thresholds": ([3.0, 1.0], "planet masses [M_th] of the table's columns (the paper's Table 3: 3 and 1)"),
+        "name": ("", "disc name in the table (empty: the data file's stem)"),
     },
     "output": {
         "dir": ("spiralbayes-output", "directory for results and plots"),
