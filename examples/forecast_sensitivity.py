@@ -7,13 +7,14 @@ a planet at 50 au in the paper's power-law disc (140 pc, the disc's optical dept
 the template's tau0), observed with the fiducial set (C-4 + C-7, 40 min, 35 uJy/beam) and the
 high-sensitivity set (8 h, 10 uJy/beam): E[Δχ²], the threshold 6 ln N + 10 and P(ΔBIC > 10).
 Then, per (tau0, beta) family, the mass at which E[Δχ²] reaches the threshold (P = 50 %),
-interpolated in log E - log M, for both sets and their ratio.
+interpolated in log E - log M (extrapolated below the lightest bank mass), for both sets and
+their ratio.
 """
 
 import numpy as np
 
 import spiralbayes as sb
-from spiralbayes.inference.forecast import compare_setups
+from spiralbayes.inference.forecast import compare_setups, detectable_mass
 
 R_P = 50.0 / 140.0
 SETUPS = ("fiducial", "high_sensitivity")
@@ -34,16 +35,11 @@ def main():
     for tau0 in (0.1, 0.3, 1.0, 3.0):
         for beta in (0.0, 10.0):
             fam = sorted((r for r in rows if r["tau0"] == tau0 and r["beta"] == beta), key=lambda r: r["mass"])
-            m = np.log([r["mass"] for r in fam])
-            det = []
-            for s in SETUPS:
-                e = np.log([r[f"E_{s}"] for r in fam])
-                t = np.log(fam[0][f"threshold_{s}"])
-                det.append(float(np.exp(np.interp(t, e, m))) if e[0] <= t <= e[-1] else float("nan"))
-            slope = np.polyfit(m, np.log([r["E_fiducial"] for r in fam]), 1)[0]
-            print(f"  tau0={tau0:g}, beta={beta:g}: {det[0]:.3g}, {det[1]:.3g}, x{det[0] / det[1]:.2f} "
-                  f"(E ~ M^{slope:.1f})")
-
+            masses = [r["mass"] for r in fam]
+            det = [detectable_mass(masses, [r[f"E_{s}"] for r in fam], fam[0][f"threshold_{s}"]) for s in SETUPS]
+            slope = np.polyfit(np.log(masses), np.log([r["E_fiducial"] for r in fam]), 1)[0]
+            text = ", ".join(f"{m:.3g}{' (extrapolated)' if ext else ''}" for m, ext in det)
+            print(f"  tau0={tau0:g}, beta={beta:g}: {text}, x{det[0][0] / det[1][0]:.2f} (E ~ M^{slope:.1f})")
 
 if __name__ == "__main__":
     main()

@@ -47,7 +47,7 @@ from .detection import DELTA_BIC_THRESHOLD
 from .scan_engine import ScanContext, scan_template
 from .statistics import N_SPIRAL_PARAMETERS
 
-__all__ = ["Forecast", "compare_setups", "forecast", "setup_for_time"]
+__all__ = ["Forecast", "compare_setups", "detectable_mass", "forecast", "setup_for_time"]
 
 log = logging.getLogger(__name__)
 
@@ -277,3 +277,21 @@ def compare_setups(disc_for, templates, r_p: float, setups=("fiducial", "high_se
             row[f"P_{name}"] = fc.probability()
         rows.append(row)
     return rows
+
+
+def detectable_mass(masses, expected, threshold: float) -> tuple[float, bool]:
+    """The mass [same unit as ``masses``] at which E[Δχ²] reaches ``threshold`` (P(ΔBIC > 10) = 50 %).
+
+    ``ln E`` is interpolated linearly in ``ln M`` between the bank's masses, and extrapolated
+    with the slope of the nearest pair beyond them (the second value is True then).
+    """
+    m = np.log(np.asarray(masses, dtype=float))
+    e = np.log(np.maximum(np.asarray(expected, dtype=float), 1e-300))
+    order = np.argsort(m)
+    m, e = m[order], e[order]
+    t = np.log(threshold)
+    if e[0] <= t <= e[-1]:
+        return float(np.exp(np.interp(t, e, m))), False
+    i = 0 if t < e[0] else m.size - 2
+    slope = (e[i + 1] - e[i]) / (m[i + 1] - m[i])
+    return float(np.exp(m[i] + (t - e[i]) / slope)), True

@@ -338,6 +338,10 @@ def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", ha
     bright_radius : float, optional
         Outer radius of the disc's bright part [arcsec]; default the radius holding
         ``extent_fraction`` of ``axisymmetric``'s flux, else no flag.
+    vis : Visibilities, optional
+        The scanned data, for the beam.
+    axisymmetric : AxisymmetricModel, optional
+        The scan's axisymmetric model, for the bright extent.
     resolution_factor : float
         Radii below ``resolution_factor x resolution`` are flagged ``"unresolved"``.
     distance : float, optional

@@ -126,12 +126,17 @@ def _m_det_text(limits, completeness) -> str:
         if not ok.any():
             parts.append("none")
             continue
-        text = f"{np.nanmin(m):.2g}-{np.nanmax(m):.2g} M_th"
+        text = _span(np.nanmin(m), np.nanmax(m)) + " M_th"
         if limits.distance:
             mj = limits.to_mjup(m[ok], completeness.r_p[ok])
-            text += f" ({np.min(mj):.2g}-{np.max(mj):.2g} M_Jup)"
+            text += f" ({_span(np.min(mj), np.max(mj))} M_Jup)"
         parts.append(text)
     return " / ".join(parts)
+
+
+def _span(lo: float, hi: float) -> str:
+    a, b = f"{lo:.2g}", f"{hi:.2g}"
+    return a if a == b else f"{a}-{b}"
 
 
 def table_csv(limits, completeness=None, *, name: str = "disc", thresholds=THRESHOLDS) -> str:
