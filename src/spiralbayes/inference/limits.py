@@ -364,7 +364,8 @@ def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", ha
     if not np.all(scan_result.completed):
         raise InputError("the scan is incomplete (NaN rows): finish it (run the scan again to resume) first")
     families = template_families(scan_result.templates)
-    select_family(families, families[0] if families else None)  # raises when there is none
+    if not families:
+        select_family(families)  # raises the explanation
     if resolution is None:
         resolution = data_resolution(vis) if vis is not None else 0.0
     if bright_radius is None:
