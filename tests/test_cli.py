@@ -116,3 +116,49 @@ def test_cli_sample_from_toml_config(setup, tmp_path):
     assert (tmp_path / "out" / "cli_corner.png").exists()
     (tmp_path / "bad.toml").write_text('[data]\npath = "obs.h5"\n[sample]\nbogus = 1\n')
     assert main(["sample", str(tmp_path / "bad.toml")]) == 2
+
+
+def test_limits_from_config_reuses_the_scan_and_writes_table3(tmp_path, capsys, limits_case):
+    """`spiralbayes limits CONFIG` after `scan`: limits.h5, completeness, Table 3 (md, csv) and plots."""
+    from spiralbayes.inference.limits import ExclusionLimits
+    from spiralbayes.io import save_visibilities
+    from spiralbayes.templates import TemplateBank
+    from tests import limits_setup
+
+    vis, model, templates, result = limits_case
+    save_visibilities(vis, tmp_path / "obs.h5")
+    model.save(tmp_path / "axisym.h5")
+    TemplateBank(templates).save(tmp_path / "bank.h5")
+    out = tmp_path / "out"
+    out.mkdir()
+    result.save(out / "scan.h5")
+    model.save(out / "axisymmetric.h5")
+    r = limits_setup.R_P
+    (tmp_path / "run.toml").write_text(
+        '[data]\npath = "obs.h5"\n[frank]\nmodel = "axisym.h5"\n[templates]\nbank = "bank.h5"\n'
+        f"[grid]\nr_p_min = {r[0]}\nr_p_max = {r[-1]}\nn_r_p = {r.size}\nn_phi_p = {limits_setup.N_PHI}\n"
+        '[limits]\nn_azimuths = 2\nname = "test disc"\nresolution = 0.2\n'
+        f'[output]\ndir = "{out}"\n')
+    assert main(["-q", "limits", str(tmp_path / "run.toml")]) == 0
+    printed = capsys.readouterr().out
+    assert "test disc" in printed and "tau0=0.3, beta=10, h_p=0.07" in printed
+    for name in ("limits.h5", "table3.md", "table3.csv", "limits_summary.txt", "config_used_limits.toml"):
+        assert (out / name).exists(), name
+    assert len(list(out.glob("completeness_*.h5"))) == 1 and len(list(out.glob("mass_radius_*.png"))) == 1
+    limits = ExclusionLimits.load(out / "limits.h5")
+    assert limits.flags[0] == "unresolved" and limits.cl == 0.95
+    (tmp_path / "bad.toml").write_text('[data]\npath = "obs.h5"\n[limits]\ncl = 1.5\n'
+                                       f'[templates]\nbank = "bank.h5"\n[output]\ndir = "{out}"\n'
+                                       f"[grid]\nr_p_min = {r[0]}\nr_p_max = {r[-1]}\nn_r_p = {r.size}\n"
+                                       f"n_phi_p = {limits_setup.N_PHI}\n")
+    capsys.readouterr()
+    assert main(["limits", str(tmp_path / "bad.toml")]) == 2
+    assert "limits.cl = 1.5 must be a confidence level" in capsys.readouterr().err
+
+
+def test_forecast_command(capsys):
+    assert main(["-q", "forecast", "--preset", "taurus", "--mass", "1", "--tau0", "0.3", "--beta", "10",
+                 "--r-au", "50", "--probability", "0.5"]) == 0
+    out = capsys.readouterr().out
+    assert "P(ΔBIC > 10)" in out and "on-source time for P(Delta BIC > 10) = 50%" in out
+    assert main(["forecast", "--preset", "nowhere"]) == 2

@@ -19,7 +19,10 @@ from ._version import __version__  # noqa: E402
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
 from .inference.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
+from .inference.completeness import CompletenessResult, completeness  # noqa: E402
 from .inference.detection import Verdict, detect  # noqa: E402
+from .inference.forecast import Forecast, forecast  # noqa: E402
+from .inference.limits import ExclusionLimits, compute_limits  # noqa: E402
 from .inference.likelihood import SpiralLikelihood  # noqa: E402
 from .inference.priors import Priors  # noqa: E402
 from .inference.refit import rescan_at_fitted_geometry  # noqa: E402
@@ -50,8 +53,11 @@ __all__ = [
     "Priors",
     "SpiralLikelihood",
     "AxisymmetricModel",
+    "CompletenessResult",
     "DiscGeometry",
     "DiscModel",
+    "ExclusionLimits",
+    "Forecast",
     "ScanResult",
     "SpiralTemplate",
     "TemplateBank",
@@ -59,12 +65,15 @@ __all__ = [
     "Visibilities",
     "__version__",
     "bin_deprojected",
+    "completeness",
+    "compute_limits",
     "default_bank",
     "detect",
     "estimate_weights",
     "exceptions",
     "fit_alternatives",
     "fit_axisymmetric",
+    "forecast",
     "load_visibilities",
     "make_template",
     "sample_posterior",

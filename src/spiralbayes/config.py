@@ -1,11 +1,12 @@
-"""One configuration schema for every command (``scan``, ``sample``) and for notebooks (TOML files).
+"""One configuration schema for every command (``scan``, ``sample``, ``limits``, ``compare``) and for notebooks (TOML files).
 
 Every option has a default (from Stevenson et al. 2024 where the paper sets one) and a
 description with units; unknown sections or keys are rejected with the list of valid ones, and
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
-drives both commands: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
-and ``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``; ``compare`` runs
+drives every command: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
+and ``[priors]``, ``limits`` adds ``[limits]`` (the last two reuse the scan's outputs when they
+are in ``[output] dir``); ``compare`` runs
 the scan and the image-space baselines of ``[compare]`` (needs CASA). Relative paths — inputs and
 ``[output] dir`` alike — are taken relative to the configuration file, so a configuration means
 the same wherever it is run from.
@@ -116,6 +117,23 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "r_out": (0.0, "outer disc radius [arcsec] for the residual statistic and the profile (0: 1.1 R_99 of the frank profile)"),
         "keep_casa_files": (True, "keep the Measurement Sets, CASA images and CASA log in OUTPUT/casa"),
     },
+    "limits": {
+        "cl": (0.95, "one-sided confidence level of the exclusion limits, in (0.5, 1)"),
+        "method": ("all_phi", "'all_phi': excluded at r_p when excluded at every phi_p (the paper's reading); 'marginal': phi_p marginalised (uniform prior)"),
+        "hand": ("both", "'both': a planet is excluded only when both hands are; 'R' or 'L' when the disc's rotation fixes the hand"),
+        "mstar": (0.8, "stellar mass [M_sun], for planet masses in M_Jup (M_th = (H/r)^3 M_*)"),
+        "h_ref": (0.0, "H/r at r_ref for the thermal mass (0: the templates' h_p)"),
+        "r_ref": (50.0, "reference radius of H/r [au]"),
+        "flaring": (0.25, "flaring index: H/r = h_ref (r / r_ref)^flaring, so M_th ~ r_p^(3 flaring)"),
+        "resolution": (0.0, "beam FWHM [arcsec] for the 'unresolved' flag (0: fitted to the data's natural-weighted beam)"),
+        "resolution_factor": (1.0, "radii below resolution_factor x resolution are flagged 'unresolved', not excluded"),
+        "extent_fraction": (0.95, "radii beyond the radius holding this fraction of the disc's flux are flagged, not excluded"),
+        "completeness": (True, "injection-recovery (fast path) for the minimum detectable mass"),
+        "n_azimuths": (8, "injection azimuths per radius, evenly spaced on the scan grid"),
+        "inject_hand": (["R"], "hands of the injected planets"),
+        "thresholds": ([3.0, 1.0], "planet masses [M_th] of the table's columns (the paper's Table 3: 3 and 1)"),
+        "name": ("", "disc name in the table (empty: the data file's stem)"),
+    },
     "output": {
         "dir": ("spiralbayes-output", "directory for results and plots"),
         "plots": (True, "write heatmap PNGs"),
@@ -214,6 +232,13 @@ CHECKS: dict[str, dict[str, object]] = {
     "compare": {"residuals": _choice("visibilities", "difference"), "weighting": _choice("natural", "briggs", "uniform"),
                 "robust": _finite, "deconvolver": _choice("hogbom", "multiscale"), "niter": _int_at_least(0),
                 "threshold_sigma": _positive, "imsize": _int_at_least(0), "cell": _non_negative, "r_out": _non_negative},
+    "limits": {"cl": lambda v: None if 0.5 < v < 1 else "must be a confidence level in (0.5, 1), e.g. 0.95",
+               "method": _choice("all_phi", "marginal"), "hand": _choice("both", "R", "L"), "mstar": _positive,
+               "h_ref": _non_negative, "r_ref": _positive, "flaring": _finite, "resolution": _non_negative,
+               "resolution_factor": _non_negative,
+               "extent_fraction": lambda v: None if 0 < v <= 1 else "must be a fraction in (0, 1]",
+               "n_azimuths": _int_at_least(1), "inject_hand": _each(_string(_choice("R", "L"))),
+               "thresholds": _each(_number(_positive))},
     "output": {"dir": lambda v: None if v.strip() else "must name a directory"},
 }
 """section -> option -> check of its (already type-coerced) value; options without one take any value

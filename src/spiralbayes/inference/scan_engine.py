@@ -25,7 +25,7 @@ Neither term needs one image and one 2-D FFT per planet position (the authors' g
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,10 +38,12 @@ from ..model import (
     perturbation_flux,
     perturbation_visibilities,
 )
+from ..exceptions import InputError
 from ..units import ARCSEC
 from .statistics import chi2, delta_chi2_from_terms
 
-__all__ = ["ScanContext", "direct_delta_chi2", "scan_template"]
+__all__ = ["ScanContext", "cross_template", "direct_delta_chi2", "perturbation_spectrum", "scan_template",
+           "with_residual"]
 
 POWER_EPSILON = 1e-5  # single precision, relative to max |P_hat|; errors in Δχ² are checked by tests
 RHO_OVERSAMPLE = 4.0
@@ -203,13 +205,23 @@ def _uv_weight_coefficients(rho, theta, weights, d_rho, n_theta, nthreads) -> np
     return out
 
 
-def _power_all_phi(context: ScanContext, flux: np.ndarray, quad: PolarQuadrature) -> np.ndarray:
-    """``sum_k w_k |ΔV_k|^2`` for every azimuth of the uv grid (length ``n_theta``)."""
+def perturbation_spectrum(context: ScanContext, flux: np.ndarray, quad: PolarQuadrature) -> np.ndarray:
+    """``P_hat = sum_c flux_c exp(2 pi i q . s_c)`` [Jy] at the polar uv nodes with ``theta < pi``.
+
+    Shape ``(n_rho, n_theta // 2)``, single precision, planet at ``phi_p = 0`` and without the
+    ``cos i`` factor; the other half follows from ``P_hat(rho, theta + pi) = conj(P_hat(rho, theta))``.
+    """
     n_rho, n_theta = context.uv_weights_hat.shape
     p_hat = context.power_plan(quad).exec(forward=False, points_in=flux.ravel().astype(np.complex64))
-    g_half = (p_hat.real.astype(float) ** 2 + p_hat.imag.astype(float) ** 2).reshape(n_rho, n_theta // 2)
+    return p_hat.reshape(n_rho, n_theta // 2)
+
+
+def _power_all_phi(context: ScanContext, flux: np.ndarray, quad: PolarQuadrature) -> np.ndarray:
+    """``sum_k w_k |ΔV_k|^2`` for every azimuth of the uv grid (length ``n_theta``)."""
+    p_hat = perturbation_spectrum(context, flux, quad)
+    g_half = p_hat.real.astype(float) ** 2 + p_hat.imag.astype(float) ** 2
     g = np.concatenate([g_half, g_half], axis=1)  # G(rho, theta + pi) = G(rho, theta)
-    coeff = np.fft.fft(g, axis=1) / n_theta
+    coeff = np.fft.fft(g, axis=1) / g.shape[1]
     power = np.fft.fft(np.sum(coeff * context.uv_weights_hat, axis=0)).real
     return context.geometry.cos_inc ** 2 * power
 
@@ -218,6 +230,31 @@ def _cross_all_phi(context: ScanContext, flux: np.ndarray, quad: PolarQuadrature
     """``Re sum_k w_k R_k* ΔV_k`` for every azimuth of the quadrature grid (length ``n_phi``)."""
     spec = np.conj(np.fft.rfft(flux, axis=1)) * context.dirty_spectrum(quad)
     return context.geometry.cos_inc * np.fft.irfft(spec.sum(axis=0), n=quad.n_phi)
+
+
+def cross_template(context: ScanContext, template) -> np.ndarray:
+    """Only ``cross`` of one template over the context's grid (e.g. for another residual)."""
+    out = np.empty((context.r_p.size, context.n_phi_p))
+    for i, r_p in enumerate(context.r_p):
+        quad = context.quadrature(template, r_p)
+        flux = perturbation_flux(context.profile, template, quad)
+        out[i] = _cross_all_phi(context, flux, quad)[:: quad.n_phi // context.n_phi_p]
+    return out
+
+
+def with_residual(context: ScanContext, residual) -> ScanContext:
+    """A context for other residual visibilities ``R`` [Jy] (same data points, weights and grids).
+
+    ``R`` is in the frame of the data (like ``V_O - V_A``; the disc-centre shift is applied here).
+    The cross term is linear in ``R``: an injected signal or a noise realisation adds its own
+    cross term, computed without rebuilding the uv weights or the quadratures.
+    """
+    residual = np.asarray(residual, dtype=complex)
+    if residual.shape != context.residual.shape:
+        raise InputError(f"residual has shape {residual.shape}, the data have {context.residual.shape}")
+    shifted = context.geometry.phase_shift(context.u, context.v, residual, inverse=True)
+    return replace(context, residual=shifted, _dirty_cache={}, _quad_cache=context._quad_cache,
+                   _plan_cache=context._plan_cache)
 
 
 def scan_template(context: ScanContext, template) -> tuple[np.ndarray, np.ndarray]:
