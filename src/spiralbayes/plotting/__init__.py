@@ -4,7 +4,7 @@ In a notebook the Figure displays itself; elsewhere call ``fig.savefig(path)``.
 """
 
 from .axisymmetric import plot_binned_visibilities, plot_profile
-from .posterior import plot_corner, plot_template_probabilities, plot_trace
+from .posterior import plot_corner, plot_hypotheses, plot_template_probabilities, plot_trace
 from .scan import plot_chi2_vs_rp, plot_heatmap, plot_heatmap_pair, plot_template_grid_heatmaps
 from .templates import plot_bank_overview, plot_template
 
@@ -15,6 +15,7 @@ __all__ = [
     "plot_corner",
     "plot_heatmap",
     "plot_heatmap_pair",
+    "plot_hypotheses",
     "plot_profile",
     "plot_template",
     "plot_template_grid_heatmaps",
