@@ -21,7 +21,8 @@ from spiralbayes.axisymmetric import AxisymmetricModel, fit_axisymmetric
 from spiralbayes.exceptions import ConvergenceWarning, ResumeMismatchError
 from spiralbayes.inference.priors import Priors
 from spiralbayes.inference.results import SAMPLE_NAMES
-from spiralbayes.inference.sampler import _initial_walkers, sample_posterior
+from spiralbayes.inference.chain_runner import initial_walkers
+from spiralbayes.inference.sampler import sample_posterior
 from tests.posterior_setup import (
     R_RANGE,
     TRUE_GEOMETRY,
@@ -126,9 +127,9 @@ def test_walkers_never_start_at_minus_inf():
     rng = np.random.default_rng(0)
     centre = priors.centre
     cov = np.diag((priors.widths * 0.01) ** 2)
-    p0 = _initial_walkers(logpost, centre, cov, priors, 12, rng)
+    p0 = initial_walkers(logpost, centre, cov, priors, 12, rng)
     assert np.all(np.isfinite([logpost(p) for p in p0]))
     bad = np.tile(centre, (12, 1))
     bad[3, 0] = 5.0  # r_p outside the prior
     with pytest.raises(ValueError, match="walker 3"):
-        _initial_walkers(logpost, centre, cov, priors, 12, rng, initial=bad)
+        initial_walkers(logpost, centre, cov, priors, 12, rng, initial=bad)

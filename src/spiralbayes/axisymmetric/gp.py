@@ -185,19 +185,17 @@ class QGridProjector:
         if first.size and (first.min() < 0 or first.max() + p > self.n_grid):
             raise InputError(f"deprojected baselines up to {float(np.max(q)):.4g} lambda exceed the q grid "
                              f"({(self.n_grid - self.offset - p) * self.step:.4g} lambda)")
+        # w_s = prod_{m != s} (t - x_m) / (x_s - x_m) = c_s P(t) / (t - x_s), P = prod_m (t - x_m); t is
+        # kept off the node t = 0 (by 1e-12 of a step: an error far below the interpolation's)
+        np.maximum(t, 1e-12, out=t)
         nodes = np.arange(p) - (p // 2 - 1)  # stencil positions relative to floor(f)
         diff = t[None, :] - nodes[:, None]  # (p, n), rows contiguous
-        # w_s = prod_{m != s} (t - x_m) / (x_s - x_m), from prefix and suffix products
-        left = np.empty_like(diff)
-        right = np.empty_like(diff)
-        left[0] = 1.0
-        right[p - 1] = 1.0
+        prod = diff[0].copy()
         for s in range(1, p):
-            np.multiply(left[s - 1], diff[s - 1], out=left[s])
-            np.multiply(right[p - s], diff[p - s], out=right[p - 1 - s])
-        left *= right
-        left *= self._inverse_denominators(p)[:, None]
-        return first, left
+            prod *= diff[s]
+        weights = np.divide(prod[None, :], diff, out=diff)
+        weights *= self._inverse_denominators(p)[:, None]
+        return first, weights
 
     @staticmethod
     def _inverse_denominators(p: int) -> np.ndarray:

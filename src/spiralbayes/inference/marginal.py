@@ -238,7 +238,7 @@ class ProfileMarginal:
 
     def raw_terms(self, geometry) -> GeometryTerms:
         """:class:`GeometryTerms` at ``geometry`` (a DiscGeometry or ``(inc, PA, dRA, dDec)``)."""
-        from scipy.linalg import cho_factor, cho_solve
+        from scipy.linalg import cho_solve
 
         inc, PA, dRA, dDec = _geometry_tuple(geometry)
         ci, q = self._deprojected(inc, PA)

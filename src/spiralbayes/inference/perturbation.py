@@ -49,7 +49,7 @@ class FastPerturbation:
     def __init__(self, u, v, weights, profile, template, r_range, reference_geometry: DiscGeometry, *,
                  epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
                  rp_step: float | None = None, cell_factor: float = 20.0, progress: bool = False,
-                 mirror_of: "FastPerturbation | None" = None, max_nodes: int = 2000):
+                 mirror_of: "FastPerturbation | None" = None, max_nodes: int = 2000, rp_order: int = 6):
         t0 = time.perf_counter()
         r_lo, r_hi = float(r_range[0]), float(r_range[1])
         if not (0 < r_lo < r_hi):
@@ -74,7 +74,7 @@ class FastPerturbation:
         builder = _TableBuilder(self._cells, profile, r_hi * ARCSEC * self.uv_max, float(self._cells.x_edges[-1]),
                                 oversample)
         self._delta = builder.delta
-        self.table = _refine(self, builder, rp_step, rp_tolerance, progress, max_nodes)
+        self.table = _refine(self, builder, rp_step, rp_tolerance, progress, max_nodes, int(rp_order))
         self.table_source = getattr(template, "name", "")
         self.n_node_builds = builder.n_builds
         self.build_time_s = time.perf_counter() - t0
@@ -153,13 +153,16 @@ def _check_mirror(other: FastPerturbation, template, r_range, u) -> None:
                          "on the same data and r_p range: build its own table")
 
 
-def _refine(fp: FastPerturbation, builder: _TableBuilder, rp_step, tol, progress, max_nodes) -> PerturbationTable:
+def _refine(fp: FastPerturbation, builder: _TableBuilder, rp_step, tol, progress, max_nodes,
+            order: int = 6) -> PerturbationTable:
     """Uniform r_p nodes, halved until the midpoint interpolation error is below ``tol``.
 
     The nodes of every round lie on one lattice anchored at ``r_min`` (:func:`_lattice`), so the
     midpoints whose exact grids measure a round's error are the next round's new nodes: no grid
-    is built twice. While the error is far above ``tol`` (100x) the step is quartered (cubic
-    interpolation errors fall like ``h^4`` once the profile is resolved).
+    is built twice. While the error is far above ``tol`` (100x) the step is quartered
+    (``order``-point interpolation errors fall like ``h^order`` once the profile is resolved).
+    Measured on the fiducial frank profile, default prior: 6-point interpolation met the
+    tolerance with 132 nodes where cubic needed 197-260.
     """
     r_lo, r_hi = fp.r_range
     h = float(rp_step) if rp_step is not None else (r_hi - r_lo) / 8.0
@@ -174,9 +177,10 @@ def _refine(fp: FastPerturbation, builder: _TableBuilder, rp_step, tol, progress
     history = []
     name = getattr(fp.template, "name", "template")
     while True:
-        nodes = _lattice(r_lo, r_hi, h)
+        nodes = _lattice(r_lo, r_hi, h, order)
         grids = np.stack([node(r) for r in _progress_iter(nodes, progress, f"{name}: r_p nodes")])
-        table = PerturbationTable(nodes, grids, builder.delta, builder.sigma_max, fp.r_range, refinement=history)
+        table = PerturbationTable(nodes, grids, builder.delta, builder.sigma_max, fp.r_range, refinement=history,
+                                  order=order)
         if rp_step is not None:
             return table
         err = _midpoint_error(fp, table, node)
@@ -186,17 +190,19 @@ def _refine(fp: FastPerturbation, builder: _TableBuilder, rp_step, tol, progress
         if err <= tol:
             return table
         factor = 4.0 if err > 100 * tol else 2.0
-        if _lattice(r_lo, r_hi, h / factor).size > max_nodes:
+        if _lattice(r_lo, r_hi, h / factor, order).size > max_nodes:
             log.warning("%s: r_p interpolation error %.3g > tolerance %.3g with %d nodes; the cap is %d nodes",
                         name, err, tol, nodes.size, max_nodes)
             return table
         h /= factor
 
 
-def _lattice(r_lo: float, r_hi: float, h: float) -> np.ndarray:
-    """Nodes ``r_lo + k h`` covering ``[r_lo - h, r_hi + 2h]`` (>= 4 nodes, none below 0)."""
-    k_lo = min(1, int(np.floor(r_lo / h)))
-    k_hi = max(int(np.ceil((r_hi - r_lo) / h)) + 2, 3 - k_lo)
+def _lattice(r_lo: float, r_hi: float, h: float, order: int = 4) -> np.ndarray:
+    """Nodes ``r_lo + k h`` covering ``[r_lo - (order/2 - 1) h, r_hi + (order/2) h]`` (>= ``order``
+    nodes, none below 0: near ``r = 0`` the stencil becomes one-sided)."""
+    below = order // 2 - 1
+    k_lo = min(below, int(np.floor(r_lo / h)))
+    k_hi = max(int(np.ceil((r_hi - r_lo) / h)) + order // 2, order - 1 - k_lo)
     return r_lo + h * np.arange(-k_lo, k_hi + 1)
 
 

@@ -45,19 +45,17 @@ templates are read back, the interrupted one continues from its last flushed bat
 are as they would have been. A file written for other inputs (data, model, priors, templates,
 settings) is refused with :class:`~spiralbayes.exceptions.ResumeMismatchError`.
 
-Parallelism: ``processes=k`` runs walkers in a ``multiprocessing`` pool whose workers receive the
-log-posterior once (pool initializer; emcee #199) and pin BLAS threads; ``pool="mpi"`` uses
-``schwimmbad.MPIPool`` (run the same script on every rank; worker ranks serve log-posterior calls
-and only the master returns a result); any object with ``map`` may be passed as ``pool``.
+Parallelism (:mod:`.chain_runner`): ``processes=k`` runs walkers in a ``multiprocessing`` pool whose
+workers receive the log-posterior once (pool initializer; emcee #199) and pin BLAS threads;
+``pool="mpi"`` uses ``schwimmbad.MPIPool`` (run the same script on every rank; worker ranks serve
+log-posterior calls and only the master writes files and returns a result); any object with
+``map`` may be passed as ``pool``.
 """
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import os
 import time
-import zlib
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +68,8 @@ from ..exceptions import InputError
 from ..geometry import DiscGeometry
 from ..templates.template import template_metadata
 from ..units import TWO_PI
+from .chain_runner import _blas_single_thread, _ChainData, _set_mpi_rank, _writes_files, run_chain
+from .chain_runner import streams as chain_streams
 from .chains import ChainState, ChainStore
 from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, convergence_diagnostics
 from .evidence import (
@@ -80,9 +80,7 @@ from .evidence import (
     laplace_evidence,
     savage_dickey_log_bayes,
 )
-from .likelihood import PARAMETER_NAMES
 from .marginal import MarginalSpiralLikelihood, ProfileMarginal, draw_amplitude
-from .moves import default_moves
 from .optimise import find_map, fit_null_geometry
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
@@ -105,7 +103,8 @@ class LogPosterior:
 
     def __call__(self, theta):
         lp = self.priors.log_prior(theta)
-        if not np.isfinite(lp):
+        lo, hi = self.likelihood.r_range  # narrower than the prior for Laplace-only templates
+        if not np.isfinite(lp) or not lo <= theta[0] <= hi:
             return -np.inf, _NAN_BLOB
         terms = self.likelihood.amplitude_terms(theta)
         return lp + self.likelihood.marginal(terms), np.array(terms[1:])
@@ -121,69 +120,6 @@ class NullLogPosterior:
     def __call__(self, g) -> float:
         lp = self.priors.log_prior_geometry(g)
         return lp + self.base.log_likelihood(g) if np.isfinite(lp) else -np.inf
-
-
-# -- worker-side globals (load the log-posterior once per process, emcee #199) ----------------------
-_WORKER_LOGPOST = None
-
-
-def _pin_threads() -> None:
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-        os.environ[var] = "1"
-    try:  # pragma: no cover - optional
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(1)
-    except ImportError:
-        pass
-
-
-def _init_worker(logpost) -> None:
-    global _WORKER_LOGPOST
-    _pin_threads()
-    _WORKER_LOGPOST = logpost
-
-
-def _worker_log_prob(theta):
-    return _WORKER_LOGPOST(theta)
-
-
-def _make_pool(pool, processes, logpost):
-    """(pool object or None, owned, emcee log-prob function, is_worker)."""
-    if pool == "mpi":
-        from schwimmbad import MPIPool  # lazy: only needed on clusters
-
-        global _WORKER_LOGPOST
-        _WORKER_LOGPOST = logpost
-        mpi = MPIPool()
-        if not mpi.is_master():
-            mpi.wait()
-            return None, False, None, True
-        return mpi, True, _worker_log_prob, False
-    if pool is not None:
-        return pool, False, logpost, False
-    if processes and processes > 1:
-        import multiprocessing
-
-        mp = multiprocessing.Pool(processes, initializer=_init_worker, initargs=(logpost,))
-        return mp, True, _worker_log_prob, False
-    return None, False, logpost, False
-
-
-def _blas_single_thread():
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
-        return contextlib.nullcontext()
-    return threadpool_limits(1)
-
-
-def _streams(seed: int, name: str):
-    """Independent random streams of one template (or the null): init, emcee, evidence, amplitude."""
-    ss = np.random.SeedSequence([int(seed), zlib.crc32(name.encode())])
-    init, em, evidence, amplitude = ss.spawn(4)
-    return (np.random.default_rng(init), int(em.generate_state(1)[0]), np.random.default_rng(evidence),
-            np.random.default_rng(amplitude))
 
 
 def _model_hash(axisymmetric, prior: ProfilePrior) -> str:
@@ -213,7 +149,7 @@ def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed,
     g_map, cov, lp_map = fit_null_geometry(base0.log_likelihood, priors)
     base = base0.centred_at(DiscGeometry(*g_map))
     logpost = NullLogPosterior(base, priors)
-    _, _, rng, _ = _streams(seed, NULL_GROUP)
+    _, _, rng, _ = chain_streams(seed, NULL_GROUP)
     proposal = StudentT(g_map, cov * 1.5 ** 2, priors.geometry_widths)
     ev = importance_evidence(logpost, [proposal], [1.0], n_draws, rng)
     draws = proposal.draw(n_draws, rng)  # importance resampling for the reported geometry samples
@@ -226,8 +162,9 @@ def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed,
                "I_err": None if model.I_err is None else model.I_err.tolist(), "prior": prior.source}
     null = NullRun(samples, g_map, cov, ev["ln_evidence"], ev["ln_evidence_err"], laplace_evidence(lp_map, cov),
                    profile, {"evidence": ev, "time_s": time.perf_counter() - t0})
-    store.write(ChainState(np.empty((0, 0, 4)), np.empty((0, 0)), None, np.zeros(0), None, inputs,
-                           null.to_json(), samples))
+    if _writes_files():
+        store.write(ChainState(np.empty((0, 0, 4)), np.empty((0, 0)), None, np.zeros(0), None, inputs,
+                               null.to_json(), samples))
     log.info("no planet: geometry mode inc %.4f PA %.4f dRA %.2f mas dDec %.2f mas; ln Z0 = %.2f +- %.2f (Laplace %.2f)",
              g_map[0], g_map[1], 1e3 * g_map[2], 1e3 * g_map[3], null.ln_evidence, null.ln_evidence_err,
              null.ln_evidence_laplace)
@@ -279,37 +216,6 @@ def _laplace(logpost, theta_map, priors, null):
     return theta, cov, lp, laplace_evidence(lp, cov)
 
 
-def _initial_walkers(logpost, theta_map, cov, priors, n_walkers, rng, initial=None):
-    """Walkers around the optimum (Laplace covariance / 4), redrawn where ln p = -inf."""
-    if initial is not None:
-        p0 = np.array(initial, dtype=float)
-        if p0.shape != (n_walkers, N_DIM):
-            raise InputError(f"initial walkers have shape {p0.shape}, expected ({n_walkers}, {N_DIM})")
-    else:
-        p0 = rng.multivariate_normal(theta_map, cov * 0.25, size=n_walkers)
-    p0[:, 1] %= TWO_PI
-    lp = np.array([_value(logpost(p)) for p in p0])
-    for _ in range(50 if initial is None else 0):
-        bad = ~np.isfinite(lp)
-        if not bad.any():
-            break
-        p0[bad] = rng.multivariate_normal(theta_map, cov * 0.05, size=int(bad.sum()))
-        p0[:, 1] %= TWO_PI
-        lp[bad] = [_value(logpost(p)) for p in p0[bad]]
-    bad = np.flatnonzero(~np.isfinite(lp))
-    if bad.size:
-        i = int(bad[0])
-        raise InputError(f"walker {i} starts at theta = {np.round(p0[i], 6).tolist()} "
-                         f"({', '.join(PARAMETER_NAMES)}) where the log posterior is -inf "
-                         f"({bad.size} such walkers): move the start inside the prior "
-                         f"(r_p in {priors.r_p}, 0 <= inc < 90)")
-    return p0
-
-
-def _value(out) -> float:
-    return float(out[0] if isinstance(out, tuple) else out)
-
-
 def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.ndarray:
     """``(r_p, phi_p, A, inc, PA, dRA, dDec)``: ``A`` drawn from its conditional posterior per sample."""
     if priors.amplitude_max is None:
@@ -320,81 +226,11 @@ def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.nda
     return _wrap_phi(out)[0]
 
 
-def _run_chain(store, saved, inputs, logpost, theta_map, cov, priors, *, n_walkers, n_steps, max_steps,
-               check_every, flush_every, min_ess, pool, processes, moves, progress, streams, initial, name):
-    """Sample in batches, flushing each to ``store``.
-
-    Returns ``(chain, log_prob, blobs, accepted, mapper, owned pool or None, log-prob function)``,
-    or None on an MPI worker rank.
-    """
-    import emcee
-    from emcee.state import State
-
-    rng_init, emcee_seed, _, _ = streams
-    pool_obj, owned, fn, is_worker = _make_pool(pool, processes, logpost)
-    if is_worker:
-        return None
-    sampler = emcee.EnsembleSampler(n_walkers, N_DIM, fn, pool=pool_obj,
-                                    moves=moves if moves is not None else default_moves())
-    if saved is not None and saved.iteration > 0:
-        chain, log_prob, blobs, accepted = saved.chain, saved.log_prob, saved.blobs, saved.accepted.astype(float)
-        state = State(chain[-1], log_prob=log_prob[-1], blobs=None if blobs is None else blobs[-1],
-                      random_state=saved.random_state)
-        log.info("%s: resuming %s at step %d", name, store.path, saved.iteration)
-    else:
-        p0 = _initial_walkers(_as_scalar(logpost), theta_map, cov, priors, n_walkers, rng_init, initial)
-        chain = np.empty((0, n_walkers, N_DIM))
-        log_prob = np.empty((0, n_walkers))
-        blobs = np.empty((0, n_walkers, 2))
-        accepted = np.zeros(n_walkers)
-        state = State(p0, random_state=np.random.RandomState(emcee_seed).get_state())
-    target = n_steps if n_steps is not None else max_steps
-    bar = _bar(progress, target, chain.shape[0], name)
-    try:
-        while chain.shape[0] < target:
-            stop = min(target, (chain.shape[0] // flush_every + 1) * flush_every)
-            if n_steps is None:  # convergence checks land on multiples of check_every
-                stop = min(stop, (chain.shape[0] // check_every + 1) * check_every)
-            sampler.reset()
-            state = sampler.run_mcmc(state, stop - chain.shape[0], progress=False)
-            chain = np.concatenate([chain, sampler.get_chain()])
-            log_prob = np.concatenate([log_prob, sampler.get_log_prob()])
-            blobs = np.concatenate([blobs, sampler.get_blobs()])
-            accepted = accepted + sampler.backend.accepted
-            store.write(ChainState(chain, log_prob, blobs, accepted, state.random_state, inputs))
-            bar.update(stop - bar.n)
-            if n_steps is None and chain.shape[0] % check_every == 0 and chain.shape[0] >= 2 * check_every:
-                diag = convergence_diagnostics(chain, min_ess=min_ess)
-                log.info("%s: %d steps, max tau %.1f, min ESS %.0f", name, chain.shape[0], diag["tau_max"],
-                         min(diag["ess"].values()))
-                if diag["converged"]:
-                    break
-    except BaseException:
-        if owned:
-            getattr(pool_obj, "terminate", pool_obj.close)()
-        raise
-    finally:
-        bar.close()
-    mapper = pool_obj.map if pool_obj is not None else map
-    return chain, log_prob, blobs, accepted, mapper, (pool_obj if owned else None), fn
-
-
-def _as_scalar(logpost):
-    return lambda t: _value(logpost(t))
-
-
-def _bar(enabled: bool, total: int, initial: int, name: str):
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, initial=initial, desc=f"{name}: steps", unit="step", disable=not enabled,
-                leave=False, mininterval=1.0)
-
-
 def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_range, partners, settings):
     s = settings
     t0 = time.perf_counter()
     name = template.name
-    streams = _streams(s["seed"], name)
+    streams = chain_streams(s["seed"], name)
     store = ChainStore(chain_path, name)
     inputs = {**s["inputs"], "template": template_metadata(template), "template_hash": _template_hash(template),
               "mode": mode, "r_range": list(r_range)}
@@ -416,7 +252,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     if mode == "laplace":
         draws = rng_evidence.multivariate_normal(theta_map, cov, size=400)
         draws[:, 1] %= TWO_PI
-        draws = draws[[np.isfinite(priors.log_prior(d)) for d in draws]]
+        draws = draws[[np.isfinite(logpost(d)[0]) for d in draws]]
         terms = np.array([likelihood.amplitude_terms(d) for d in draws]).reshape(-1, 3)
         samples = _with_amplitude(draws, terms[:, 1], terms[:, 2], priors, rng_amp)
         run = TemplateRun(name, meta, "laplace", samples, theta_map, cov, lnz_laplace, float("nan"), lnz_laplace,
@@ -424,7 +260,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         store.write(ChainState(np.empty((0, s["n_walkers"], N_DIM)), np.empty((0, s["n_walkers"])), None,
                                np.zeros(s["n_walkers"]), None, inputs, run.to_json(), samples))
         return run, likelihood
-    out = _run_chain(store, saved, inputs, logpost, theta_map, cov, priors, streams=streams, initial=s["initial"],
+    out = run_chain(store, saved, inputs, logpost, theta_map, cov, priors, streams=streams, initial=s["initial"],
                      name=name, **{k: s[k] for k in ("n_walkers", "n_steps", "max_steps", "check_every", "flush_every",
                                                     "min_ess", "pool", "processes", "moves", "progress")})
     if out is None:  # an MPI worker rank
@@ -465,24 +301,6 @@ def _final_state(store, run, samples):
     state = store.read()
     state.result, state.samples = run.to_json(), samples
     return state
-
-
-class _ChainData:
-    """arviz view of an in-memory chain (phi_p wrapped around its circular mean)."""
-
-    def __init__(self, chain):
-        self.chain = _wrap_phi(chain)[0]
-
-    def inference_data(self):
-        import warnings
-
-        from .diagnostics import _ChainView, _import_arviz
-
-        az = _import_arviz()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            return az.from_emcee(_ChainView(self.chain, np.zeros(self.chain.shape[:2])),
-                                 var_names=list(PARAMETER_NAMES))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -574,6 +392,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
                 "flush_every": flush_every, "min_ess": min_ess, "pool": pool, "processes": processes, "moves": moves,
                 "progress": progress, "seed": seed, "evidence_draws": evidence_draws, "initial": initial,
                 "convergence": convergence, "likelihood_kwargs": likelihood_kwargs}
+    _set_mpi_rank(pool)
     with _blas_single_thread():
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
                                {**common, "evidence_draws": int(evidence_draws)}, seed, evidence_draws,
