@@ -133,3 +133,27 @@ def test_walkers_never_start_at_minus_inf():
     bad[3, 0] = 5.0  # r_p outside the prior
     with pytest.raises(ValueError, match="walker 3"):
         initial_walkers(logpost, centre, cov, priors, 12, rng, initial=bad)
+
+
+def test_templates_pruned_by_the_scan_get_a_narrow_table():
+    from spiralbayes.inference.sampler import _laplace_window, _select_mcmc
+
+    class Scan:
+        r_p = np.linspace(0.1, 0.6, 11)
+        phi_p = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+
+        def delta_chi2(self):
+            d = np.zeros((2, 11, 8))
+            d[0, 5, 3] = 200.0  # template "A": a strong peak at 0.35 arcsec
+            d[1, 2, 1] = 10.0  # template "B": 95 below in ln L
+            return d
+
+        def template_index(self, name):
+            return {"A": 0, "B": 1}[name]
+
+    priors = Priors(R_RANGE, (40, 5), (70, 5), (0, 0.05), (0, 0.05))
+    assert _select_mcmc(["A", "B"], Scan(), None, 25.0) == {"A"}
+    assert _select_mcmc(["A", "B"], None, None, 25.0) == {"A", "B"}
+    lo, hi = _laplace_window(priors, Scan(), "B")
+    assert (lo, hi) == pytest.approx((R_RANGE[0], 0.3))  # +- 2 scan steps around 0.2, inside the prior
+    assert _laplace_window(priors, None, "B") == priors.r_p
