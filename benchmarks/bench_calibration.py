@@ -65,6 +65,7 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--evidence-draws", type=int, default=800)
     parser.add_argument("--processes", type=int, default=1)
+    parser.add_argument("--frank-n", type=int, default=200, help="frank's N (100 already reaches 8.6 Mlambda at Rmax = 1.2\")")
     parser.add_argument("--seed", type=int, default=2024)
     parser.add_argument("--report", action="store_true", help="only print the table of the records so far")
     args = parser.parse_args(argv)
@@ -74,7 +75,8 @@ def main(argv=None):
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     setup = CalibrationSetup(preset=args.preset, sampler={"n_walkers": args.walkers, "n_steps": args.steps,
-                                                          "evidence_draws": args.evidence_draws})
+                                                          "evidence_draws": args.evidence_draws},
+                             frank={"N": args.frank_n, "Rmax": 1.2})
     path = out / "records.jsonl"
     records = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
     if args.report:

@@ -93,6 +93,8 @@ def test_spiral_likelihood_matches_dense_reference(setup, small):
     direct = np.log(np.trapezoid(np.exp(l0 + grid * c1 - 0.5 * grid ** 2 * c2 - lik(theta)), grid) / 2.0)
     assert abs(direct) < 1e-6
     assert lik(theta) - lik.null_log_likelihood(TRUE_GEOMETRY) > 30  # the planet is seen
+    fixed = MarginalSpiralLikelihood(base, fp, amplitude_max=None)  # the paper's A = 1
+    assert fixed(theta) == pytest.approx(lik.log_likelihood_at(theta, 1.0), abs=1e-9)
 
 
 def test_spiral_profile_approximation_against_fully_linear_model(setup, small):

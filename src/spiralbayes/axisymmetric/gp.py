@@ -132,6 +132,7 @@ class ProfilePrior:
 
 
 # ---------------------------------------------------------------------------------------------
+_INVERSE_DENOMINATORS: dict = {}
 _LAGRANGE_CONSTANT = {4: 0.0234, 6: 4.88e-3, 8: 1.06e-3, 10: 2.2e-4}
 """max_t |prod_m (t - x_m)| / order! on the central interval, nodes x_m = -order/2+1 .. order/2."""
 
@@ -199,8 +200,11 @@ class QGridProjector:
 
     @staticmethod
     def _inverse_denominators(p: int) -> np.ndarray:
-        nodes = np.arange(p) - (p // 2 - 1)
-        return np.array([1.0 / np.prod([nodes[s] - nodes[m] for m in range(p) if m != s]) for s in range(p)])
+        if p not in _INVERSE_DENOMINATORS:
+            nodes = np.arange(p) - (p // 2 - 1)
+            _INVERSE_DENOMINATORS[p] = np.array([1.0 / np.prod([nodes[s] - nodes[m] for m in range(p) if m != s])
+                                                 for s in range(p)])
+        return _INVERSE_DENOMINATORS[p]
 
     def spread(self, first: np.ndarray, weights: np.ndarray, values: np.ndarray) -> np.ndarray:
         """``rho_a = sum_k values_k c_a(q_k)`` on the grid (the adjoint of :meth:`interpolate`)."""
