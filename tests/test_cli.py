@@ -10,7 +10,6 @@ import pytest
 from spiralbayes.cli import main
 from spiralbayes.templates import make_template
 from tests.helpers import DATA
-from tests.posterior_setup import R_RANGE
 
 
 def test_print_config_is_loadable(capsys, tmp_path):
@@ -97,14 +96,18 @@ def test_cli_sample_from_toml_config(setup, tmp_path):
     from spiralbayes.io import save_visibilities
     from spiralbayes.templates import TemplateBank
 
+    from spiralbayes.axisymmetric import AxisymmetricModel
+    from tests.posterior_setup import profile
+
     save_visibilities(setup["vis"], tmp_path / "obs.h5")
-    setup["model"].save(tmp_path / "axisym.h5")
+    AxisymmetricModel.from_profile(profile, setup["model"].geometry, N=80).save(tmp_path / "axisym.h5")
     template = setup["template"]
     TemplateBank([template, template.mirror()]).save(tmp_path / "bank.h5")
     (tmp_path / "run.toml").write_text(
         '[data]\npath = "obs.h5"\n[frank]\nmodel = "axisym.h5"\n[templates]\nbank = "bank.h5"\n'
         '[sample]\nrun_name = "cli"\nn_walkers = 16\nn_steps = 40\nconvergence = "ignore"\nevidence_draws = 200\n'
-        f"[priors]\nr_p_min = {R_RANGE[0]}\nr_p_max = {R_RANGE[1]}\ninc_sigma = 3.0\nPA_sigma = 3.0\n"
+        f'mcmc_templates = ["{template.name}"]\n'
+        "[priors]\nr_p_min = 0.3\nr_p_max = 0.4\ninc_sigma = 3.0\nPA_sigma = 3.0\n"
         "dRA_sigma = 0.03\ndDec_sigma = 0.03\n"
         f'[output]\ndir = "{tmp_path / "out"}"\n')
     with warnings.catch_warnings():
@@ -112,8 +115,9 @@ def test_cli_sample_from_toml_config(setup, tmp_path):
         assert main(["-q", "sample", str(tmp_path / "run.toml")]) == 0
     assert (tmp_path / "out" / "chains" / "cli.h5").exists()
     summary = json.loads((tmp_path / "out" / "cli_summary.json").read_text())
-    assert "summary" in summary
-    assert (tmp_path / "out" / "cli_corner.png").exists()
+    assert "summary" in summary and summary["verdict"].startswith("planet preferred")
+    assert 0.99 < summary["p_planet"] <= 1.0 and summary["null"]["ln_evidence"] < summary["runs"][0]["ln_evidence"]
+    assert (tmp_path / "out" / "cli_corner.png").exists() and (tmp_path / "out" / "cli_hypotheses.png").exists()
     (tmp_path / "bad.toml").write_text('[data]\npath = "obs.h5"\n[sample]\nbogus = 1\n')
     assert main(["sample", str(tmp_path / "bad.toml")]) == 2
 

@@ -116,7 +116,7 @@ def _cmd_sample(args) -> int:
         raise SystemExit("spiralbayes sample: give a CONFIG file (write a documented one with --print-config)")
     config = load_config(args.config)
     result = run_sample_config(config, progress=not args.quiet)
-    print(result.summary())
+    print(result.verdict)
     print(f"outputs in {Path(config['output']['dir']).resolve()} (chains under chains/)")
     return 0
 

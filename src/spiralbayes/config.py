@@ -96,6 +96,8 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "prune_delta_lnL": (25.0, "templates whose scan peak is this far below the best (in ln L) get a Laplace evidence only"),
         "evidence_draws": (2000, "draws of the importance-sampled evidence"),
         "mcmc_templates": ([], "names of the templates that get a chain (empty: chosen by prune_delta_lnL)"),
+        "flush_every": (100, "steps between atomic writes of the chain file (a kill loses at most these)"),
+        "planet_prior": (0.5, "prior probability that the disc hosts a planet (against the no-planet hypothesis)"),
     },
     "priors": {
         "r_p_min": (0.0, "smallest planet radius [arcsec] (0: R_eff / 25 of the frank profile)"),
@@ -104,6 +106,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "PA_sigma": (5.0, "width of the Gaussian prior on the position angle [deg]"),
         "dRA_sigma": (0.05, "width of the Gaussian prior on the RA offset [arcsec]"),
         "dDec_sigma": (0.05, "width of the Gaussian prior on the Dec offset [arcsec]"),
+        "amplitude_max": (2.0, "spiral amplitude A uniform on [0, amplitude_max] (A = 1: the template as simulated; 0: fix A = 1)"),
     },
     "compare": {
         "residuals": ("visibilities", "'visibilities': CLEAN image of the residual visibilities (data - frank model); 'difference': CLEAN image of the data minus that of the frank model at the same baselines (carries CLEAN artefacts)"),

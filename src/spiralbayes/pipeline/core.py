@@ -30,7 +30,7 @@ from ..inference.scan import ScanResult, scan
 from ..io import load_visibilities
 from ..plotting.alternatives import plot_residual_comparison
 from ..plotting.axisymmetric import plot_binned_visibilities, plot_profile
-from ..plotting.posterior import plot_corner, plot_template_probabilities
+from ..plotting.posterior import plot_corner, plot_hypotheses, plot_template_probabilities
 from ..plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
 from ..simulate import DiscModel, simulate_observation
 from ..templates import TemplateBank, default_bank, make_template
@@ -301,7 +301,7 @@ def _priors(config: dict, axisym: AxisymmetricModel) -> Priors:
     if p["r_p_min"] or p["r_p_max"]:
         default = Priors.default(axisym, widths=widths).r_p
         r_p = (p["r_p_min"] or default[0], p["r_p_max"] or default[1])
-    return Priors.default(axisym, r_p=r_p, widths=widths)
+    return Priors.default(axisym, r_p=r_p, widths=widths, amplitude_max=p["amplitude_max"] or None)
 
 
 def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult:
@@ -311,8 +311,9 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     of the same configuration, else a new frank fit; the scan (walker starts, template pruning) is
     ``[sample] scan``, else ``OUTPUT/scan.h5`` when present. Writes, in ``[output] dir``:
     ``chains/<run_name>.h5`` (the chains), ``<run_name>_posterior.h5`` (the result),
-    ``<run_name>_summary.json``, ``<run_name>_corner.png``, ``<run_name>_templates.png`` and
-    ``<run_name>_config.toml`` (the configuration used).
+    ``<run_name>_summary.json`` (with the verdict: P(planet | data), the Bayes factor),
+    ``<run_name>_corner.png`` (r_p in au at ``[geometry] distance``), ``<run_name>_hypotheses.png``,
+    ``<run_name>_templates.png`` and ``<run_name>_config.toml`` (the configuration used).
     """
     out_dir = Path(config["output"]["dir"])
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -328,7 +329,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     scan_result = ScanResult.load(scan_path) if scan_path else None
     _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))
     sampler = {k: s[k] for k in ("n_walkers", "max_steps", "check_every", "convergence", "min_ess", "seed",
-                                  "prune_delta_lnL", "evidence_draws")}
+                                  "prune_delta_lnL", "evidence_draws", "flush_every", "planet_prior")}
     result = sample_posterior(vis, axisym, templates, scan=scan_result, priors=_priors(config, axisym),
                               run_name=run_name, chains_dir=out_dir / "chains", n_steps=s["n_steps"] or None,
                               processes=s["processes"] if s["processes"] > 1 else None,
@@ -336,7 +337,8 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     result.save(out_dir / f"{run_name}_posterior.h5")
     summary = {**result.to_json(), "summary": result.summary()}
     _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))
-    _save_figure(plot_corner(result), out_dir / f"{run_name}_corner.png")
+    _save_figure(plot_corner(result, distance=config["geometry"]["distance"]), out_dir / f"{run_name}_corner.png")
+    _save_figure(plot_hypotheses(result), out_dir / f"{run_name}_hypotheses.png")
     _save_figure(plot_template_probabilities(result), out_dir / f"{run_name}_templates.png")
     return result
 

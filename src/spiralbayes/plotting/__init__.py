@@ -6,7 +6,7 @@ In a notebook the Figure displays itself; elsewhere call ``fig.savefig(path)``.
 from .alternatives import plot_residual_comparison
 from .axisymmetric import plot_binned_visibilities, plot_profile
 from .limits import plot_completeness, plot_excluded_fraction, plot_mass_radius
-from .posterior import plot_corner, plot_template_probabilities, plot_trace
+from .posterior import plot_corner, plot_hypotheses, plot_template_probabilities, plot_trace
 from .scan import plot_chi2_vs_rp, plot_heatmap, plot_heatmap_pair, plot_template_grid_heatmaps
 from .templates import plot_bank_overview, plot_template
 
@@ -19,6 +19,7 @@ __all__ = [
     "plot_excluded_fraction",
     "plot_heatmap",
     "plot_heatmap_pair",
+    "plot_hypotheses",
     "plot_mass_radius",
     "plot_profile",
     "plot_residual_comparison",
