@@ -63,3 +63,13 @@ def test_every_default_passes_its_value_check():
         for key, check in checks.items():
             if key in SCHEMA.get(section, {}):
                 assert check(SCHEMA[section][key][0]) is None, f"default of {section}.{key} fails its check"
+
+
+@pytest.mark.parametrize("user,match", [
+    ({"alternatives": {"models": ["vortex"]}}, r"alternatives.models .* 'arc'"),
+    ({"alternatives": {"n_starts": 0}}, "alternatives.n_starts = 0 must be an integer >= 1"),
+])
+def test_bad_alternatives_options_are_refused(user, match):
+    with pytest.raises(ValueError, match=match):
+        merge_config(user)
+    assert merge_config({"alternatives": {"models": ["geometry", "arc"], "n_starts": 3}})["alternatives"]["n_starts"] == 3

@@ -131,7 +131,7 @@ class PolarQuadrature:
 
 
 def make_quadrature(template, r_p: float, uv_max: float, *, cell_factor: float = DEFAULT_CELL_FACTOR,
-                    phi_multiple: int = 90, rule: str = DEFAULT_RULE, support: float | None = None):
+                    phi_multiple: int = 90, rule: str = DEFAULT_RULE, support: float | None = None, breaks=()):
     """The quadrature for ``template`` at planet radius ``r_p`` [arcsec], for baselines up to ``uv_max`` [lambda].
 
     ``rule="product"`` (default): :func:`spiralbayes.quadrature.make_product_quadrature`, exact to
@@ -146,7 +146,8 @@ def make_quadrature(template, r_p: float, uv_max: float, *, cell_factor: float =
     grid are cyclic shifts of the nodes).
     """
     if rule == "product":
-        return make_product_quadrature(template, r_p, uv_max, phi_multiple=phi_multiple, support=support)
+        return make_product_quadrature(template, r_p, uv_max, phi_multiple=phi_multiple, support=support,
+                                       breaks=breaks)
     if rule != "midpoint":
         raise InputError(f"rule = {rule!r}: the quadrature rules are {RULES}")
     x = np.asarray(template.x, dtype=float)
@@ -169,6 +170,13 @@ def profile_support(profile) -> float | None:
     owner = getattr(profile, "__self__", None)
     r_max = getattr(owner, "Rmax", None)
     return None if r_max is None else float(r_max)
+
+
+def profile_breaks(profile) -> tuple:
+    """Radii [arcsec] where ``profile`` jumps inside its support, when its owner declares them
+    (a ``breaks`` attribute, e.g. a model disc's edges), else ``()``; the product rule splits there."""
+    owner = getattr(profile, "__self__", None)
+    return tuple(float(b) for b in getattr(owner, "breaks", ()) or ())
 
 
 def _template_x_range(x: np.ndarray) -> tuple[float, float]:
@@ -256,7 +264,7 @@ def _placed_cells(u, v, profile, template, r_p, phi_p, quad, cell_factor, rule=D
     """Cell fluxes [Jy] (flattened) and positions [rad] of the perturbation with the planet at ``phi_p``."""
     if quad is None:
         quad = make_quadrature(template, r_p, float(np.max(np.hypot(u, v))), cell_factor=cell_factor, rule=rule,
-                               support=profile_support(profile))
+                               support=profile_support(profile), breaks=profile_breaks(profile))
     flux = perturbation_flux(profile, template, quad)
     if isinstance(quad, ProductQuadrature):  # nodes rotate exactly: no need to move whole cells
         return flux, _rotated(quad.positions(), phi_p)

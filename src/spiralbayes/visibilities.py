@@ -27,6 +27,7 @@ import numpy as np
 
 from .exceptions import InputError
 from .geometry import DiscGeometry
+from .layout import ObservationLayout
 from .units import C_LIGHT
 
 __all__ = [
@@ -63,6 +64,9 @@ class Visibilities:
         exported by visread). Use :meth:`standardised` before modelling.
     provenance : dict
         Where the data came from (file, reader, conversions applied).
+    layout : ObservationLayout, optional
+        Antennas, hour angles and w of every row, when known (simulated data); used by
+        :func:`spiralbayes.io.write_ms` to write a Measurement Set with real antennas and times.
     """
 
     u: np.ndarray
@@ -72,6 +76,7 @@ class Visibilities:
     wavelength: float | None = None
     conjugated: bool = False
     provenance: dict = field(default_factory=dict)
+    layout: ObservationLayout | None = None
 
     def __post_init__(self):
         self.u = _real_array(self.u, "u")
@@ -80,6 +85,8 @@ class Visibilities:
         self.weights = _real_array(self.weights, "weights")
         self._check_lengths()
         self._check_values()
+        if self.layout is not None and self.layout.n != self.u.size:
+            raise InputError(f"layout has {self.layout.n} rows for {self.u.size} visibilities")
         self._drop_zero_weights()
         if self.wavelength is not None:
             self.wavelength = float(self.wavelength)
@@ -117,6 +124,8 @@ class Visibilities:
         if n_drop:
             log.info("dropped %d visibilities with zero weight (flagged data)", n_drop)
             self.u, self.v, self.V, self.weights = (a[keep] for a in (self.u, self.v, self.V, self.weights))
+            if self.layout is not None:
+                self.layout = self.layout.subset(keep)
             self.provenance = {**self.provenance, "dropped_zero_weight": n_drop}
 
     # ------------------------------------------------------------------------------
@@ -147,7 +156,9 @@ class Visibilities:
 
     def subset(self, index) -> "Visibilities":
         """A copy with only the selected rows (boolean mask or indices)."""
-        return replace(self, u=self.u[index], v=self.v[index], V=self.V[index], weights=self.weights[index])
+        layout = None if self.layout is None else self.layout.subset(index)
+        return replace(self, u=self.u[index], v=self.v[index], V=self.V[index], weights=self.weights[index],
+                       layout=layout)
 
     def with_weights(self, weights, note: str) -> "Visibilities":
         """A copy with new weights; ``note`` is recorded in the provenance."""

@@ -73,6 +73,34 @@ def test_profile_edge_is_integrated_exactly_when_given(template, baselines):
     assert GEOMETRY.cos_inc * blind.error_bound(truncated_profile, TemplateSpectrum(template))["fine"] > 0.1 * err
 
 
+def test_declared_jumps_inside_the_disc_are_integrated_exactly(template, baselines):
+    """A cavity edge at 0.5 arcsec (a model disc's inner edge): with ``breaks`` the rule splits there and
+    is exact; its error estimate was what flagged the jump before."""
+    u, v = baselines
+    r_p, edge = 0.4, 0.5
+
+    def holed(r):
+        r = np.asarray(r, dtype=float)
+        return np.where(r >= edge, smooth_profile(r), 0.0)
+
+    def inside(r):
+        r = np.asarray(r, dtype=float)
+        return np.where(r < edge, smooth_profile(r), 0.0)
+
+    # the reference is linear in the profile: smooth minus its part inside the edge (cut exactly there)
+    ref = (reference_visibilities(u, v, GEOMETRY, smooth_profile, template, r_p, 0.3, order_r=8, order_phi=6)
+           - reference_visibilities(u, v, GEOMETRY, inside, template, r_p, 0.3, order_r=8, order_phi=6, support=edge))
+    spectrum = TemplateSpectrum(template)
+    split = make_product_quadrature(template, r_p, UV_MAX, breaks=(edge,))
+    fast = perturbation_visibilities(u, v, GEOMETRY, holed, template, r_p, 0.3, quad=split, epsilon=1e-13)
+    peak = np.max(np.abs(ref))
+    assert np.max(np.abs(fast - ref)) < 1e-10 * peak
+    assert split.at(0.3).breaks == (edge,)  # smaller radii keep the break (at another x)
+    blind = make_product_quadrature(template, r_p, UV_MAX)
+    bound_blind = blind.error_bound(holed, spectrum)["total"]
+    assert bound_blind > 1e3 * split.error_bound(holed, spectrum)["total"]
+
+
 def test_rule_serves_smaller_radii_on_the_same_nodes(template, baselines):
     u, v = baselines
     big = make_product_quadrature(template, 0.5, UV_MAX)

@@ -257,7 +257,14 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     return AxisymmetricModel(r=np.asarray(sol.r), I=np.asarray(sol.I), geometry=geometry, Rmax=Rmax,
                              hyperparameters=hyper, I_err=I_err, I_nonneg=I_nonneg,
                              frank_version=_frank_version(), fit_time_s=fit_time, provenance=provenance,
-                             frank_solution=sol)
+                             frank_solution=sol,
+                             power_spectrum=_power_spectrum(sol) if method == "Normal" else None)
+
+
+def _power_spectrum(sol):
+    """frank's MAP power spectrum [Jy^2] of the brightness (None when frank has none)."""
+    p = getattr(sol, "power_spectrum", None)
+    return None if p is None else np.asarray(p, dtype=float).ravel()
 
 
 def _minimum_collocation_count(vis: Visibilities, geometry: DiscGeometry, Rmax: float) -> int:

@@ -42,11 +42,16 @@ Every template's terms carry an estimate of their error, stored in the scan resu
 low by 3-9e-4 at ``cell_factor`` 20) is kept as a reference; it has no bound, so its error
 estimates are NaN. :func:`direct_delta_chi2` is the plain reference: ΔV for one instance at every
 baseline and the χ² sums.
+
+Why this module is long: the context (data, uv grids, per-grid caches), the two power paths, the
+cross kernel, the per-instance error estimates and the entry points that reuse them (another
+residual, the full uv grid of injection–recovery) share the same cached plans and node layout;
+split apart, each piece would reach into the others' caches.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -60,6 +65,7 @@ from ..model import (
     make_quadrature,
     perturbation_flux,
     perturbation_visibilities,
+    profile_breaks,
     profile_support,
 )
 from ..quadrature import ProductQuadrature, TemplateSpectrum
@@ -76,7 +82,8 @@ from .uv_levels import (
     theta_count,
 )
 
-__all__ = ["ScanContext", "ScanSettings", "TemplateTerms", "direct_delta_chi2", "scan_template"]
+__all__ = ["ScanContext", "ScanSettings", "TemplateTerms", "cross_template", "direct_delta_chi2", "perturbation_spectrum",
+           "scan_template", "with_residual"]
 
 
 POWER_EPSILON = 1e-7
@@ -195,6 +202,7 @@ class ScanContext:
     weight_sum: float = 0.0
     nthreads: int = 1
     algorithm_error: dict = field(default_factory=dict)  # relative discrepancies measured by check_terms
+    breaks: tuple = ()  # radii where the profile jumps inside the support [arcsec]
     _dirty_cache: dict = field(default_factory=dict, repr=False)
     _quad_cache: dict = field(default_factory=dict, repr=False)
     _plan_cache: dict = field(default_factory=dict, repr=False)
@@ -235,7 +243,8 @@ class ScanContext:
                                           nthreads=nthreads))
         return cls(profile, geometry, vis.u, vis.v, vis.weights, residual, chi2(V_A, vis.V, vis.weights), r_p,
                    int(n_phi_p), settings, path, levels, support, float(x_max), float(rho.max()),
-                   float(np.sum(vis.weights * np.abs(residual))), float(np.sum(vis.weights)), int(nthreads))
+                   float(np.sum(vis.weights * np.abs(residual))), float(np.sum(vis.weights)), int(nthreads),
+                   breaks=profile_breaks(profile) if settings.rule == "product" else ())
 
     # -- compatibility and description -----------------------------------------------------------
     @property
@@ -264,6 +273,22 @@ class ScanContext:
             raise InputError("this scan context keeps no full uv weight coefficients: build it with "
                              "settings=ScanSettings(power_path='polar', banded=False)")
         return self.levels[0].hat
+
+    def with_full_grid(self) -> "ScanContext":
+        """This context with one unbanded polar uv grid for every radius (the full weight
+        coefficients :attr:`uv_weights_hat`, which injection–recovery needs); itself if it has one."""
+        if self.power_path == "polar" and len(self.levels) == 1 and self.levels[0].hat is not None:
+            return self
+        settings = replace(self.settings, power_path="polar", banded=False, multilevel=False)
+        xi, eta = self.geometry.disc_frame_uv(self.u, self.v)
+        rho, theta = np.hypot(xi, eta), np.arctan2(eta, xi)
+        order = np.argsort(rho, kind="stable")
+        r_out = float(np.max(_radii(self.r_p, self.x_max, self.support)))
+        level = build_level(rho[order], theta[order], self.weights[order], r_out, self.n_phi_p,
+                            points=settings.rho_points, oversample=settings.rho_oversample,
+                            theta_tolerance=settings.theta_tolerance, banded=False, nthreads=self.nthreads)
+        return replace(self, settings=settings, power_path="polar", levels=[level], _dirty_cache=self._dirty_cache,
+                       _quad_cache={}, _plan_cache={}, _spectrum_cache={})
 
     def describe(self) -> dict:
         """The resolved numerical set-up (JSON-able), for provenance and the resume key."""
@@ -297,7 +322,8 @@ class ScanContext:
                 reach = self.rho_max
                 if self.power_path == "polar":
                     reach = self._level_for(_radii(np.array([r_p]), float(x[-1]), self.support)[0]).reach
-                quad = make_quadrature(template, r_p, reach, phi_multiple=self.n_phi_p, support=self.support)
+                quad = make_quadrature(template, r_p, reach, phi_multiple=self.n_phi_p, support=self.support,
+                                       breaks=self.breaks)
             else:
                 quad = make_quadrature(template, r_p, self.uv_max, cell_factor=self.settings.cell_factor,
                                        phi_multiple=self.n_phi_p, rule="midpoint")
@@ -453,6 +479,45 @@ def _scan_template(context: ScanContext, template) -> TemplateTerms:
                 cross_err[i] += CHECK_SAFETY * alg["cross"] * np.sqrt(context.chi2_AO * P)
                 power_err[i] += CHECK_SAFETY * alg["power"] * P
     return TemplateTerms(cross, power, cross_err, power_err)
+
+
+def perturbation_spectrum(context: ScanContext, flux: np.ndarray, quad) -> np.ndarray:
+    """``P_hat = sum_c flux_c exp(2 pi i q . s_c)`` [Jy] at the uv nodes with ``theta < pi`` of a
+    context with one full grid (:meth:`ScanContext.with_full_grid`).
+
+    Shape ``(n_rho, n_theta // 2)``, complex64, planet at ``phi_p = 0`` and without the ``cos i``
+    factor; the other half follows from ``P_hat(rho, theta + pi) = conj(P_hat(rho, theta))``.
+    """
+    context.uv_weights_hat  # raises unless the context has the full grid
+    n_rho, n_theta = context.levels[0].n_rho, context.levels[0].n_theta
+    p_hat = context.power_plan(quad).exec(forward=False, points_in=np.ravel(flux).astype(complex))
+    return p_hat.reshape(n_rho, n_theta // 2).astype(np.complex64)
+
+
+def cross_template(context: ScanContext, template) -> np.ndarray:
+    """Only ``cross`` of one template over the context's grid (e.g. for another residual)."""
+    out = np.empty((context.r_p.size, context.n_phi_p))
+    with _one_blas_thread():
+        for i, r_p in enumerate(context.r_p):
+            quad = context.quadrature(template, r_p)
+            out[i] = _cross_all_phi(context, context.flux(template, quad), quad)
+    return out
+
+
+def with_residual(context: ScanContext, residual) -> ScanContext:
+    """A context for other residual visibilities ``R`` [Jy] (same data points, weights and grids).
+
+    ``R`` is in the frame of the data (like ``V_O - V_A``; the disc-centre shift is applied here).
+    The cross term is linear in ``R``: an injected signal or a noise realisation adds its own
+    cross term, computed without rebuilding the uv weights or the quadratures.
+    """
+    residual = np.asarray(residual, dtype=complex)
+    if residual.shape != context.residual.shape:
+        raise InputError(f"residual has shape {residual.shape}, the data have {context.residual.shape}")
+    shifted = context.geometry.phase_shift(context.u, context.v, residual, inverse=True)
+    return replace(context, residual=shifted, weighted_abs_residual=float(np.sum(context.weights * np.abs(shifted))),
+                   _dirty_cache={}, _quad_cache=context._quad_cache, _plan_cache=context._plan_cache,
+                   _spectrum_cache=context._spectrum_cache)
 
 
 def direct_delta_chi2(vis, axisymmetric, geometry: DiscGeometry, template, r_p: float, phi_p: float,

@@ -3,8 +3,8 @@
 :func:`read_ms` turns the main table's ``UVW`` [m], ``DATA``/``CORRECTED_DATA``,
 ``WEIGHT``/``WEIGHT_SPECTRUM`` and ``FLAG`` into a :class:`~spiralbayes.visibilities.Visibilities`
 of Stokes I with u, v in wavelengths **per channel** (``CHAN_FREQ`` of each spectral window,
-found through ``DATA_DESCRIPTION``). :func:`write_ms` writes a minimal MS (one spectral
-window, one channel, XX = YY = V) for tests and for exporting synthetic data to CASA.
+found through ``DATA_DESCRIPTION``). :func:`write_ms` (:mod:`.ms_writer`) writes an MS that
+CASA's tasks accept (one spectral window, one channel, XX = YY = V).
 
 Measurement Set data are in the convention of frank and galario (``conjugated=False``):
 ``V = sum I exp(+2 pi i (u l + v m))`` with u, v = ``UVW[0:2] / lambda`` as stored.
@@ -30,9 +30,6 @@ separate estimate of I instead.
 from __future__ import annotations
 
 import logging
-import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -41,7 +38,7 @@ import numpy as np
 from ..exceptions import InputError, MissingDependencyError, MissingFileError
 from ..units import C_LIGHT
 from ..visibilities import Visibilities
-from ._common import _json, _loads_provenance
+from ._common import _loads_provenance
 
 __all__ = ["read_ms", "write_ms", "CORR_TYPES"]
 
@@ -326,108 +323,6 @@ def _assemble(path: Path, parts: list, column: str, weight_col: str, used_spw: l
 
 
 # ----------------------------------------------------------------------------------
-# writing
+# writing: see ms_writer (a Measurement Set that CASA's tasks accept)
 # ----------------------------------------------------------------------------------
-def write_ms(vis: Visibilities, path, *, field_name: str = "spiralbayes") -> Path:
-    """Write ``vis`` as a minimal Measurement Set: one spectral window, one channel, XX = YY = V.
-
-    The channel frequency is ``C_LIGHT / vis.wavelength``; ``UVW = (u, v, 0) * wavelength``
-    [m]; each hand gets weight ``w / 2``, so that :func:`read_ms` recovers ``w`` for Stokes I
-    (``4 / (2/w + 2/w) = w``). ``DATA`` is single-precision complex and ``WEIGHT`` float32,
-    as in CASA (relative precision ~1e-7). Conjugated data are written in the MS convention
-    (un-conjugated). The provenance is stored as the table keyword ``SPIRALBAYES_PROVENANCE``.
-    The MS is built in a temporary directory and moved into place; an existing MS at
-    ``path`` is replaced.
-
-    Parameters
-    ----------
-    vis : Visibilities
-        Must have a known ``wavelength``.
-    path : str or Path
-        Target directory (conventionally ending in ``.ms``).
-    field_name : str
-        Name written to the FIELD table.
-
-    Returns
-    -------
-    Path
-    """
-    tables = _tables()
-    if vis.wavelength is None:
-        raise InputError("write_ms needs the observing wavelength to convert u, v to metres: "
-                         "set it with dataclasses.replace(vis, wavelength=<metres>)")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
-    try:
-        _write_ms_tables(tables, vis, tmp / "ms", field_name)
-        _replace_dir(tmp / "ms", path)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    log.info("wrote %d visibilities to Measurement Set %s", vis.n, path)
-    return path
-
-
-def _replace_dir(src: Path, dst: Path) -> None:
-    """Move directory ``src`` onto ``dst``, replacing an existing ``dst`` only once ``src`` is complete."""
-    if dst.exists():
-        backup = dst.with_name(f".{dst.name}.old-{os.getpid()}")
-        os.replace(dst, backup)
-        os.replace(src, dst)
-        shutil.rmtree(backup, ignore_errors=True)
-    else:
-        os.replace(src, dst)
-
-
-def _write_ms_tables(tables, vis: Visibilities, path: Path, field_name: str) -> None:
-    std = vis.standardised()
-    freq = C_LIGHT / vis.wavelength
-    n = std.n
-    desc = tables.maketabdesc([tables.makearrcoldesc("DATA", 0j, ndim=2, shape=[1, 2], valuetype="complex")])
-    with tables.default_ms(str(path), desc) as ms:
-        ms.addrows(n)
-        ms.putcol("UVW", np.column_stack([std.u, std.v, np.zeros(n)]) * vis.wavelength)
-        ms.putcol("DATA", np.repeat(std.V[:, None, None], 2, axis=2).astype(np.complex64))
-        half = np.repeat(0.5 * std.weights[:, None], 2, axis=1)
-        ms.putcol("WEIGHT", half.astype(np.float32))
-        ms.putcol("SIGMA", (1.0 / np.sqrt(half)).astype(np.float32))
-        ms.putcol("FLAG", np.zeros((n, 1, 2), dtype=bool))
-        ms.putcol("ANTENNA1", np.zeros(n, dtype=np.int32))
-        ms.putcol("ANTENNA2", np.ones(n, dtype=np.int32))
-        ms.putcol("TIME", 4.8e9 + np.arange(n, dtype=float))
-        ms.putcol("INTERVAL", np.ones(n))
-        ms.putcol("EXPOSURE", np.ones(n))
-        ms.putkeyword(_PROVENANCE_KEYWORD, _json(vis.provenance))
-    _fill_subtables(tables, path, freq, field_name)
-
-
-def _fill_subtables(tables, path: Path, freq: float, field_name: str) -> None:
-    with tables.table(str(path / "SPECTRAL_WINDOW"), readonly=False, ack=False) as spw:
-        spw.addrows(1)
-        width = 1e6
-        spw.putcell("NUM_CHAN", 0, 1)
-        for col, value in (("CHAN_FREQ", freq), ("CHAN_WIDTH", width), ("EFFECTIVE_BW", width),
-                           ("RESOLUTION", width)):
-            spw.putcell(col, 0, np.array([value]))
-        spw.putcell("REF_FREQUENCY", 0, freq)
-        spw.putcell("TOTAL_BANDWIDTH", 0, width)
-        spw.putcell("NAME", 0, "spiralbayes")
-    with tables.table(str(path / "POLARIZATION"), readonly=False, ack=False) as pol:
-        pol.addrows(1)
-        pol.putcell("NUM_CORR", 0, 2)
-        pol.putcell("CORR_TYPE", 0, np.array([9, 12], dtype=np.int32))
-        pol.putcell("CORR_PRODUCT", 0, np.array([[0, 0], [1, 1]], dtype=np.int32))
-    with tables.table(str(path / "DATA_DESCRIPTION"), readonly=False, ack=False) as dd:
-        dd.addrows(1)
-        dd.putcell("SPECTRAL_WINDOW_ID", 0, 0)
-        dd.putcell("POLARIZATION_ID", 0, 0)
-    with tables.table(str(path / "FIELD"), readonly=False, ack=False) as fld:
-        fld.addrows(1)
-        fld.putcell("NAME", 0, field_name)
-        for col in ("PHASE_DIR", "DELAY_DIR", "REFERENCE_DIR"):
-            if col in fld.colnames():
-                fld.putcell(col, 0, np.zeros((1, 2)))
-    with tables.table(str(path / "ANTENNA"), readonly=False, ack=False) as ant:
-        ant.addrows(2)
-        ant.putcol("NAME", ["A0", "A1"])
-        ant.putcol("DISH_DIAMETER", np.array([12.0, 12.0]))
+from .ms_writer import write_ms  # noqa: E402

@@ -52,6 +52,9 @@ class ProductQuadrature:
     x_cover : float
         The basis interpolates the kernel on ``[x_template[0], x_cover]``; the integration may not
         reach beyond.
+    breaks : tuple of float
+        Radii [arcsec] where the profile jumps inside the support (a model disc's edges): the fine
+        rule is split there, so that the jump is integrated exactly too.
     """
 
     r_p: float
@@ -64,6 +67,7 @@ class ProductQuadrature:
     support: float | None = None
     fine_order: int = FINE_ORDER
     x_cover: float = np.inf
+    breaks: tuple = ()
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     kind = "product"
@@ -145,11 +149,11 @@ class ProductQuadrature:
             raise ValueError(f"the rule was built for r_p <= {self.r_p} arcsec, asked for {r_p}")
         other = ProductQuadrature(float(r_p), self.x_template, self.x, self.groups, self.basis, self.kernel_bound,
                                   self.uv_max, self.support if support is None else float(support),
-                                  self.fine_order, self.x_cover)
+                                  self.fine_order, self.x_cover, self.breaks)
         if other.x_end > self.x_cover * (1 + 1e-12):
             raise ValueError(f"at r_p = {r_p} arcsec the profile reaches x = {other.x_end:.4g}, beyond the nodes "
                              f"(x <= {self.x_cover:.4g}): build the rule without support")
-        if other.x_end == self.x_end and "_fine" in self.__dict__:
+        if other.x_end == self.x_end and not self.breaks and "_fine" in self.__dict__:
             other.__dict__["_fine"] = self._fine  # profile-independent, in units of x
         return other
 
@@ -163,6 +167,8 @@ class ProductQuadrature:
         s_t = np.log(self.x_template)
         s_end = np.log(self.x_end)
         cuts = [np.log(b) for b in np.asarray(self.basis.breakpoints, dtype=float) if b > 0]
+        if self.r_p > 0:
+            cuts += [np.log(b / self.r_p) for b in self.breaks if b > 0]
         s = np.union1d(s_t[s_t <= s_end], [c for c in cuts if s_t[0] < c < s_end] + [s_end])
         pieces = np.maximum(np.ceil(np.diff(np.exp(s)) / self.basis.fine_width).astype(int), 1)
         s = np.concatenate([s[:1]] + [s[i] + (s[i + 1] - s[i]) * np.arange(1, k + 1) / k
@@ -258,7 +264,7 @@ def _ring_groups(z: np.ndarray, multiple: int, tolerance: float) -> tuple:
 def make_product_quadrature(template, r_p: float, uv_max: float, *, phi_multiple: int = 90,
                             support: float | None = None, radial: str = "auto",
                             kernel_tolerance: float = KERNEL_TOLERANCE,
-                            phi_tolerance: float = PHI_TOLERANCE) -> ProductQuadrature:
+                            phi_tolerance: float = PHI_TOLERANCE, breaks=()) -> ProductQuadrature:
     """The product rule for ``template``'s radial grid at planet radius ``r_p`` [arcsec].
 
     Parameters
@@ -272,6 +278,8 @@ def make_product_quadrature(template, r_p: float, uv_max: float, *, phi_multiple
         ``n_phi`` is a multiple of it (the scan's planet azimuth count).
     support : float, optional
         Radius [arcsec] beyond which the profile vanishes (frank's ``Rmax``): nodes stop there.
+    breaks : sequence of float
+        Radii [arcsec] where the profile jumps inside the support (:attr:`ProductQuadrature.breaks`).
     radial : {"auto", "gauss", "sinc"}
         The radial basis; "auto" takes the one with fewer nodes.
     """
@@ -283,4 +291,5 @@ def make_product_quadrature(template, r_p: float, uv_max: float, *, phi_multiple
     x = basis.nodes()
     groups = _ring_groups(kappa * np.abs(x), phi_multiple, phi_tolerance)
     return ProductQuadrature(float(r_p), x_t, x, groups, basis, float(kernel_bound), float(uv_max),
-                             None if support is None else float(support), FINE_ORDER, x1)
+                             None if support is None else float(support), FINE_ORDER, x1,
+                             tuple(float(b) for b in breaks))

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..layout import ObservationLayout
 from ..units import C_LIGHT
 
 __all__ = [
@@ -142,6 +143,12 @@ class UVCoverage:
         Requested hour-angle range [h] per configuration.
     n_dropped : int
         Integrations (times antenna pairs) dropped below ``min_elevation``.
+    antenna1, antenna2 : ndarray of int, optional
+        Antennas of each row, indices into ``antenna_positions``: the row's baseline is
+        ``antenna_positions[antenna2] - antenna_positions[antenna1]``.
+    antenna_positions : ndarray (n_ant, 3), optional
+        Positions [m] (x east, y north, z up) of the antennas of every configuration, stacked
+        (one entry per antenna and configuration, named in ``antenna_names``).
     """
 
     u: np.ndarray
@@ -156,6 +163,10 @@ class UVCoverage:
     hour_angles: list
     min_elevation: float
     n_dropped: int = 0
+    antenna1: np.ndarray | None = None
+    antenna2: np.ndarray | None = None
+    antenna_positions: np.ndarray | None = None
+    antenna_names: tuple = ()
 
     @property
     def n(self) -> int:
@@ -165,6 +176,14 @@ class UVCoverage:
     @property
     def uv_distance(self) -> np.ndarray:
         return np.hypot(self.u, self.v)
+
+    def layout(self) -> ObservationLayout | None:
+        """Antennas and hour angles of every row (None if the antennas are not known)."""
+        if self.antenna1 is None or self.antenna_positions is None:
+            return None
+        return ObservationLayout(self.antenna1, self.antenna2, self.hour_angle, self.configuration, self.w,
+                                 self.antenna_positions, self.antenna_names, self.integration_time,
+                                 self.declination, ALMA_LATITUDE)
 
     def describe(self) -> dict:
         """Plain-type summary for provenance records."""
@@ -285,6 +304,7 @@ def uv_coverage(configurations, declination: float, hour_angles=(-0.5, 0.5),
 
     step_h = integration_time * SIDEREAL_RATE / 3600.0
     us, vs, ws, hs, idx, labels = [], [], [], [], [], []
+    ant1, ant2, positions, names = [], [], [], []
     n_dropped = 0
     for k, (config, (h0, h1)) in enumerate(zip(configurations, ranges)):
         label = _config_label(config, cycle)
@@ -320,6 +340,12 @@ def uv_coverage(configurations, declination: float, hour_angles=(-0.5, 0.5),
         hs.append(np.repeat(hour[up], enu.shape[0]))
         idx.append(np.full(uvw[..., 0].size, k, dtype=int))
         labels.append(label)
+        first = sum(p.shape[0] for p in positions)
+        ant1.append(np.tile(i, int(up.sum())) + first)
+        ant2.append(np.tile(j, int(up.sum())) + first)
+        positions.append(pos)
+        prefix = _short_label(label, k) if label not in labels[:-1] else f"K{k}A"
+        names += [f"{prefix}{n:02d}" for n in range(pos.shape[0])]
     if n_dropped:
         log.info("dropped %d visibilities with the source below %.1f deg", n_dropped, min_elevation)
     return UVCoverage(
@@ -327,4 +353,12 @@ def uv_coverage(configurations, declination: float, hour_angles=(-0.5, 0.5),
         hour_angle=np.concatenate(hs), configuration=np.concatenate(idx), configurations=labels,
         wavelength=lam, declination=float(declination), integration_time=float(integration_time),
         hour_angles=ranges, min_elevation=float(min_elevation), n_dropped=n_dropped,
+        antenna1=np.concatenate(ant1), antenna2=np.concatenate(ant2), antenna_positions=np.vstack(positions),
+        antenna_names=tuple(names),
     )
+
+
+def _short_label(label: str, k: int) -> str:
+    """Antenna-name prefix of a configuration: ``"C4A"`` for ``cycle11.4``, ``"K0A"`` for custom ones."""
+    match = _CONFIG_RE.match(label)
+    return f"C{int(match[2])}A" if match else f"K{k}A"

@@ -120,7 +120,7 @@ def observe(model, coverage: UVCoverage, sensitivity: float | None = None, *,
         **(provenance or {}),
     }
     return Visibilities(coverage.u, coverage.v, V, np.full(n, sig**-2), wavelength=coverage.wavelength,
-                        provenance=prov)
+                        provenance=prov, layout=coverage.layout())
 
 
 def fit_beam(u, v, weights=None, *, pixel_size: float | None = None, n: int = 128):
