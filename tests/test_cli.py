@@ -83,7 +83,7 @@ def test_axisym_on_real_as209_sample(tmp_path):
                  "--ddec", "2.5e-3", "--distance", "121", "--out", str(out)])
     assert code == 0
     model = AxisymmetricModel.load(next(out.glob("*.h5")))
-    assert model.geometry.inc == 34.97 and model.N == 200
+    assert model.geometry.inc == 34.97 and 50 < model.N < 200  # sparse data: N follows the longest baseline
     assert 0.1 < model.total_flux < 1.0  # AS 209 at 1.25 mm: about 0.25 Jy
     assert len(list(out.glob("*.png"))) == 2
 

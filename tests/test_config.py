@@ -21,7 +21,7 @@ def test_described_defaults_read_back_as_defaults(tmp_path):
 
 def test_paper_defaults():
     cfg = default_config()
-    assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (200, 1.2, 1.05)
+    assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (0, 1.2, 1.05)  # 0: automatic
     assert (cfg["frank"]["p0"], cfg["frank"]["weights_smooth"]) == (1e-15, 0.1)
     assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"], cfg["grid"]["n_r_p"], cfg["grid"]["n_phi_p"]) == (0.02, 0.5, 25, 90)
     assert all(desc for section in SCHEMA.values() for _, desc in section.values())

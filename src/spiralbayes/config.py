@@ -47,7 +47,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "distance": (140.0, "distance [pc], for au axes and planet masses"),
     },
     "frank": {
-        "N": (200, "number of radial collocation points"),
+        "N": (0, "number of radial collocation points; 0: the paper's 200, or for fewer than 200 visibilities the count their longest baseline needs (x1.25)"),
         "Rmax": (1.2, "outer radius of the fit [arcsec]"),
         "alpha": (1.05, "order parameter of the power-spectrum prior"),
         "p0": (1e-15, "scale parameter of the power-spectrum prior [Jy^2]"),
@@ -72,7 +72,9 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "amplitude": ("fixed", "'fixed' (the paper's A = 1) or 'free' (best linear spiral amplitude per instance, +1 BIC parameter)"),
         "dask": ("", "empty: serial; 'local': a Dask LocalCluster; else a scheduler address (tcp://host:8786)"),
         "nthreads": (1, "threads per template for the NUFFTs"),
-        "cell_factor": (20.0, "quadrature cells are at most 1/(cell_factor u_max) across"),
+        "cell_factor": (20.0, "midpoint quadrature only: cells at most 1/(cell_factor u_max) across"),
+        "quadrature": ("product", "'product' (exact, with an error estimate per instance) or 'midpoint' (the earlier cells, for comparison)"),
+        "power_path": ("auto", "'auto', 'polar' (uv grids; large N) or 'direct' (the model at every baseline; small N)"),
         "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
     },
     "alternatives": {
@@ -170,6 +172,10 @@ def _int_at_least(low):
     return lambda v: None if v >= low else f"must be an integer >= {low}"
 
 
+def _zero_or_at_least(low):
+    return lambda v: None if v == 0 or v >= low else f"must be 0 (automatic) or an integer >= {low}"
+
+
 def _even_positive(v):
     return None if v >= 2 and v % 2 == 0 else "must be a positive, even integer (the paper uses 90: 4 deg steps)"
 
@@ -217,12 +223,13 @@ _UV_UNITS = ("", "lambda", "klambda", "m", "λ", "kλ", "wavelengths", "wle", "k
 CHECKS: dict[str, dict[str, object]] = {
     "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative},
     "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _positive},
-    "frank": {"N": _int_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
+    "frank": {"N": _zero_or_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
               "weights_smooth": _non_negative},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False)))},
     "grid": {"r_p_min": _positive, "r_p_max": _positive, "n_r_p": _int_at_least(1), "n_phi_p": _even_positive},
-    "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive},
+    "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive,
+             "quadrature": _choice("product", "midpoint"), "power_path": _choice("auto", "polar", "direct")},
     "alternatives": {"models": _each(_string(_choice(*ALTERNATIVE_MODELS))), "threshold": _finite,
                      "n_starts": _int_at_least(1)},
     "sample": {"n_walkers": _int_at_least(2), "n_steps": _int_at_least(0), "max_steps": _int_at_least(1),

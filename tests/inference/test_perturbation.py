@@ -1,5 +1,5 @@
-"""The likelihood tables: band-limited rings give the node grids of the full quadrature, and a mirror
-template reading its partner's table equals a table of its own."""
+"""The likelihood tables: a node grid's Fourier series is the product rule's exact transform inside
+sigma_max, and a mirror template reading its partner's table equals a table of its own."""
 
 import ducc0
 import numpy as np
@@ -10,18 +10,21 @@ from spiralbayes.units import ARCSEC, TWO_PI
 from tests.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
 
 
-def test_band_limited_rings_reproduce_the_full_quadrature(setup):
+def test_node_grids_hold_the_rules_exact_transform(setup):
     template = setup["template"]
     uv_max = float(np.max(setup["vis"].uv_distance))
-    cells = _Cells.build(template, R_RANGE[1], uv_max, 20.0)
-    builder = _TableBuilder(cells, profile, R_RANGE[1] * ARCSEC * uv_max, float(cells.x_edges[-1]), 1.5)
-    assert builder.rings.points.shape[0] < cells.positions.shape[0] / 3  # far fewer points per node
-    N = builder.N
+    cells = _Cells.build(template, R_RANGE[1], uv_max)
+    builder = _TableBuilder(cells, profile, R_RANGE[1] * ARCSEC * uv_max, cells.x_max, 1.5)
+    rng = np.random.default_rng(5)
+    radius = builder.sigma_max * np.sqrt(rng.uniform(0, 1, 400))
+    angle = rng.uniform(0, TWO_PI, 400)
+    sigma = np.stack([radius * np.cos(angle), radius * np.sin(angle)], -1)
     for r_p in (R_RANGE[0], 0.4):
-        T = ducc0.nufft.nu2u(points=cells.fluxes(profile, r_p), coord=TWO_PI * cells.positions / (N * builder.delta),
-                             out=np.empty((N, N), dtype=complex), forward=False, epsilon=1e-12, nthreads=1)
-        full = np.fft.fftshift(np.fft.fft2(np.fft.ifftshift(T * builder.window))) / N ** 2
-        assert np.max(np.abs(builder(r_p) - full)) < 3e-7 * np.max(np.abs(full))
+        series = ducc0.nufft.u2nu(grid=builder(r_p).astype(complex), coord=TWO_PI * builder.delta * sigma,
+                                  forward=False, epsilon=1e-12, nthreads=1)
+        exact = ducc0.nufft.experimental.nu2nu(points_in=cells.fluxes(profile, r_p), coord_in=TWO_PI * cells.positions,
+                                               coord_out=sigma, forward=False, epsilon=1e-12, nthreads=1)
+        assert np.max(np.abs(series - exact)) < 1e-6 * np.max(np.abs(exact))  # complex64 grids
 
 
 def test_mirror_template_shares_its_partners_table(setup):

@@ -96,6 +96,7 @@ class InjectionEngine:
     """
 
     def __init__(self, context: ScanContext, templates, *, keep=(), progress: bool = False):
+        context = context.with_full_grid()  # one unbanded uv grid: the weights' full coefficients
         self.context = context
         self.templates = list(templates)
         self._keep = {id(t) for t in keep}

@@ -11,7 +11,8 @@ Model (Stevenson et al. 2024, sec. 2.2)::
 
 with ``q = (xi, eta)`` the baseline in the disc frame (:meth:`DiscGeometry.disc_frame_uv`),
 ``V_A`` the face-on visibility curve of the axisymmetric profile and ``P_hat`` the transform of
-the perturbation ``I_A delta`` on the polar quadrature of :mod:`spiralbayes.model`.
+the perturbation ``I_A delta`` on the product-integration rule of :mod:`spiralbayes.quadrature`
+(exact to ~1e-11 of its L1 norm; :attr:`SpiralLikelihood.quadrature_error` reports its bound).
 
 This is the *conditional* likelihood: **the axisymmetric profile is held fixed** (the frank fit),
 exact and fast, and kept as the reference of the fast path. The sampler uses the
@@ -94,7 +95,7 @@ class SpiralLikelihood:
     rp_step : float, optional
         Fix the node spacing [arcsec] instead of refining.
     cell_factor : float
-        Quadrature fineness (:func:`spiralbayes.model.make_quadrature`).
+        Unused (the product rule needs no cell size); kept for compatibility.
     progress : bool
         Show a progress bar of the table's node builds (each refinement round is logged).
     mirror_of : SpiralLikelihood, optional
@@ -140,6 +141,13 @@ class SpiralLikelihood:
     @property
     def _cells(self):
         return self.perturbation._cells
+
+    @property
+    def quadrature_error(self) -> float:
+        """Bound on the quadrature's error in the norm of ``rp_tolerance``, ``sqrt(sum w |dV|^2)``,
+        over the table's radii; an :class:`~spiralbayes.exceptions.AccuracyWarning` was raised at
+        build time if it exceeds ``rp_tolerance``."""
+        return self.perturbation.quadrature_error
 
     def _check_theta(self, theta):
         r_p, phi_p, inc, PA, dRA, dDec = (float(t) for t in theta)

@@ -407,6 +407,11 @@ class MarginalSpiralLikelihood:
 
     log_likelihood = __call__
 
+    @property
+    def quadrature_error(self) -> float:
+        """The perturbation quadrature's error bound, ``sqrt(sum w |dV|^2)`` (:class:`.FastPerturbation`)."""
+        return self.perturbation.quadrature_error
+
     def null_log_likelihood(self, geometry) -> float:
         """The no-planet hypothesis at ``geometry`` (same constant as :meth:`__call__`)."""
         return self.base.log_likelihood(geometry)

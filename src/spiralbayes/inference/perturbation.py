@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import logging
 import time
+import warnings
 
 import numpy as np
 
-from ..exceptions import InputError
+from ..exceptions import AccuracyWarning, InputError
 from ..geometry import DiscGeometry
-from ..model import PolarQuadrature
+from ..model import profile_breaks, profile_support
 from ..units import ARCSEC, TWO_PI
 from .tables import PerturbationTable, _Cells, _TableBuilder
 
@@ -68,15 +69,21 @@ class FastPerturbation:
             _check_mirror(mirror_of, template, r_range, u)
             self._cells, self._delta, self.table = mirror_of._cells, mirror_of._delta, mirror_of.table
             self.table_source = mirror_of.template.name
+            self.quadrature_error = mirror_of.quadrature_error
             self.build_time_s = time.perf_counter() - t0
             return
-        self._cells = _Cells.build(template, r_hi, self.uv_max, cell_factor)
-        builder = _TableBuilder(self._cells, profile, r_hi * ARCSEC * self.uv_max, float(self._cells.x_edges[-1]),
-                                oversample)
+        # the product rule (issue 11) built once for the largest table node (_lattice: up to
+        # r_max + (order / 2 + 1) h for the first, largest step h) serves every smaller r_p
+        h0 = float(rp_step) if rp_step is not None else (r_hi - r_lo) / 8.0
+        r_cells = r_hi + (int(rp_order) // 2 + 1) * h0
+        self._cells = _Cells.build(template, r_cells, self.uv_max, support=profile_support(profile),
+                                   breaks=profile_breaks(profile))
+        builder = _TableBuilder(self._cells, profile, r_hi * ARCSEC * self.uv_max, self._cells.x_max, oversample)
         self._delta = builder.delta
         self.table = _refine(self, builder, rp_step, rp_tolerance, progress, max_nodes, int(rp_order))
         self.table_source = getattr(template, "name", "")
         self.n_node_builds = builder.n_builds
+        self.quadrature_error = _quadrature_error(self, rp_tolerance)
         self.build_time_s = time.perf_counter() - t0
         self.table.build_time_s = self.build_time_s
 
@@ -121,7 +128,7 @@ class FastPerturbation:
         grid = self.table.grid(r_p, scale=ci * (r_p * ARCSEC) ** 2)
         return self.u2nu(grid, self.coords(r_p, phi_p, inc, PA))
 
-    def quadrature(self, r_p: float) -> PolarQuadrature:
+    def quadrature(self, r_p: float):
         return self._cells.quadrature(r_p)
 
     @property
@@ -134,7 +141,7 @@ class FastPerturbation:
                 "grid_N": int(self.table.N), "pseudo_pixel": self.table.delta, "sigma_max": self.table.sigma_max,
                 "epsilon": self.epsilon, "table_bytes": int(self.nbytes), "build_time_s": self.build_time_s,
                 "refinement": self.table.refinement, "n_cells": int(self._cells.positions.shape[0]),
-                "table_from": self.table_source}
+                "table_from": self.table_source, "quadrature_error": float(self.quadrature_error)}
 
     def __getstate__(self):
         state = self.__dict__.copy()
@@ -151,6 +158,20 @@ def _check_mirror(other: FastPerturbation, template, r_range, u) -> None:
     if not same or tuple(r_range) != tuple(other.r_range) or u.size != other.u.size:
         raise InputError(f"template {getattr(template, 'name', '')!r} is not the mirror of {other.template.name!r} "
                          "on the same data and r_p range: build its own table")
+
+
+def _quadrature_error(fp: FastPerturbation, tolerance: float) -> float:
+    """The product rule's bound over the table's radii in the norm of ``rp_tolerance``,
+    ``sqrt(sum w |dV|^2) <= cos i B sqrt(sum w)`` (``B`` bounds ``|dP_hat|`` at every baseline,
+    :meth:`~spiralbayes.quadrature.ProductQuadrature.error_bound`); warns above ``tolerance``."""
+    bound = max(fp._cells.bounds.values(), default=0.0)
+    error = fp.reference_geometry.cos_inc * bound * float(np.sqrt(np.sum(fp.weights)))
+    if error > tolerance:
+        msg = (f"{getattr(fp.template, 'name', 'the template')}: the quadrature's error bound sqrt(sum w |dV|^2) "
+               f"<= {error:.3g} exceeds rp_tolerance = {tolerance:.3g}; give a profile without jumps inside the disc")
+        log.warning(msg)
+        warnings.warn(msg, AccuracyWarning, stacklevel=4)
+    return error
 
 
 def _refine(fp: FastPerturbation, builder: _TableBuilder, rp_step, tol, progress, max_nodes,

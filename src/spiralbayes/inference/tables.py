@@ -6,10 +6,12 @@ In the scaled baseline ``sigma = r_p R(-phi_p) q`` (``r_p`` in radians, dimensio
 
     P_hat = r_p^2 T(sigma; r_p),   T(sigma; r_p) = sum_c delta_c I_A(r_p x_c) a_c exp(2 pi i sigma . x_c)
 
-where ``x_c`` are the quadrature cells in units of ``r_p`` (|x_c| <= x_max = 2.2) and ``a_c`` their
-areas in those units. So moving the planet in azimuth is a rotation and changing ``r_p`` a
-scaling of the *points*, and ``T`` depends on ``r_p`` only through the profile samples
-``I_A(r_p x_c)`` — smooth, so ``T`` is tabulated at a few ``r_p`` nodes and interpolated (Lagrange, 6
+where ``x_c`` are the nodes of the product-integration rule in units of ``r_p``
+(:mod:`spiralbayes.quadrature`; one set of nodes serves every ``r_p`` up to the largest table node)
+and ``delta_c a_c I_A(r_p x_c)`` stands for their weights, the exact integrals of template and
+profile against the rule's basis (issue 11). So moving the planet in azimuth is a rotation and changing ``r_p`` a
+scaling of the *points*, and ``T`` depends on ``r_p`` only through the profile in those
+integrals — smooth, so ``T`` is tabulated at a few ``r_p`` nodes and interpolated (Lagrange, 6
 nodes by default) between them. ``T`` is only needed for ``|sigma| <= sigma_max = r_p,max u_max``, where
 it is multiplied by a smooth radial window ``W`` (1 to 1e-8 inside ``sigma_max``), so that
 ``T W`` has a rapidly converging Fourier series on a small uniform grid of "pseudo-pixels" ``x_k``
@@ -22,17 +24,13 @@ combines four node grids and evaluates the series at the data with one type-2 NU
 ``r_p`` is refined until the interpolation error at the midpoints between nodes changes
 ``chi2`` by less than ``rp_tolerance`` (data-weighted norm ``sqrt(sum w |dV|^2)``).
 
-Cheap nodes: the rings are band-limited before the type-1 NUFFT
-----------------------------------------------------------------
-The quadrature has millions of cells (595 rings x 5760 azimuths for the fiducial data), sized
-for the exact transform at every baseline. A node only needs ``T`` on its grid, ``|sigma| <=
-sigma_grid = 1 / (2 Delta)``. A ring of radius ``x`` with values ``f_j`` at ``phi_j = 2 pi j / n``
-contributes ``sum_m i^m J_m(2 pi x |sigma|) e^{i m theta} F_m`` with ``F_m = sum_j f_j e^{-i m
-phi_j}`` (Jacobi–Anger), and ``J_m(z) < 1e-12`` for ``m > z + 10 z^(1/3) + 5``. So each ring is
-replaced, once per template, by ``n' >= 2 m_cut + 2`` equally spaced points carrying the same
-``F_m`` for ``|m| <= m_cut`` (rfft, truncate, irfft): the node's transform is unchanged to
-~1e-12 while the NUFFT sees ~20x fewer points (:class:`_RingBasis`). The profile enters as one
-weight per ring, so the decimation does not depend on ``r_p``.
+Cheap nodes: the rule's rings carry only the azimuths the baselines need
+-------------------------------------------------------------------------
+The product rule gives each ring the smallest multiple of the scan's azimuth count whose
+angular Bessel tail at the longest baseline is below 1e-12 (:func:`spiralbayes.quadrature.angular_count`),
+so the type-1 NUFFT of a node sees some 10^4-10^5 points instead of the midpoint rule's millions
+(595 rings x 5760 azimuths for the fiducial data); the earlier per-ring band-limiting of the
+midpoint cells is not needed.
 
 Mirror templates share tables: ``delta_L(x, phi) = delta_R(x, -phi)`` and the quadrature is
 symmetric under ``phi -> -phi``, so ``T_L(sigma_xi, sigma_eta) = T_R(sigma_xi, -sigma_eta)``;
@@ -48,7 +46,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..geometry import DiscGeometry
-from ..model import PolarQuadrature, make_quadrature, template_on_quadrature
+from ..model import make_quadrature
+from ..quadrature import TemplateSpectrum
 from ..units import ARCSEC, TWO_PI
 
 __all__ = ["AxisymmetricTable", "PerturbationTable"]
@@ -141,33 +140,38 @@ class AxisymmetricTable:
 # ---------------------------------------------------------------------------------------------
 # perturbation: Fourier-series grids of T(sigma; r_p) at r_p nodes
 # ---------------------------------------------------------------------------------------------
-@dataclass
 class _Cells:
-    """The template on its quadrature, in units of r_p: positions, areas, delta."""
+    """The template on the product-integration rule (:mod:`spiralbayes.quadrature`), in units of r_p.
 
-    x: np.ndarray  # ring radii (x = r / r_p)
-    positions: np.ndarray  # (n_cells, 2)
-    delta_area: np.ndarray  # (n_x, n_phi): delta * cell area (x^2 units)
-    x_edges: np.ndarray
-    n_phi: int
+    One set of nodes in ``x = r / r_p`` serves every ``r_p <= r_max`` (the rule stays exact as the
+    radius shrinks); the exact integrals of template and profile are redone per ``r_p``. Each call
+    of :meth:`fluxes` records the rule's error bound [Jy, face on] at that radius in ``bounds``
+    (the likelihood reports the largest).
+    """
+
+    def __init__(self, template, r_max: float, uv_max: float, support: float | None = None, breaks=()):
+        self.template = template
+        self.support = support  # cut per radius; the nodes cover the whole template (ProductQuadrature.at)
+        self.quad = make_quadrature(template, r_max, uv_max, breaks=breaks)
+        self.spectrum = TemplateSpectrum(template)
+        self.positions = self.quad.positions_x()  # (n_nodes, 2), units of r_p
+        self.x_max = self.quad.extent  # nodes may lie a little beyond the template (sinc basis)
+        self.bounds: dict[float, float] = {}
 
     @classmethod
-    def build(cls, template, r_max: float, uv_max: float, cell_factor: float) -> "_Cells":
-        quad = make_quadrature(template, r_max, uv_max, cell_factor=cell_factor)
-        delta = template_on_quadrature(template, quad)
-        xe = quad.x_edges
-        area = 0.5 * (xe[1:] ** 2 - xe[:-1] ** 2) * (TWO_PI / quad.n_phi)
-        phi = quad.phi
-        pos = np.stack([(quad.x[:, None] * np.cos(phi)).ravel(), (quad.x[:, None] * np.sin(phi)).ravel()], -1)
-        return cls(quad.x, pos, delta * area[:, None], xe, quad.n_phi)
+    def build(cls, template, r_max: float, uv_max: float, cell_factor: float | None = None,
+              support: float | None = None, breaks=()) -> "_Cells":
+        """``cell_factor`` is accepted for compatibility and unused (the product rule needs none)."""
+        return cls(template, r_max, uv_max, support, breaks)
 
     def fluxes(self, profile, r_p: float) -> np.ndarray:
-        """``delta_c a_c I_A(r_p x_c)`` (T's point weights), complex, ring-major."""
-        bright = np.asarray(profile(max(r_p, 0.0) * self.x), dtype=float)
-        return (self.delta_area * bright[:, None]).ravel().astype(complex)
+        """T's point weights (units of r_p^2 x Jy/sr), complex, in node order."""
+        quad = self.quadrature(r_p)
+        self.bounds[float(r_p)] = quad.error_bound(profile, self.spectrum)["total"]
+        return quad.weights(profile, self.spectrum).astype(complex)
 
-    def quadrature(self, r_p: float) -> PolarQuadrature:
-        return PolarQuadrature(float(r_p), self.x_edges, self.n_phi)
+    def quadrature(self, r_p: float):
+        return self.quad.at(max(float(r_p), 0.0), support=self.support)
 
 
 @dataclass
@@ -249,42 +253,8 @@ def _window(N: int, delta: float, sigma_max: float) -> np.ndarray:
     return 0.5 * erfc(WINDOW_STEEPNESS * ((s - s1) / (s2 - s1) - 0.5))
 
 
-class _RingBasis:
-    """The quadrature's rings, each band-limited in azimuth to what a table grid can see.
-
-    ``points`` (n, 2) in units of r_p, ``values`` (n,) the template times the cell area (no
-    profile), ``ring`` (n,) the ring of each point: the fluxes for ``r_p`` are
-    ``values * I(r_p x[ring])``.
-    """
-
-    def __init__(self, cells: _Cells, sigma_grid: float):
-        rows = cells.delta_area.reshape(cells.x.size, cells.n_phi)
-        points, values, ring = [], [], []
-        for i, x in enumerate(cells.x):
-            z = TWO_PI * x * sigma_grid
-            m_cut = int(np.ceil(z + 10.0 * z ** (1.0 / 3.0) + 5.0))
-            n = 2 * m_cut + 2
-            if n >= cells.n_phi:  # nothing to gain: keep the ring as it is
-                n, vals = cells.n_phi, rows[i]
-            else:
-                spectrum = np.fft.rfft(rows[i])[: m_cut + 1]
-                vals = np.fft.irfft(spectrum, n)
-            phi = TWO_PI * np.arange(n) / n
-            points.append(np.stack([x * np.cos(phi), x * np.sin(phi)], -1))
-            values.append(vals)
-            ring.append(np.full(n, i))
-        self.x = cells.x
-        self.points = np.concatenate(points)
-        self.values = np.concatenate(values)
-        self.ring = np.concatenate(ring)
-
-    def fluxes(self, profile, r_p: float) -> np.ndarray:
-        bright = np.asarray(profile(max(r_p, 0.0) * self.x), dtype=float)
-        return (self.values * bright[self.ring]).astype(complex)
-
-
 class _TableBuilder:
-    """Computes node grids ``g(r_p)`` exactly: type-1 NUFFT of the (band-limited) rings, window, FFT."""
+    """Computes node grids ``g(r_p)`` exactly: type-1 NUFFT of the rule's nodes, window, FFT."""
 
     def __init__(self, cells: _Cells, profile, sigma_max: float, x_max: float, oversample: float):
         self.cells = cells
@@ -295,16 +265,14 @@ class _TableBuilder:
         half = x_max + WINDOW_MARGIN / transition
         self.N = int(np.ceil(half / self.delta)) * 2
         self.window = _window(self.N, self.delta, self.sigma_max)
-        # the grid's sigma reaches 1 / (2 Delta) along the axes; the window is ~1e-9 beyond 0.98 of it
-        self.rings = _RingBasis(cells, 1.05 / (2 * self.delta))
-        self.coord = np.ascontiguousarray(TWO_PI * self.rings.points / (self.N * self.delta))
+        self.coord = np.ascontiguousarray(TWO_PI * cells.positions / (self.N * self.delta))
         self.n_builds = 0
 
     def __call__(self, r_p: float) -> np.ndarray:
         import ducc0
 
         N = self.N
-        T = ducc0.nufft.nu2u(points=self.rings.fluxes(self.profile, r_p), coord=self.coord,
+        T = ducc0.nufft.nu2u(points=self.cells.fluxes(self.profile, r_p), coord=self.coord,
                              out=np.empty((N, N), dtype=complex), forward=False, epsilon=1e-9, nthreads=1)
         g = np.fft.fftshift(np.fft.fft2(np.fft.ifftshift(T * self.window))) / N ** 2
         self.n_builds += 1

@@ -223,7 +223,7 @@ def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> Axisymmetr
     f = config["frank"]
     if f["model"]:
         return AxisymmetricModel.load(f["model"])
-    axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"], Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
+    axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"] or None, Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
                               weights_smooth=f["weights_smooth"], nonnegative=f["nonnegative"],
                               fit_geometry="nonparametric" if config["geometry"]["fit"] else None, progress=progress)
     return axisym.nonnegative() if f["nonnegative"] else axisym
@@ -265,7 +265,8 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     amplitude = "free" if s["amplitude"] == "free" else None
     result = scan(vis, axisym, templates, axisym.geometry, r_p=r_p, n_phi_p=grid["n_phi_p"],
                   distance=config["geometry"]["distance"], checkpoint=checkpoint, client=s["dask"] or None,
-                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume)
+                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume,
+                  rule=s["quadrature"], power_path=s["power_path"])
     a = config["alternatives"]
     alt_kwargs = {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"],
                   "progress": progress}

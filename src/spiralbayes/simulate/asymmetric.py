@@ -100,6 +100,7 @@ class ExactAxisymmetric:
                  n_r: int = 8000, n_phi: int = 1440):
         self.disc, self.wavelength, self.geometry = disc, float(wavelength), geometry
         self.Rmax = 1.1 * disc.r_max
+        self.breaks = (disc.r_min, disc.r_max)  # the brightness jumps at the edges (the quadrature splits there)
         self._r = np.linspace(disc.r_min, disc.r_max, n_r)
         mean = np.zeros(n_r)
         if delta is not None:
