@@ -1,36 +1,55 @@
-"""The full-bank scan against the naive loop (issue 5 benchmark).
+"""Scan cost and accuracy (issues 5 and 11): every case runs in its own process (its peak memory).
 
-A synthetic observation with ~1e5 visibilities (C-4 + C-7, 0.87 mm), the 64-template default
-bank, the authors' grid of 25 r_p x 90 phi_p (144,000 instances). Prints the wall time of the
-scan (serial and Dask LocalCluster with 2 workers), the time per instance, the naive loop's
-time per instance (render image + NUFFT + chi^2 for each instance, as the authors' galario loop)
-measured on a subset in the same run, their ratio, and peak memory.
+``bank``      ~1e5 visibilities (C-4 + C-7, 0.87 mm), the authors' grid of 25 r_p x 90 phi_p: the
+              paper's 64-template bank and the 192-template bank (64 at h_p = 0.05, 0.07, 0.10),
+              serial on 2 threads and on a Dask LocalCluster (2 workers); the naive loop (image +
+              NUFFT + chi^2 per instance, as the authors' galario loop) timed on 20 instances in the
+              same run, and the ratio.
+``as209``     the real 196-visibility AS 209 sample (frank's geometry): frank with the sparse-data
+              default N, then the full 64-template scan on the default grid: time and peak memory.
+``million``   ~1e6 visibilities (the high-sensitivity preset twice, two noise draws): set-up, the
+              first template (one-off work), later templates, peak memory.
+``accuracy``  the scan's error estimate against an independent, converged reference
+              (tests/quadrature_reference.py) on a subset (3 templates x 3 r_p x 9 phi_p) of the
+              fiducial observation (inclined, offset phase centre), and the earlier midpoint rule's
+              error on the same subset.
 
-    python benchmarks/bench_scan.py                 # full bank, serial and Dask
-    python benchmarks/bench_scan.py --templates 8   # quicker
+    python benchmarks/bench_scan.py                      # every case
+    python benchmarks/bench_scan.py --case bank --templates 8   # quicker
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import resource
+import subprocess
+import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 
 from spiralbayes import AxisymmetricModel, DiscGeometry, Visibilities
 from spiralbayes.fourier import ImageSampler
+from spiralbayes.inference.scan import scan
 from spiralbayes.inference.statistics import chi2
 from spiralbayes.model import render_perturbation_image
-from spiralbayes.inference.scan import scan
 from spiralbayes.simulate import DiscModel, observe, uv_coverage
 from spiralbayes.templates import default_bank
 
+ROOT = Path(__file__).resolve().parents[1]
 GEOMETRY = DiscGeometry(30.0, 60.0)
 R_P = np.linspace(0.02, 0.5, 25)
 N_PHI = 90
 NAIVE_PIXEL = 0.004  # arcsec; the converged direct evaluation needs <= 2-4 mas (DESIGN.md)
+H_P = (0.05, 0.07, 0.10)
+
+
+def peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def observation():
@@ -65,45 +84,189 @@ def _current_rss_mb() -> float:
     return psutil.Process().memory_info().rss / 1e6
 
 
+def h_p_bank(n: int):
+    """The default bank's templates at three aspect ratios (H/r as a bank dimension)."""
+    bank = default_bank()  # since issue 9 it holds all three aspect ratios
+    base = list(bank.select(h_p=0.07))[:n]
+    return [bank.get(t.mass, t.tau0, t.beta, t.hand, h_p=h) for h in H_P for t in base]
+
+
+# --- cases ----------------------------------------------------------------------------------------
+def case_bank(args) -> dict:
+    vis, axisym = observation()
+    bank = list(default_bank().select(h_p=0.07))[: args.templates]  # the paper's 64
+    out = {"N_vis": vis.n, "templates": len(bank)}
+    t0 = time.perf_counter()
+    serial = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
+    out["serial_s"] = time.perf_counter() - t0
+    out["peak_after_serial_MB"] = peak_mb()
+    out["max_error_estimate"] = float(np.nanmax(serial.delta_chi2_error()))
+    out["power_check"] = serial.provenance.get("power_check", {}).get("power")
+    big = h_p_bank(args.templates)
+    t0 = time.perf_counter()
+    scan(vis, axisym, big, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
+    out["serial_3hp_s"], out["templates_3hp"] = time.perf_counter() - t0, len(big)
+    if not args.no_dask:
+        from dask.distributed import Client, LocalCluster
+
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+                Client(cluster) as client:
+            t0 = time.perf_counter()
+            parallel = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, client=client)
+            out["dask_s"] = time.perf_counter() - t0
+            out["dask_worker_MB"] = list(client.run(_current_rss_mb).values())
+        out["serial_vs_dask_max_rel"] = float(np.max(np.abs(serial.dchi2 - parallel.dchi2) / parallel.power))
+    out["naive_ms"] = 1e3 * naive_time_per_instance(vis, axisym, bank, args.naive)
+    return out
+
+
+def case_as209(args) -> dict:
+    from spiralbayes import load_visibilities
+    from spiralbayes.axisymmetric import fit_axisymmetric
+
+    geometry = DiscGeometry(inc=34.97, PA=85.76, dRA=-1.9e-3, dDec=2.5e-3)
+    vis = load_visibilities(ROOT / "tests" / "data" / "AS209_DSHARP_subsample_uvtable.txt")
+    t0 = time.perf_counter()
+    axisym = fit_axisymmetric(vis, geometry, progress=False)
+    out = {"N_vis": vis.n, "frank_s": time.perf_counter() - t0, "frank_N": axisym.hyperparameters["N"],
+           "frank_iterations": axisym.provenance["iterations"], "peak_after_frank_MB": peak_mb()}
+    bank = list(default_bank())[: args.templates]
+    t0 = time.perf_counter()
+    result = scan(vis, axisym, bank, progress=False)
+    out.update(templates=len(bank), scan_s=time.perf_counter() - t0, peak_MB=peak_mb(),
+               r_p_max=float(result.r_p[-1]), path=result.provenance["quadrature"]["power_path_used"],
+               max_error_estimate=float(np.nanmax(result.delta_chi2_error())))
+    return out
+
+
+def case_million(args) -> dict:
+    from spiralbayes.simulate import simulate_observation
+
+    disc = DiscModel(tau_ref=3.0)
+    parts = [simulate_observation("high_sensitivity", disc, GEOMETRY, seed=s) for s in (1, 2)]
+    vis = Visibilities(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("u", "v", "V", "weights")))
+    del parts
+    axisym = AxisymmetricModel.from_profile(disc.profile(0.87e-3), GEOMETRY)
+    out = {"N_vis": vis.n, "peak_after_data_MB": peak_mb()}
+    bank = list(default_bank())[: args.templates]
+    t0 = time.perf_counter()
+    result = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
+    timing = result.provenance["timing_s"]
+    out.update(templates=len(bank), scan_s=time.perf_counter() - t0, peak_MB=peak_mb(), setup_s=timing["setup"],
+               check_s=timing["check"], per_template_s=timing["templates"] / len(bank),
+               path=result.provenance["quadrature"]["power_path_used"],
+               max_error_estimate=float(np.nanmax(result.delta_chi2_error())))
+    return out
+
+
+def case_accuracy(args) -> dict:
+    sys.path.insert(0, str(ROOT))
+    from spiralbayes.axisymmetric import fit_axisymmetric
+    from spiralbayes.simulate import simulate_observation
+    from spiralbayes.templates import make_template
+    from tests.quadrature_reference import reference_terms
+
+    geometry = DiscGeometry(30.0, 60.0, 0.004, -0.003)
+    templates = [make_template(1.0, 3.0, 10.0, "R"), make_template(1.0, 0.1, 0.0, "R"),
+                 make_template(0.1, 3.0, 10.0, "R")]
+    vis = simulate_observation("fiducial", DiscModel(tau_ref=3.0), geometry, templates[0], r_p=50 / 140,
+                               phi_p=0.0, seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        axisym = fit_axisymmetric(vis, geometry, progress=False)
+    r_p = np.array([0.1, 0.36, 0.5])
+    residual = vis.V - axisym.visibilities(vis.u, vis.v, geometry)
+    out = {"N_vis": vis.n, "rows": []}
+    for rule in ("product", "midpoint"):
+        t0 = time.perf_counter()
+        result = scan(vis, axisym, templates, geometry, r_p=r_p, n_phi_p=N_PHI, progress=False, rule=rule)
+        elapsed = time.perf_counter() - t0
+        worst = {"rule": rule, "scan_s": elapsed, "max_dP_rel": 0.0, "max_dC_rel": 0.0, "max_ddchi2": 0.0,
+                 "max_estimate": float(np.nanmax(result.delta_chi2_error())), "estimate_covers": True,
+                 "over_tolerance": 0}
+        for t, template in enumerate(templates):
+            for i, r in enumerate(r_p):
+                phi = result.phi_p[::10]
+                c, p = reference_terms(vis, residual, geometry, axisym.brightness, template, r, phi, order_r=4,
+                                       order_phi=3, support=axisym.Rmax)
+                dc, dp = result.cross[t, i, ::10] - c, result.power[t, i, ::10] - p
+                dd = np.abs(2 * dc - dp)
+                worst["max_dP_rel"] = max(worst["max_dP_rel"], float(np.max(np.abs(dp) / p)))
+                worst["max_dC_rel"] = max(worst["max_dC_rel"], float(np.max(np.abs(dc) / np.maximum(np.abs(c),
+                                                                                                  np.sqrt(p)))))
+                worst["max_ddchi2"] = max(worst["max_ddchi2"], float(np.max(dd)))
+                worst["over_tolerance"] += int(np.sum(dd > 0.05 + 1e-4 * np.abs(2 * c - p)))
+                if rule == "product":
+                    worst["estimate_covers"] &= bool(np.all(dd <= result.delta_chi2_error()[t, i, ::10] + 1e-6))
+        out["rows"].append(worst)
+    return out
+
+
+CASES = {"bank": case_bank, "as209": case_as209, "million": case_million, "accuracy": case_accuracy}
+
+
+def report(name: str, r: dict, n_inst_per_template: int = R_P.size * N_PHI) -> None:
+    if name == "bank":
+        naive = r["naive_ms"] / 1e3
+        print(f"[bank] N_vis = {r['N_vis']}; naive loop (image {NAIVE_PIXEL} arcsec + NUFFT + chi2): "
+              f"{1e3 * naive:.1f} ms per instance")
+        for label, key, n_t in (("paper's bank, serial (2 threads)", "serial_s", r["templates"]),
+                                ("paper's bank, Dask (2 workers)", "dask_s", r["templates"]),
+                                ("3 h_p x bank, serial (2 threads)", "serial_3hp_s", r["templates_3hp"])):
+            if key in r:
+                n_inst = n_t * n_inst_per_template
+                print(f"[bank] {label}: {n_t} templates in {r[key]:.1f} s, {1e6 * r[key] / n_inst:.0f} us per "
+                      f"instance, naive would take {naive * n_inst / 60:.0f} min: x{naive * n_inst / r[key]:.0f}")
+        print(f"[bank] peak memory after the serial scan {r['peak_after_serial_MB']:.0f} MB; Dask workers "
+              f"{', '.join(f'{m:.0f}' for m in r.get('dask_worker_MB', []))} MB; serial vs Dask max |d dchi2| / "
+              f"power {r.get('serial_vs_dask_max_rel', float('nan')):.1e}; largest error estimate "
+              f"{r['max_error_estimate']:.2e}; power self-check {r['power_check']:.1e}")
+    elif name == "as209":
+        print(f"[as209] N_vis = {r['N_vis']}: frank (N = {r['frank_N']}, {r['frank_iterations']} iterations) "
+              f"{r['frank_s']:.1f} s; scan of {r['templates']} templates x 25 x 90 (r_p <= {r['r_p_max']:.3g}, "
+              f"{r['path']} path) {r['scan_s']:.1f} s; peak memory {r['peak_MB']:.0f} MB "
+              f"({r['peak_after_frank_MB']:.0f} MB after frank); largest error estimate {r['max_error_estimate']:.1e}")
+    elif name == "million":
+        print(f"[million] N_vis = {r['N_vis']}: {r['templates']} templates in {r['scan_s']:.1f} s ({r['path']} path): "
+              f"set-up {r['setup_s']:.1f} s (frank's exact V_A at every baseline included), self-check "
+              f"{r['check_s']:.1f} s, {r['per_template_s']:.2f} s per template (first one's one-off work included); "
+              f"peak memory {r['peak_MB']:.0f} MB ({r['peak_after_data_MB']:.0f} MB with the data alone)")
+    elif name == "accuracy":
+        for w in r["rows"]:
+            print(f"[accuracy] {w['rule']:8s} rule vs converged reference (3 templates x 3 r_p x 9 phi_p, "
+                  f"N = {r['N_vis']}): max |dP|/P {w['max_dP_rel']:.1e}, max |dC|/max(|C|, sqrt P) "
+                  f"{w['max_dC_rel']:.1e}, max |d dchi2| {w['max_ddchi2']:.1e}, over 0.05 + 1e-4|dchi2|: "
+                  f"{w['over_tolerance']}/81; largest error estimate {w['max_estimate']:.1e}"
+                  + (f", estimate covers the error: {w['estimate_covers']}" if w["rule"] == "product" else ""))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
+    parser.add_argument("--case", choices=["all", *CASES], default="all")
     parser.add_argument("--templates", type=int, default=64)
     parser.add_argument("--naive", type=int, default=20, help="instances timed for the naive loop")
-    parser.add_argument("--no-serial", action="store_true")
+    parser.add_argument("--no-dask", action="store_true")
+    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # child process output
     args = parser.parse_args()
     warnings.simplefilter("ignore")
-    vis, axisym = observation()
-    bank = list(default_bank())[: args.templates]
-    n_inst = len(bank) * R_P.size * N_PHI
-    print(f"N_vis = {vis.n}, templates = {len(bank)}, instances = {n_inst}")
-    runs = {}
-    if not args.no_serial:
-        t0 = time.perf_counter()
-        serial = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
-        runs["serial (ducc0 2 threads)"] = time.perf_counter() - t0
-        serial_peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    from dask.distributed import Client, LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
-        t0 = time.perf_counter()
-        parallel = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, client=client)
-        runs["Dask LocalCluster (2 workers)"] = time.perf_counter() - t0
-        worker_rss = client.run(_current_rss_mb)  # ru_maxrss is inherited across fork, so not used
-    if not args.no_serial:  # ducc0's single-precision power term depends slightly on the thread count
-        diff = np.abs(serial.dchi2 - parallel.dchi2)
-        print(f"serial vs Dask: max |difference| {diff.max():.2e}, "
-              f"max relative to sum w|dV|^2 {np.max(diff / parallel.power):.1e}")
-    naive = naive_time_per_instance(vis, axisym, bank, args.naive)
-    print(f"naive loop (image {NAIVE_PIXEL} arcsec + NUFFT + chi2): {1e3 * naive:.1f} ms per instance "
-          f"(=> {naive * n_inst / 60:.1f} min for all {n_inst} instances)")
-    for name, seconds in runs.items():
-        per = seconds / n_inst
-        print(f"{name}: {seconds:.1f} s in all, {1e6 * per:.0f} us per instance, speed-up x{naive / per:.0f}")
-    if not args.no_serial:
-        print(f"peak memory of the serial scan (whole process): {serial_peak:.0f} MB")
-    print("memory of each Dask worker after the scan (caches held): "
-          + ", ".join(f"{v:.0f} MB" for v in worker_rss.values()))
+    if args.case != "all":
+        result = CASES[args.case](args)
+        if args.json:
+            print("JSON " + json.dumps(result))
+        else:
+            report(args.case, result)
+        return
+    print(f"load before: {os.getloadavg()}")
+    for name in CASES:
+        cmd = [sys.executable, __file__, "--case", name, "--templates", str(args.templates), "--naive",
+               str(args.naive), "--json"] + (["--no-dask"] if args.no_dask else [])
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("JSON ")]
+        if proc.returncode or not lines:
+            print(f"[{name}] failed:\n{proc.stderr[-2000:]}")
+            continue
+        report(name, json.loads(lines[-1][5:]))
+    print(f"load after: {os.getloadavg()}")
 
 
 if __name__ == "__main__":

@@ -45,27 +45,29 @@ templates = [planet, planet.mirror()]
 result_scan = scan(vis, axisym, templates, r_p=np.linspace(0.05, 0.6, 23))
 print(result_scan.best())
 
-# %% Posterior: r_p, phi_p and the geometry nuisances, templates weighted by their evidence
+# %% Posterior: r_p, phi_p, the amplitude A and the geometry nuisances, the frank profile integrated
+# out; "no planet" competes with every template (weighted by their evidences)
 priors = Priors.default(axisym, r_p=(0.05, 0.6), widths={"inc": 3.0, "PA": 3.0, "dRA": 0.02, "dDec": 0.02})
 post = sample_posterior(vis, axisym, templates, scan=result_scan, priors=priors, run_name="example",
                         chains_dir=OUT / "chains", processes=2)
-print(post.template_probabilities, "P(R) =", post.p_right_handed)
+print(post.verdict)
+print("P(planet | data) =", post.p_planet, "ln B =", post.ln_bayes_factor)
+print(post.template_probabilities, "P(R | planet) =", post.p_right_handed)
 print(post.summary())
 
 # %% Corner plot with the truth, traces, template probabilities
 from spiralbayes.plotting import plot_corner, plot_template_probabilities, plot_trace  # noqa: E402
 
-plot_corner(post, truths=truth).savefig(OUT / "posterior_corner.png", dpi=110)
+plot_corner(post, truths={**truth, "A": 1.0}, distance=140.0).savefig(OUT / "posterior_corner.png", dpi=110)
 
 plot_trace(post).savefig(OUT / "posterior_trace.png", dpi=90)
 plot_template_probabilities(post).savefig(OUT / "posterior_templates.png", dpi=90)
 
-# %% The likelihood holds the frank profile fixed, so the geometry posterior is conditional on it: a
-# profile fitted at a wrong inclination absorbs part of the error. To iterate, refit frank at the
-# posterior geometry and sample again:
+# %% The frank profile is integrated out at every sampled geometry, so a fit made at a slightly wrong
+# geometry does not bias the posterior. To look at frank's own fit (with its power-spectrum
+# iterations) at the posterior geometry:
 #     from spiralbayes.inference.sampler import refit_axisymmetric
-#     axisym = refit_axisymmetric(vis, axisym, post)
-#     post = sample_posterior(vis, axisym, templates, scan=result_scan, priors=priors, ...)
+#     refit = refit_axisymmetric(vis, axisym, post)
 
 # %% arviz: R-hat and ESS (walkers as chains — emcee walkers are not independent, read with care)
 idata = post.to_inference_data()

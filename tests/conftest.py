@@ -40,6 +40,15 @@ def planet_scan(planet_observation, planet_templates):
 
 
 @pytest.fixture(scope="session")
+def planet_alternatives(planet_observation):
+    """The competing asymmetry models fitted to the planet observation (one start each)."""
+    from spiralbayes.inference.alternatives import fit_alternatives
+
+    vis, axisym = planet_observation
+    return fit_alternatives(vis, axisym, n_starts=1)
+
+
+@pytest.fixture(scope="session")
 def setup():
     """The posterior tests' observation (:mod:`tests.posterior_setup`)."""
     return posterior_setup.build_setup()
@@ -68,3 +77,20 @@ def fixed_fit(synthetic):
     from spiralbayes.axisymmetric import fit_axisymmetric
 
     return fit_axisymmetric(synthetic, axisymmetric_setup.TRUE_GEOMETRY, nonnegative=True, progress=False)
+
+
+@pytest.fixture(scope="session")
+def limits_case():
+    """A planet-free C-4 observation at 120 uJy/beam scanned with the tau0 = 0.3, beta = 10 family
+    (:mod:`tests.limits_setup`): limits lie between the bank's masses."""
+    from tests import limits_setup
+
+    return limits_setup.scanned(120e-6)
+
+
+@pytest.fixture(scope="session")
+def bright_case():
+    """The same disc at 35 uJy/beam: 1 and 3 M_th planets are detectable, 0.3 M_th are not."""
+    from tests import limits_setup
+
+    return limits_setup.scanned(35e-6, seed=5)

@@ -42,3 +42,37 @@ def build_setup() -> dict:
     model = AxisymmetricModel.from_profile(profile, START_GEOMETRY)
     priors = Priors.default(model, r_p=R_RANGE)
     return {"vis": vis, "model": model, "template": template, "priors": priors}
+
+
+# -- a weak planet (Delta BIC ~ 30) seen through a frank fit made 3 deg off in inclination ----------
+WEAK_TRUTH = {"r_p": 0.35, "phi_p": 0.05, "A": 0.4, "inc": 40.0, "PA": 70.0, "dRA": 0.005, "dDec": -0.01}
+WEAK_START = DiscGeometry(43.0, 70.0, 0.005, -0.01)  # frank is fitted 3 deg off in inclination
+WEAK_N_VIS = 1500
+WEAK_DELTA_BIC = 30.0
+
+
+def weak_template():
+    return make_template(3.0, 0.3, 0.0, "R", n_x=160, n_phi=360)
+
+
+def build_weak_observation(planet: bool = True, seed: int = 11) -> Visibilities:
+    """1500 random baselines; noise set so that the planet (A = 0.4) has Delta BIC = 30.
+
+    ``planet=False``: the same disc and noise level without the planet (a different noise seed).
+    """
+    from spiralbayes.inference.statistics import bic_threshold
+
+    template = weak_template()
+    truth = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=80)
+    rng = np.random.default_rng(seed)
+    n = WEAK_N_VIS
+    q = 2e6 * np.sqrt(rng.uniform(4e-4, 1, n))
+    th = rng.uniform(0, 2 * np.pi, n)
+    u, v = q * np.cos(th), q * np.sin(th)
+    dV = WEAK_TRUTH["A"] * perturbation_visibilities(u, v, TRUE_GEOMETRY, truth.brightness, template,
+                                                     WEAK_TRUTH["r_p"], WEAK_TRUTH["phi_p"])
+    sigma = np.sqrt(np.sum(np.abs(dV) ** 2) / (WEAK_DELTA_BIC + bic_threshold(n)))
+    V = truth.visibilities(u, v, TRUE_GEOMETRY) + sigma * (rng.normal(size=n) + 1j * rng.normal(size=n))
+    if planet:
+        V = V + dV
+    return Visibilities(u, v, V, np.full(n, sigma ** -2))

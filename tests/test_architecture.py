@@ -6,7 +6,7 @@ import its own layer and the ones below it, never one above:
 
 0. base: ``exceptions``, ``units``, ``_version``, ``_provenance``, ``_hdf5``, ``_casa``
 1. data: ``geometry``, ``layout``, ``visibilities``, ``fourier``, ``io``
-2. models: ``axisymmetric``, ``templates``, ``model``
+2. models: ``axisymmetric``, ``templates``, ``quadrature``, ``model``
 3. synthetic data: ``simulate``
 4. inference: ``inference``
 5. outputs: ``plotting``, ``baselines``
@@ -22,7 +22,7 @@ PACKAGE = Path(spiralbayes.__file__).parent
 LAYERS = {
     "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "_casa": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
-    "axisymmetric": 2, "templates": 2, "model": 2,
+    "axisymmetric": 2, "templates": 2, "model": 2, "asymmetries": 2, "quadrature": 2,
     "simulate": 3,
     "inference": 4,
     "plotting": 5, "baselines": 5,

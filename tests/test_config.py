@@ -21,7 +21,7 @@ def test_described_defaults_read_back_as_defaults(tmp_path):
 
 def test_paper_defaults():
     cfg = default_config()
-    assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (200, 1.2, 1.05)
+    assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (0, 1.2, 1.05)  # 0: automatic
     assert (cfg["frank"]["p0"], cfg["frank"]["weights_smooth"]) == (1e-15, 0.1)
     assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"], cfg["grid"]["n_r_p"], cfg["grid"]["n_phi_p"]) == (0.02, 0.5, 25, 90)
     assert all(desc for section in SCHEMA.values() for _, desc in section.values())
@@ -63,3 +63,13 @@ def test_every_default_passes_its_value_check():
         for key, check in checks.items():
             if key in SCHEMA.get(section, {}):
                 assert check(SCHEMA[section][key][0]) is None, f"default of {section}.{key} fails its check"
+
+
+@pytest.mark.parametrize("user,match", [
+    ({"alternatives": {"models": ["vortex"]}}, r"alternatives.models .* 'arc'"),
+    ({"alternatives": {"n_starts": 0}}, "alternatives.n_starts = 0 must be an integer >= 1"),
+])
+def test_bad_alternatives_options_are_refused(user, match):
+    with pytest.raises(ValueError, match=match):
+        merge_config(user)
+    assert merge_config({"alternatives": {"models": ["geometry", "arc"], "n_starts": 3}})["alternatives"]["n_starts"] == 3

@@ -215,7 +215,7 @@ def _scaled(template, factor):
 @pytest.mark.parametrize("change,expected", [
     ("frank_N", r"the axisymmetric model's profile; frank settings \(N: 100 -> 80\)"),
     ("frank_alpha", r"frank settings \(alpha: 1.05 -> 1.3\)"),
-    ("cell_factor", r"quadrature settings \(cell_factor: 20.0 -> 10.0\)"),
+    ("rule", r"quadrature settings \(cell_factor: None -> 20.0, rule: 'product' -> 'midpoint'\)"),
     ("templates", r"templates \(changed: fargo_m1_R\)"),
     ("geometry", r"geometry \(inc: 30.0 -> 31.0\)"),
     ("data", r"the data \(u, v, V or weights\)"),
@@ -229,8 +229,8 @@ def test_changed_settings_on_resume_are_refused(setup, tmp_path, change, expecte
         model = dataclasses.replace(model, hyperparameters={**model.hyperparameters, "alpha": 1.05, "p0": 1e-15})
     elif change == "frank_alpha":
         model = dataclasses.replace(model, hyperparameters={**model.hyperparameters, "alpha": 1.3})
-    elif change == "cell_factor":
-        kwargs["cell_factor"] = 10.0
+    elif change == "rule":
+        kwargs["rule"] = "midpoint"
     elif change == "templates":
         templates[0] = _scaled(templates[0], 1.01)
     elif change == "geometry":
@@ -288,7 +288,7 @@ def test_cli_refuses_a_stale_checkpoint_and_force_resume_overrides(setup, tmp_pa
     ("grid", "r_p_max = -0.5", "grid.r_p_max = -0.5 must be a positive"),
     ("grid", "r_p_min = 0.6", "grid.r_p_min = 0.6 must be smaller than grid.r_p_max"),
     ("frank", "alpha = 0.5", "frank.alpha = 0.5 must be a finite number >= 1"),
-    ("frank", "N = 1", "frank.N = 1 must be an integer >= 2"),
+    ("frank", "N = 1", "frank.N = 1 must be 0 \\(automatic\\) or an integer >= 2"),
     ("geometry", "inc = 95.0", r"geometry.inc = 95.0 must be an inclination in degrees in \[0, 90\)"),
     ("geometry", "distance = 0", "geometry.distance = 0.0 must be a positive"),
     ("templates", 'hand = ["R", "X"]', "templates.hand = \\['R', 'X'\\] has element 'X'"),

@@ -18,9 +18,14 @@ from . import exceptions  # noqa: E402
 from ._version import __version__  # noqa: E402
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
+from .inference.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
+from .inference.completeness import CompletenessResult, completeness  # noqa: E402
 from .inference.detection import Verdict, detect  # noqa: E402
+from .inference.forecast import Forecast, forecast  # noqa: E402
+from .inference.limits import ExclusionLimits, compute_limits  # noqa: E402
 from .inference.likelihood import SpiralLikelihood  # noqa: E402
 from .inference.priors import Priors  # noqa: E402
+from .inference.refit import rescan_at_fitted_geometry  # noqa: E402
 from .inference.results import PosteriorResult  # noqa: E402
 from .inference.sampler import sample_posterior  # noqa: E402
 from .inference.scan import ScanResult, scan  # noqa: E402
@@ -42,13 +47,17 @@ def __getattr__(name):
 
 
 __all__ = [
+    "AlternativesResult",
     "PRESETS",
     "PosteriorResult",
     "Priors",
     "SpiralLikelihood",
     "AxisymmetricModel",
+    "CompletenessResult",
     "DiscGeometry",
     "DiscModel",
+    "ExclusionLimits",
+    "Forecast",
     "ScanResult",
     "SpiralTemplate",
     "TemplateBank",
@@ -56,15 +65,20 @@ __all__ = [
     "Visibilities",
     "__version__",
     "bin_deprojected",
+    "completeness",
+    "compute_limits",
     "default_bank",
     "detect",
     "estimate_weights",
     "exceptions",
+    "fit_alternatives",
     "fit_axisymmetric",
+    "forecast",
     "load_visibilities",
     "make_template",
     "sample_posterior",
     "save_visibilities",
+    "rescan_at_fitted_geometry",
     "scan",
     "simulate_observation",
     "uv_coverage",

@@ -1,4 +1,4 @@
-"""The ``spiralbayes`` command: demo, simulate, axisym, scan, sample, compare, templates.
+"""The ``spiralbayes`` command: demo, simulate, axisym, scan, sample, limits, forecast, compare, templates.
 
 User errors (bad input files, configuration values, missing optional dependencies, a checkpoint
 for other inputs) are printed as one line, ``spiralbayes: error: ...``, with exit status 2;
@@ -19,7 +19,9 @@ log = logging.getLogger("spiralbayes")
 DESCRIPTION = """Search ALMA visibilities for planet-driven dust spirals (Stevenson et al. 2024) and
 turn the search into Bayesian inference. Commands: demo (an end-to-end example), simulate
 (synthetic ALMA data), axisym (frank fit), scan (grid scan of spiral templates, verdict and
-heatmaps), sample (emcee posterior), templates (the built-in template bank). Run
+heatmaps), sample (emcee posterior), limits (exclusion limits and completeness), forecast
+(time on source a planet needs), compare (image-space baselines with CASA), templates (the
+built-in template bank). Run
 'spiralbayes COMMAND -h' for a command's options; 'spiralbayes scan --print-config' writes a
 documented configuration file."""
 
@@ -34,13 +36,18 @@ def _cmd_demo(args) -> int:
     print(demo.verdict.summary())
     print(f"Delta BIC = {demo.verdict.delta_bic:.1f}; test 1 (Delta BIC > 10): "
           f"{'pass' if demo.verdict.test1_passed else 'fail'}; test 2 (handedness and compactness): "
-          f"{'pass' if demo.verdict.test2_passed else 'fail'}")
+          f"{'pass' if demo.verdict.test2_passed else 'fail'}; test 3 (spiral beats every competing "
+          f"asymmetry model): {_pass(demo.verdict.test3_passed)}")
     print("timings: " + ", ".join(f"{k} {v:.1f}" for k, v in demo.timings.items()))
     print("templates: the built-in wake model at H/r = 0.07 (the default bank spans H/r 0.05, 0.07, 0.10 x "
           "4 masses x 4 tau0 x 2 beta x 2 hands = 192), calibrated against wakeflow and FARGO3D maps: "
           "docs/templates.md")
     print("wrote:\n  " + "\n  ".join(str(f) for f in demo.files))
     return 0
+
+
+def _pass(flag) -> str:
+    return "not run" if flag is None else ("pass" if flag else "fail")
 
 
 def _cmd_simulate(args) -> int:
@@ -84,17 +91,20 @@ def _cmd_axisym(args) -> int:
 
 def _cmd_scan(args) -> int:
     from .config import describe_config, load_config
-    from .pipeline import run_scan_config
+    from .pipeline import run_scan
 
     if args.print_config:
         print(describe_config())
         return 0
     if not args.config:
         raise SystemExit("spiralbayes scan: give a CONFIG file (write a documented one with --print-config)")
-    verdict, _, files = run_scan_config(load_config(args.config), progress=not args.quiet,
-                                        force_resume=args.force_resume)
-    print(verdict.summary())
-    print("wrote:\n  " + "\n  ".join(str(f) for f in files))
+    run = run_scan(load_config(args.config), progress=not args.quiet, force_resume=args.force_resume)
+    print(run.verdict.summary())
+    if run.follow_up is not None:
+        g = run.follow_up.geometry
+        print(f"\nAfter refitting the geometry (inc {g.inc:.3f} deg, PA {g.PA:.3f} deg, dRA {1e3 * g.dRA:.2f} mas, "
+              f"dDec {1e3 * g.dDec:.2f} mas) and scanning again:\n{run.follow_up.verdict.summary()}")
+    print("wrote:\n  " + "\n  ".join(str(f) for f in run.files))
     return 0
 
 
@@ -109,7 +119,7 @@ def _cmd_sample(args) -> int:
         raise SystemExit("spiralbayes sample: give a CONFIG file (write a documented one with --print-config)")
     config = load_config(args.config)
     result = run_sample_config(config, progress=not args.quiet)
-    print(result.summary())
+    print(result.verdict)
     print(f"outputs in {Path(config['output']['dir']).resolve()} (chains under chains/)")
     return 0
 
@@ -133,6 +143,41 @@ def _cmd_compare(args) -> int:
     print(result.verdict.summary())
     print(open(result.files[-2]).read(), end="")
     print("wrote:\n  " + "\n  ".join(str(f) for f in result.files))
+    return 0
+
+
+def _cmd_limits(args) -> int:
+    from .config import describe_config, load_config
+    from .pipeline import run_limits_config, run_limits_demo
+
+    if args.print_config:
+        print(describe_config())
+        return 0
+    if args.demo:
+        run = run_limits_demo(args.out, progress=not args.quiet)
+    elif args.config:
+        run = run_limits_config(load_config(args.config), progress=not args.quiet)
+    else:
+        raise SystemExit("spiralbayes limits: give a CONFIG file or --demo (write a documented config with --print-config)")
+    print(run.table)
+    print("wrote:\n  " + "\n  ".join(str(f) for f in run.files))
+    return 0
+
+
+def _cmd_forecast(args) -> int:
+    from .pipeline import run_forecast
+    from .simulate import get_preset
+
+    wavelength = args.wavelength or get_preset(args.preset[0]).wavelength
+    forecasts = run_forecast({"mass": args.mass, "tau0": args.tau0, "beta": args.beta, "hand": args.hand,
+                              "wavelength": wavelength, "distance": args.distance, "disc_tau": args.disc_tau,
+                              "inc": args.inc, "pa": args.pa, "r_au": args.r_au, "presets": args.preset,
+                              "time": args.time, "sensitivity": args.sensitivity})
+    for fc in forecasts:
+        print(fc.summary())
+        t = fc.time_for_probability(args.probability)
+        print(f"  on-source time for P(Delta BIC > 10) = {args.probability:.0%}: "
+              + ("not reachable" if t == float("inf") else f"{t:.0f} min ({t / 60:.1f} h)"))
     return 0
 
 
@@ -217,6 +262,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", nargs="?")
     p.add_argument("--print-config", action="store_true", help="print the documented default config")
     p.set_defaults(func=_cmd_compare)
+
+    p = sub.add_parser("limits", help="exclusion limits, completeness and the paper's Table 3 (TOML config)")
+    p.add_argument("config", nargs="?")
+    p.add_argument("--print-config", action="store_true", help="print the documented default config")
+    p.add_argument("--demo", action="store_true", help="Table 3 for a synthetic Taurus-comparison disc")
+    p.add_argument("--out", default="spiralbayes-limits-demo", help="output folder of --demo")
+    p.set_defaults(func=_cmd_limits)
+
+    p = sub.add_parser("forecast", help="expected Delta chi^2, detection probability and time needed for a planet")
+    p.add_argument("--preset", nargs="+", default=["fiducial"], help="one or more set-ups of Table 1")
+    p.add_argument("--mass", type=float, default=1.0, help="M_p/M_th")
+    p.add_argument("--tau0", type=float, default=3.0)
+    p.add_argument("--beta", type=float, default=10.0)
+    p.add_argument("--hand", default="R", choices=["R", "L"])
+    p.add_argument("--r-au", type=float, default=50.0, help="planet radius [au]")
+    p.add_argument("--distance", type=float, default=140.0, help="[pc]")
+    p.add_argument("--disc-tau", type=float, default=0.0, help="disc optical depth at 50 au (0: the template's tau0)")
+    p.add_argument("--inc", type=float, default=30.0, help="inclination [deg]")
+    p.add_argument("--pa", type=float, default=60.0, help="position angle [deg]")
+    p.add_argument("--time", type=float, default=None, help="total time on source [min] (default: the preset's)")
+    p.add_argument("--sensitivity", type=float, default=None, help="image noise [Jy/beam] (default: scaled as t^-1/2)")
+    p.add_argument("--wavelength", type=float, default=0.0, help="template wavelength [m] (0: the first preset's)")
+    p.add_argument("--probability", type=float, default=0.9, help="detection probability for the time estimate")
+    p.set_defaults(func=_cmd_forecast)
 
     p = sub.add_parser("templates", help="build (or load) the default template bank")
     p.add_argument("--rebuild", action="store_true")

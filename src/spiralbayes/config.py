@@ -1,12 +1,13 @@
-"""One configuration schema for every command (``scan``, ``sample``) and for notebooks (TOML files).
+"""One configuration schema for every command (``scan``, ``sample``, ``limits``, ``compare``) and for notebooks (TOML files).
 
 Every option has a default (from Stevenson et al. 2024 where the paper sets one) and a
 description with units; unknown sections or keys are rejected with the list of valid ones, and
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
-drives both commands: ``scan`` reads ``[data]`` to ``[scan]``, ``sample`` adds ``[sample]`` and
-``[priors]`` and reuses the scan's outputs when they are in ``[output] dir``; ``compare`` runs the
-scan and the image-space baselines of ``[compare]`` (needs CASA). Relative paths — inputs and
+drives every command: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
+and ``[priors]``, ``limits`` adds ``[limits]`` (the last two reuse the scan's outputs when they
+are in ``[output] dir``); ``compare`` runs
+the scan and the image-space baselines of ``[compare]`` (needs CASA). Relative paths — inputs and
 ``[output] dir`` alike — are taken relative to the configuration file, so a configuration means
 the same wherever it is run from.
 
@@ -23,6 +24,7 @@ from pathlib import Path
 
 import tomllib
 
+from .asymmetries import ALTERNATIVE_MODELS
 from .exceptions import ConfigError, MissingFileError
 
 __all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "default_config", "describe_config", "load_config", "merge_config"]
@@ -45,7 +47,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "distance": (140.0, "distance [pc], for au axes and planet masses"),
     },
     "frank": {
-        "N": (200, "number of radial collocation points"),
+        "N": (0, "number of radial collocation points; 0: the paper's 200, or for fewer than 200 visibilities the count their longest baseline needs (x1.25)"),
         "Rmax": (1.2, "outer radius of the fit [arcsec]"),
         "alpha": (1.05, "order parameter of the power-spectrum prior"),
         "p0": (1e-15, "scale parameter of the power-spectrum prior [Jy^2]"),
@@ -71,8 +73,17 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "amplitude": ("fixed", "'fixed' (the paper's A = 1) or 'free' (best linear spiral amplitude per instance, +1 BIC parameter)"),
         "dask": ("", "empty: serial; 'local': a Dask LocalCluster; else a scheduler address (tcp://host:8786)"),
         "nthreads": (1, "threads per template for the NUFFTs"),
-        "cell_factor": (20.0, "quadrature cells are at most 1/(cell_factor u_max) across"),
+        "cell_factor": (20.0, "midpoint quadrature only: cells at most 1/(cell_factor u_max) across"),
+        "quadrature": ("product", "'product' (exact, with an error estimate per instance) or 'midpoint' (the earlier cells, for comparison)"),
+        "power_path": ("auto", "'auto', 'polar' (uv grids; large N) or 'direct' (the model at every baseline; small N)"),
         "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
+    },
+    "alternatives": {
+        "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = 2) and apply test 3"),
+        "models": ([], "which of geometry, arc, lopsided, eccentric_ring, m2 to fit (empty: all)"),
+        "threshold": (10.0, "test 3: the spiral's Delta BIC must exceed the best alternative's by more than this"),
+        "n_starts": (2, "optimiser starts per alternative model (the shapes that best match the residual image)"),
+        "refit_geometry": (True, "if no spiral is detected and the geometry alternative has Delta BIC > 10: refit frank at its geometry, rescan and decide again (OUTPUT/refit_geometry/)"),
     },
     "sample": {
         "run_name": ("posterior", "chains go to OUTPUT/chains/<run_name>.h5"),
@@ -88,6 +99,8 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "prune_delta_lnL": (25.0, "templates whose scan peak is this far below the best (in ln L) get a Laplace evidence only"),
         "evidence_draws": (2000, "draws of the importance-sampled evidence"),
         "mcmc_templates": ([], "names of the templates that get a chain (empty: chosen by prune_delta_lnL)"),
+        "flush_every": (100, "steps between atomic writes of the chain file (a kill loses at most these)"),
+        "planet_prior": (0.5, "prior probability that the disc hosts a planet (against the no-planet hypothesis)"),
     },
     "priors": {
         "r_p_min": (0.0, "smallest planet radius [arcsec] (0: R_eff / 25 of the frank profile)"),
@@ -96,6 +109,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "PA_sigma": (5.0, "width of the Gaussian prior on the position angle [deg]"),
         "dRA_sigma": (0.05, "width of the Gaussian prior on the RA offset [arcsec]"),
         "dDec_sigma": (0.05, "width of the Gaussian prior on the Dec offset [arcsec]"),
+        "amplitude_max": (2.0, "spiral amplitude A uniform on [0, amplitude_max] (A = 1: the template as simulated; 0: fix A = 1)"),
     },
     "compare": {
         "residuals": ("visibilities", "'visibilities': CLEAN image of the residual visibilities (data - frank model); 'difference': CLEAN image of the data minus that of the frank model at the same baselines (carries CLEAN artefacts)"),
@@ -108,6 +122,23 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "cell": (0.0, "pixel [arcsec] (0: 1/(3 u_max))"),
         "r_out": (0.0, "outer disc radius [arcsec] for the residual statistic and the profile (0: 1.1 R_99 of the frank profile)"),
         "keep_casa_files": (True, "keep the Measurement Sets, CASA images and CASA log in OUTPUT/casa"),
+    },
+    "limits": {
+        "cl": (0.95, "one-sided confidence level of the exclusion limits, in (0.5, 1)"),
+        "method": ("all_phi", "'all_phi': excluded at r_p when excluded at every phi_p (the paper's reading); 'marginal': phi_p marginalised (uniform prior)"),
+        "hand": ("both", "'both': a planet is excluded only when both hands are; 'R' or 'L' when the disc's rotation fixes the hand"),
+        "mstar": (0.8, "stellar mass [M_sun], for planet masses in M_Jup (M_th = (H/r)^3 M_*)"),
+        "h_ref": (0.0, "H/r at r_ref for the thermal mass (0: the templates' h_p)"),
+        "r_ref": (50.0, "reference radius of H/r [au]"),
+        "flaring": (0.25, "flaring index: H/r = h_ref (r / r_ref)^flaring, so M_th ~ r_p^(3 flaring)"),
+        "resolution": (0.0, "beam FWHM [arcsec] for the 'unresolved' flag (0: fitted to the data's natural-weighted beam)"),
+        "resolution_factor": (1.0, "radii below resolution_factor x resolution are flagged 'unresolved', not excluded"),
+        "extent_fraction": (0.95, "radii beyond the radius holding this fraction of the disc's flux are flagged, not excluded"),
+        "completeness": (True, "injection-recovery (fast path) for the minimum detectable mass"),
+        "n_azimuths": (8, "injection azimuths per radius, evenly spaced on the scan grid"),
+        "inject_hand": (["R"], "hands of the injected planets"),
+        "thresholds": ([3.0, 1.0], "planet masses [M_th] of the table's columns (the paper's Table 3: 3 and 1)"),
+        "name": ("", "disc name in the table (empty: the data file's stem)"),
     },
     "output": {
         "dir": ("spiralbayes-output", "directory for results and plots"),
@@ -140,6 +171,10 @@ def _at_least(low):
 
 def _int_at_least(low):
     return lambda v: None if v >= low else f"must be an integer >= {low}"
+
+
+def _zero_or_at_least(low):
+    return lambda v: None if v == 0 or v >= low else f"must be 0 (automatic) or an integer >= {low}"
 
 
 def _even_positive(v):
@@ -189,13 +224,16 @@ _UV_UNITS = ("", "lambda", "klambda", "m", "λ", "kλ", "wavelengths", "wle", "k
 CHECKS: dict[str, dict[str, object]] = {
     "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative},
     "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _positive},
-    "frank": {"N": _int_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
+    "frank": {"N": _zero_or_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
               "weights_smooth": _non_negative},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),
                   "h_p": _each(_number(_positive))},
     "grid": {"r_p_min": _positive, "r_p_max": _positive, "n_r_p": _int_at_least(1), "n_phi_p": _even_positive},
-    "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive},
+    "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive,
+             "quadrature": _choice("product", "midpoint"), "power_path": _choice("auto", "polar", "direct")},
+    "alternatives": {"models": _each(_string(_choice(*ALTERNATIVE_MODELS))), "threshold": _finite,
+                     "n_starts": _int_at_least(1)},
     "sample": {"n_walkers": _int_at_least(2), "n_steps": _int_at_least(0), "max_steps": _int_at_least(1),
                "check_every": _int_at_least(1), "convergence": _choice("raise", "warn", "ignore"),
                "min_ess": _positive, "processes": _int_at_least(1), "seed": _int_at_least(0),
@@ -206,6 +244,13 @@ CHECKS: dict[str, dict[str, object]] = {
     "compare": {"residuals": _choice("visibilities", "difference"), "weighting": _choice("natural", "briggs", "uniform"),
                 "robust": _finite, "deconvolver": _choice("hogbom", "multiscale"), "niter": _int_at_least(0),
                 "threshold_sigma": _positive, "imsize": _int_at_least(0), "cell": _non_negative, "r_out": _non_negative},
+    "limits": {"cl": lambda v: None if 0.5 < v < 1 else "must be a confidence level in (0.5, 1), e.g. 0.95",
+               "method": _choice("all_phi", "marginal"), "hand": _choice("both", "R", "L"), "mstar": _positive,
+               "h_ref": _non_negative, "r_ref": _positive, "flaring": _finite, "resolution": _non_negative,
+               "resolution_factor": _non_negative,
+               "extent_fraction": lambda v: None if 0 < v <= 1 else "must be a fraction in (0, 1]",
+               "n_azimuths": _int_at_least(1), "inject_hand": _each(_string(_choice("R", "L"))),
+               "thresholds": _each(_number(_positive))},
     "output": {"dir": lambda v: None if v.strip() else "must name a directory"},
 }
 """section -> option -> check of its (already type-coerced) value; options without one take any value

@@ -113,3 +113,31 @@ def test_bad_input_types(synthetic):
         AxisymmetricModel(r=np.linspace(0, 1, 10), I=np.ones(10), geometry=DiscGeometry(), Rmax=1.0)
     with pytest.raises(ValueError, match="Rmax"):
         AxisymmetricModel.from_profile(np.ones_like, Rmax=-2)
+
+
+# --- (h) sparse data ----------------------------------------------------------------------------------
+def test_sparse_data_get_the_collocation_count_their_baselines_need():
+    """150 visibilities: N is the data's own (not 200), frank's series still covers every baseline,
+    and the disc comes back."""
+    from spiralbayes.axisymmetric.fit import SPARSE_MARGIN, _minimum_collocation_count
+
+    truth = DiscGeometry(inc=40.0, PA=20.0)
+    vis = gaussian_disc_visibilities(np.random.default_rng(8), 150, 0.2, 0.1, truth, 2e-3)
+    m = fit_axisymmetric(vis, truth, progress=False)
+    needed = _minimum_collocation_count(vis, truth, 1.2)
+    assert m.hyperparameters["N"] == int(np.ceil(SPARSE_MARGIN * needed)) < 200
+    assert m.total_flux == pytest.approx(0.1, rel=0.03)
+    with pytest.raises(ValueError, match="increase N"):  # and needed is really needed
+        fit_axisymmetric(vis, truth, N=needed - 2, progress=False)
+
+
+def test_more_collocation_points_than_visibilities_warn_with_the_fix():
+    from spiralbayes.axisymmetric.fit import _collocation_count
+    from spiralbayes.exceptions import DataWarning
+
+    truth = DiscGeometry(inc=40.0, PA=20.0)
+    vis = gaussian_disc_visibilities(np.random.default_rng(8), 150, 0.2, 0.1, truth, 2e-3)
+    with pytest.warns(DataWarning, match=r"N = 200 exceeds the 150 visibilities.*leave N unset"):
+        assert _collocation_count(vis, truth, 1.2, 200) == 200
+    many = gaussian_disc_visibilities(np.random.default_rng(8), 400, 0.2, 0.1, truth, 2e-3)
+    assert _collocation_count(many, truth, 1.2, None) == 200  # the paper's default when data are not sparse

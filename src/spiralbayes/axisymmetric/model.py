@@ -107,13 +107,16 @@ class AxisymmetricModel:
     provenance: dict = field(default_factory=dict)
     frank_solution: object = field(default=None, repr=False, compare=False)
     """frank's solution object of the fit (not saved; ``None`` after :meth:`load`)."""
+    power_spectrum: np.ndarray | None = field(default=None, repr=False, compare=False)
+    """frank's MAP power spectrum [Jy^2] at the collocation frequencies (saved): the profile's
+    Gaussian-process prior, used to integrate the profile out (:mod:`spiralbayes.axisymmetric.gp`)."""
 
     def __post_init__(self):
         self.r = np.asarray(self.r, dtype=float).ravel()
         self.I = np.asarray(self.I, dtype=float).ravel()
         self.Rmax = float(self.Rmax)
         _check_hyperparameters(self.r.size, self.Rmax, 1.0, 1.0, 0.0)
-        for name in ("I", "I_err", "I_nonneg"):
+        for name in ("I", "I_err", "I_nonneg", "power_spectrum"):
             arr = getattr(self, name)
             if arr is None:
                 continue
@@ -390,7 +393,7 @@ class AxisymmetricModel:
             g = f.create_group("geometry")
             for key, value in self.geometry.to_dict().items():
                 g.attrs[key] = value
-            units = {"r": "arcsec", "I": "Jy/sr", "I_err": "Jy/sr", "I_nonneg": "Jy/sr"}
+            units = {"r": "arcsec", "I": "Jy/sr", "I_err": "Jy/sr", "I_nonneg": "Jy/sr", "power_spectrum": "Jy^2"}
             for name, unit in units.items():
                 arr = getattr(self, name)
                 if arr is not None:
@@ -415,7 +418,8 @@ class AxisymmetricModel:
         """
         with open_file(path, AXISYMMETRIC_KIND, "axisymmetric model") as f:
             geometry = DiscGeometry(**{k: float(f["geometry"].attrs[k]) for k in ("inc", "PA", "dRA", "dDec")})
-            arrays = {name: (f[name][()] if name in f else None) for name in ("r", "I", "I_err", "I_nonneg")}
+            arrays = {name: (f[name][()] if name in f else None)
+                      for name in ("r", "I", "I_err", "I_nonneg", "power_spectrum")}
             fit_time = float(f.attrs["fit_time_s"])
             return cls(geometry=geometry, Rmax=float(f.attrs["Rmax"]),
                        hyperparameters=json.loads(f.attrs["hyperparameters"]),

@@ -23,18 +23,29 @@ log = logging.getLogger(__name__)
 TAU_FACTOR = 50.0
 
 
-def convergence_diagnostics(chain: np.ndarray, *, tau_factor: float = TAU_FACTOR, min_ess: float = 0.0) -> dict:
+def convergence_diagnostics(chain: np.ndarray, *, tau_factor: float = TAU_FACTOR, min_ess: float = 0.0,
+                            periodic=(1,), names=PARAMETER_NAMES) -> dict:
     """Autocorrelation-time diagnostics of an emcee chain of shape (n_steps, n_walkers, n_dim).
 
-    ``phi_p`` must be unwrapped (as sampled). Returns ``tau`` per parameter, ``n_steps``,
-    ``burn_in`` (5 max tau), ``ess`` (= n_walkers (n_steps - burn_in) / tau), ``converged``
-    (``n_steps > tau_factor tau`` for every parameter and ``ess >= min_ess``) and
-    ``more_steps`` (a rough estimate of the extra steps needed; 0 when converged).
+    Coordinates in ``periodic`` (``phi_p``) are angles: their ``tau`` is the larger of those of
+    ``cos`` and ``sin`` (a chain that circles freely is well mixed, though its unwrapped angle
+    wanders). Returns ``tau`` per parameter, ``n_steps``, ``burn_in`` (5 max tau), ``ess``
+    (= n_walkers (n_steps - burn_in) / tau), ``converged`` (``n_steps > tau_factor tau`` for every
+    parameter and ``ess >= min_ess``) and ``more_steps`` (a rough estimate of the extra steps
+    needed; 0 when converged).
     """
     import emcee
 
-    n_steps, n_walkers, _ = chain.shape
-    tau = np.asarray(emcee.autocorr.integrated_time(chain, tol=0, quiet=True), dtype=float)
+    n_steps, n_walkers, n_dim = chain.shape
+    tau = np.empty(n_dim)
+    for j in range(n_dim):
+        if j in periodic:
+            x = chain[:, :, j]
+            pair = np.stack([np.cos(x), np.sin(x)], axis=-1)
+            tau[j] = float(np.max(emcee.autocorr.integrated_time(pair, tol=0, quiet=True)))
+        else:
+            tau[j] = float(emcee.autocorr.integrated_time(chain[:, :, j:j + 1], tol=0, quiet=True)[0])
+    tau = np.where(np.isfinite(tau), tau, float(n_steps))
     tau_max = float(np.max(tau))
     burn = int(min(np.ceil(5 * tau_max), n_steps // 2))
     ess = n_walkers * (n_steps - burn) / tau
@@ -42,9 +53,10 @@ def convergence_diagnostics(chain: np.ndarray, *, tau_factor: float = TAU_FACTOR
     enough_ess = ess >= min_ess
     needed = max(tau_factor * tau_max, 5 * tau_max + min_ess * tau_max / n_walkers)
     more = 0 if (long_enough.all() and enough_ess.all()) else int(np.ceil(1.2 * needed - n_steps))
-    return {"tau": dict(zip(PARAMETER_NAMES, tau.tolist())), "tau_max": tau_max, "n_steps": int(n_steps),
+    names = list(names)[:n_dim]
+    return {"tau": dict(zip(names, tau.tolist())), "tau_max": tau_max, "n_steps": int(n_steps),
             "n_walkers": int(n_walkers), "burn_in": burn, "thin": max(1, int(tau_max / 2)),
-            "ess": dict(zip(PARAMETER_NAMES, ess.tolist())), "converged": bool(long_enough.all() and enough_ess.all()),
+            "ess": dict(zip(names, ess.tolist())), "converged": bool(long_enough.all() and enough_ess.all()),
             "tau_factor": tau_factor, "min_ess": min_ess, "more_steps": max(more, 0)}
 
 

@@ -11,9 +11,13 @@ Model (Stevenson et al. 2024, sec. 2.2)::
 
 with ``q = (xi, eta)`` the baseline in the disc frame (:meth:`DiscGeometry.disc_frame_uv`),
 ``V_A`` the face-on visibility curve of the axisymmetric profile and ``P_hat`` the transform of
-the perturbation ``I_A delta`` on the polar quadrature of :mod:`spiralbayes.model`.
+the perturbation ``I_A delta`` on the product-integration rule of :mod:`spiralbayes.quadrature`
+(exact to ~1e-11 of its L1 norm; :attr:`SpiralLikelihood.quadrature_error` reports its bound).
 
-**The axisymmetric profile is held fixed** (the frank fit) while its visibilities are
+This is the *conditional* likelihood: **the axisymmetric profile is held fixed** (the frank fit),
+exact and fast, and kept as the reference of the fast path. The sampler uses the
+profile-marginalised likelihood of :mod:`spiralbayes.inference.marginal`, which integrates the
+profile (and a free spiral amplitude) out. Here the profile's visibilities are
 re-evaluated under each sampled geometry: ``V_A`` is precomputed once, on a fine uniform grid of
 deprojected baseline length, from the model's exact (Hankel) visibilities, and interpolated
 linearly (grid step chosen so that the interpolation error is below ~1e-7 of the peak;
@@ -35,7 +39,6 @@ posterior odds between templates are unaffected.
 from __future__ import annotations
 
 import logging
-import time
 
 import numpy as np
 
@@ -48,14 +51,8 @@ from ..model import (
     render_perturbation_image,
 )
 from ..units import ARCSEC, TWO_PI
-from .tables import (
-    AxisymmetricTable,
-    PerturbationTable,
-    _Cells,
-    _nodes,
-    _outer_radius,
-    _TableBuilder,
-)
+from .perturbation import FastPerturbation
+from .tables import AxisymmetricTable, _outer_radius
 
 __all__ = ["PARAMETER_LABELS", "PARAMETER_NAMES", "SpiralLikelihood", "geometry_from_theta"]
 
@@ -98,124 +95,59 @@ class SpiralLikelihood:
     rp_step : float, optional
         Fix the node spacing [arcsec] instead of refining.
     cell_factor : float
-        Quadrature fineness (:func:`spiralbayes.model.make_quadrature`).
+        Unused (the product rule needs no cell size); kept for compatibility.
+    progress : bool
+        Show a progress bar of the table's node builds (each refinement round is logged).
+    mirror_of : SpiralLikelihood, optional
+        The likelihood of this template's mirror image on the same data and r_p range: its
+        tables are shared (see :mod:`spiralbayes.inference.tables`), nothing is built.
     """
 
     def __init__(self, vis, axisymmetric, template, r_range, *, reference_geometry: DiscGeometry | None = None,
                  epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
-                 rp_step: float | None = None, cell_factor: float = DEFAULT_CELL_FACTOR, progress: bool = False):
-        t0 = time.perf_counter()
+                 rp_step: float | None = None, cell_factor: float = DEFAULT_CELL_FACTOR, progress: bool = False,
+                 mirror_of: "SpiralLikelihood | None" = None):
         vis = vis.standardised()
-        r_lo, r_hi = float(r_range[0]), float(r_range[1])
-        if not (0 < r_lo < r_hi):
-            raise InputError(f"r_range = {r_range!r}: need 0 < r_min < r_max [arcsec]")
         self.template = template
         self.axisymmetric = axisymmetric
         self.profile = axisymmetric.brightness
-        self.r_range = (r_lo, r_hi)
         self.epsilon = float(epsilon)
         self.reference_geometry = reference_geometry or getattr(axisymmetric, "geometry", None) or DiscGeometry()
         self.u, self.v = vis.u.copy(), vis.v.copy()
         self.weights = vis.weights.copy()
         self.V = vis.V.copy()
-        self._u32, self._v32 = self.u.astype(np.float32), self.v.astype(np.float32)
         self._uv2 = self.u ** 2 + self.v ** 2
         self._sqrt_w = np.sqrt(self.weights)
         self._sqrt_w32 = self._sqrt_w.astype(np.float32)
         self._V_sqrt_w = self.V * self._sqrt_w
         self.uv_max = float(np.max(np.hypot(self.u, self.v)))
         self.axis_table = AxisymmetricTable.build(axisymmetric, self.uv_max)
-        self._cells = _Cells.build(template, r_hi, self.uv_max, cell_factor)
-        x_max = float(self._cells.x_edges[-1])
-        self._builder = _TableBuilder(self._cells, self.profile, r_hi * ARCSEC * self.uv_max, x_max, oversample)
-        self._delta = self._builder.delta
-        self._complex = np.complex64 if self.epsilon >= 1e-6 else np.complex128
-        self.table = self._build_table(rp_step, rp_tolerance, progress)
-        self.table.build_time_s = time.perf_counter() - t0
+        self.perturbation = FastPerturbation(
+            self.u, self.v, self.weights, self.profile, template, r_range, self.reference_geometry, epsilon=epsilon,
+            oversample=oversample, rp_tolerance=rp_tolerance, rp_step=rp_step, cell_factor=cell_factor,
+            progress=progress, mirror_of=None if mirror_of is None else mirror_of.perturbation)
+        self.r_range = self.perturbation.r_range
         self.chi2_ref = 0.0
         self.chi2_ref = -2.0 * self.log_likelihood_axisymmetric(self.reference_geometry)
         log.info("likelihood for %s: %d r_p nodes, %d x %d grids, %.1f MB, built in %.1f s",
                  getattr(template, "name", "template"), self.table.r_nodes.size, self.table.N, self.table.N,
-                 self.nbytes / 2 ** 20, self.table.build_time_s)
+                 self.nbytes / 2 ** 20, self.perturbation.build_time_s)
 
-    # -- table ----------------------------------------------------------------------------
-    def _build_table(self, rp_step, tol, progress) -> PerturbationTable:
-        r_lo, r_hi = self.r_range
-        b = self._builder
-        span = r_hi - r_lo
-        h = float(rp_step) if rp_step is not None else span / 8.0
-        cache: dict = {}
+    @property
+    def table(self):
+        """The perturbation's :class:`~spiralbayes.inference.tables.PerturbationTable`."""
+        return self.perturbation.table
 
-        def node(r):
-            key = round(r, 12)
-            if key not in cache:
-                cache[key] = b(r)
-            return cache[key]
+    @property
+    def _cells(self):
+        return self.perturbation._cells
 
-        history = []
-        while True:
-            nodes = _nodes(r_lo, r_hi, h)
-            grids = np.stack([node(r) for r in nodes])
-            table = PerturbationTable(nodes, grids, b.delta, b.sigma_max, self.r_range, refinement=history)
-            if rp_step is not None:
-                return table
-            err = self._midpoint_error(table, node)
-            history.append({"step_arcsec": h, "n_nodes": int(nodes.size), "max_midpoint_error": err})
-            if progress:
-                log.info("r_p step %.4g arcsec: %d nodes, midpoint error %.3g", h, nodes.size, err)
-            if err <= tol or h < 1e-4:
-                if err > tol:
-                    log.warning("r_p nodes refined to %.2g arcsec, error %.3g > tolerance %.3g", h, err, tol)
-                return table
-            h /= 2.0
-
-    def _midpoint_error(self, table: PerturbationTable, node) -> float:
-        """Largest data-weighted norm of the r_p-interpolation error at node midpoints."""
-        r_lo, r_hi = self.r_range
-        mids = 0.5 * (table.r_nodes[1:] + table.r_nodes[:-1])
-        mids = mids[(mids >= r_lo) & (mids <= r_hi)]
-        worst = 0.0
-        g0 = self.reference_geometry
-        for r in mids:
-            diff = table.grid(r) - node(r)
-            scale = g0.cos_inc * (r * ARCSEC) ** 2
-            for phi_p in (0.0, 0.5 * np.pi, np.pi, 1.5 * np.pi):
-                coord, _ = self._coords(r, phi_p, g0.inc, g0.PA)
-                dV = self._u2nu(diff, coord) * scale
-                worst = max(worst, float(np.sqrt(np.sum(self.weights * np.abs(dV) ** 2))))
-        return worst
-
-    # -- evaluation -----------------------------------------------------------------------------
-    # The hot path avoids BLAS (numpy's matmul/vdot call OpenBLAS, which on a loaded machine with
-    # several threads was measured 100x slower for these sizes, emcee #199): plain ufuncs only.
-    def _matrix(self, r_p, phi_p, inc, PA):
-        """``2 pi Delta r_p R(-phi_p) D(inc, PA)``: (u, v) -> ducc0 coordinates, and its scale."""
-        ci = np.cos(np.radians(inc))
-        cp, sp = np.cos(np.radians(PA)), np.sin(np.radians(PA))
-        D = np.array([[-ci * cp, ci * sp], [sp, cp]])  # (u, v) -> (xi, eta)
-        c, s = np.cos(phi_p), np.sin(phi_p)
-        R = np.array([[c, s], [-s, c]])  # rotation by -phi_p
-        k = TWO_PI * self._delta * r_p * ARCSEC
-        return k * (R @ D), k
-
-    def _coords(self, r_p, phi_p, inc, PA):
-        """ducc0 coordinates ``2 pi Delta sigma`` of the data (n, 2), float32 or float64."""
-        L, _ = self._matrix(r_p, phi_p, inc, PA)
-        u, v = (self._u32, self._v32) if self._complex is np.complex64 else (self.u, self.v)
-        L = L.astype(u.dtype)
-        coord = np.empty((u.size, 2), dtype=u.dtype)
-        for j in range(2):
-            col = coord[:, j]
-            np.multiply(u, L[j, 0], out=col)
-            col += v * L[j, 1]
-        return coord, None
-
-    def _u2nu(self, grid, coord):
-        import ducc0
-
-        grid = grid.astype(self._complex, copy=False)
-        coord = coord.astype(np.float32 if self._complex is np.complex64 else np.float64, copy=False)
-        return ducc0.nufft.u2nu(grid=grid, coord=coord, forward=False, epsilon=self.epsilon, nthreads=1)
+    @property
+    def quadrature_error(self) -> float:
+        """Bound on the quadrature's error in the norm of ``rp_tolerance``, ``sqrt(sum w |dV|^2)``,
+        over the table's radii; an :class:`~spiralbayes.exceptions.AccuracyWarning` was raised at
+        build time if it exceeds ``rp_tolerance``."""
+        return self.perturbation.quadrature_error
 
     def _check_theta(self, theta):
         r_p, phi_p, inc, PA, dRA, dDec = (float(t) for t in theta)
@@ -235,9 +167,7 @@ class SpiralLikelihood:
     def _model_disc_frame(self, r_p, phi_p, inc, PA):
         """``cos i [V_A(|q|) + P_hat(q)]`` at the data (no phase factor)."""
         ci = np.cos(np.radians(inc))
-        coord, _ = self._coords(r_p, phi_p, inc, PA)
-        grid = self.table.grid(r_p, scale=ci * (r_p * ARCSEC) ** 2)
-        M = self._u2nu(grid, coord)
+        M = self.perturbation.disc_frame(r_p, phi_p, inc, PA)
         # |q|^2 = |uv|^2 - sin^2 i (u cos PA - v sin PA)^2
         pa = np.radians(PA)
         a = self.u * np.cos(pa)
@@ -291,7 +221,7 @@ class SpiralLikelihood:
         geometry = geometry_from_theta(theta)
         V_A = self.axisymmetric.visibilities(self.u, self.v, geometry)
         dV = perturbation_visibilities(self.u, self.v, geometry, self.profile, self.template, r_p, phi_p,
-                                       quad=self._cells.quadrature(r_p), epsilon=1e-10)
+                                       quad=self.perturbation.quadrature(r_p), epsilon=1e-10)
         return V_A + dV
 
     def exact_log_likelihood(self, theta) -> float:
@@ -319,28 +249,10 @@ class SpiralLikelihood:
     # -- bookkeeping -------------------------------------------------------------------------------
     @property
     def nbytes(self) -> int:
-        """Memory of the precomputed tables [bytes]."""
-        return self.table.nbytes + self.axis_table.nbytes
+        """Memory of the precomputed tables [bytes] (a mirror template shares its partner's)."""
+        return self.perturbation.nbytes + self.axis_table.nbytes
 
     def describe(self) -> dict:
         """JSON-able summary of the tables (for provenance and logs)."""
-        return {
-            "template": getattr(self.template, "name", ""),
-            "r_range_arcsec": list(self.r_range),
-            "n_rp_nodes": int(self.table.r_nodes.size),
-            "rp_step_arcsec": self.table.step,
-            "grid_N": int(self.table.N),
-            "pseudo_pixel": self.table.delta,
-            "sigma_max": self.table.sigma_max,
-            "epsilon": self.epsilon,
-            "axisymmetric_step_lambda": self.axis_table.step,
-            "table_bytes": int(self.nbytes),
-            "build_time_s": self.table.build_time_s,
-            "refinement": self.table.refinement,
-            "n_cells": int(self._cells.positions.shape[0]),
-        }
-
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state.pop("_builder", None)  # large, only needed to build
-        return state
+        return {**self.perturbation.describe(), "axisymmetric_step_lambda": self.axis_table.step,
+                "table_bytes": int(self.nbytes)}

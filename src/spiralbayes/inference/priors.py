@@ -1,9 +1,21 @@
-"""Priors of the spiral posterior's continuous parameters.
+"""Priors of the spiral posterior's parameters.
 
 ``r_p`` is uniform on ``[r_min, r_max]`` (default: the disc's extent, ``R_eff / 25`` to ``R_eff``,
-never beyond the profile's ``Rmax``), ``phi_p`` uniform on the circle, and ``inc``, ``PA``,
-``dRA``, ``dDec`` Gaussian, centred on the frank geometry with user-set widths (defaults 5 deg,
-5 deg, 0.05 arcsec, 0.05 arcsec).
+never beyond the profile's ``Rmax / 2.2``, so that the template's 2.2 r_p stays inside the
+profile), ``phi_p`` uniform on the circle, ``inc``, ``PA``, ``dRA``, ``dDec`` Gaussian, centred on
+the frank geometry with user-set widths (defaults 5 deg, 5 deg, 0.05 arcsec, 0.05 arcsec), and
+the spiral amplitude ``A`` uniform on ``[0, amplitude_max]`` (default 2).
+
+The amplitude prior: ``A`` multiplies the template's ``delta``; ``A = 1`` is the template as
+simulated (the paper's fixed choice) and ``A = 0`` the disc without a planet, so the
+no-planet hypothesis is this prior's edge. The templates' shapes follow from the wake physics,
+their contrast less surely (cooling, opacity, dust coupling are fixed per template), hence a
+range of a factor 2 around 1. The evidence for a planet pays ``ln(amplitude_max / A-width)``
+for this freedom, so a wider range makes "no planet" easier to prefer; ``amplitude_max = None``
+fixes ``A = 1``.
+
+The geometry priors are those of the no-planet hypothesis too: both hypotheses marginalise
+the same geometry, so their evidences compare like with like.
 """
 
 from __future__ import annotations
@@ -16,10 +28,12 @@ from ..exceptions import InputError
 from ..geometry import DiscGeometry
 from ..units import ARCSEC, TWO_PI
 from .likelihood import PARAMETER_NAMES
+from .marginal import DEFAULT_AMPLITUDE_MAX
 
-__all__ = ["DEFAULT_WIDTHS", "N_DIM", "Priors"]
+__all__ = ["DEFAULT_AMPLITUDE_MAX", "DEFAULT_WIDTHS", "GEOMETRY_NAMES", "N_DIM", "Priors"]
 
 N_DIM = len(PARAMETER_NAMES)
+GEOMETRY_NAMES = ("inc", "PA", "dRA", "dDec")
 DEFAULT_WIDTHS = {"inc": 5.0, "PA": 5.0, "dRA": 0.05, "dDec": 0.05}
 
 
@@ -35,6 +49,8 @@ class Priors:
         Gaussian (mean, sigma) [deg]; the inclination is also truncated to [0, 90).
     dRA, dDec : (float, float)
         Gaussian (mean, sigma) [arcsec].
+    amplitude_max : float or None
+        ``A`` uniform on ``[0, amplitude_max]``; ``None`` fixes ``A = 1``.
 
     ``phi_p`` is uniform on the circle (no parameters).
     """
@@ -44,6 +60,7 @@ class Priors:
     PA: tuple
     dRA: tuple
     dDec: tuple
+    amplitude_max: float | None = DEFAULT_AMPLITUDE_MAX
 
     def __post_init__(self):
         lo, hi = (float(x) for x in self.r_p)
@@ -63,10 +80,16 @@ class Priors:
             object.__setattr__(self, name, (mean, sigma))
         if not 0 <= self.inc[0] < 90:
             raise InputError(f"Priors.inc mean = {self.inc[0]} deg is outside [0, 90)")
+        if self.amplitude_max is not None:
+            a = float(self.amplitude_max)
+            if not (np.isfinite(a) and a > 0):
+                raise InputError(f"Priors.amplitude_max = {self.amplitude_max!r}: the amplitude prior needs a "
+                                 "positive upper bound (or None to fix A = 1)")
+            object.__setattr__(self, "amplitude_max", a)
 
     @classmethod
     def default(cls, axisymmetric, *, geometry: DiscGeometry | None = None, r_p=None, widths: dict | None = None,
-                ) -> "Priors":
+                amplitude_max: float | None = DEFAULT_AMPLITUDE_MAX) -> "Priors":
         """Defaults: r_p over the disc's extent, geometry centred on the frank geometry.
 
         Parameters
@@ -80,6 +103,8 @@ class Priors:
         widths : dict, optional
             Sigmas for ``inc``, ``PA`` [deg], ``dRA``, ``dDec`` [arcsec]; defaults
             :data:`DEFAULT_WIDTHS`.
+        amplitude_max : float or None
+            Upper end of the amplitude prior (None: ``A = 1`` fixed).
         """
         geometry = geometry or axisymmetric.geometry
         widths = {**DEFAULT_WIDTHS, **(widths or {})}
@@ -91,17 +116,17 @@ class Priors:
             r_max = min(r_eff, float(getattr(axisymmetric, "Rmax", np.inf)) / 2.2)
             r_p = (r_eff / 25.0, r_max)
         return cls(tuple(r_p), (geometry.inc, widths["inc"]), (geometry.PA, widths["PA"]),
-                   (geometry.dRA, widths["dRA"]), (geometry.dDec, widths["dDec"]))
+                   (geometry.dRA, widths["dRA"]), (geometry.dDec, widths["dDec"]), amplitude_max)
 
     @classmethod
     def from_dict(cls, d: dict) -> "Priors":
-        unknown = set(d) - {"r_p", "inc", "PA", "dRA", "dDec"}
+        unknown = set(d) - {"r_p", "inc", "PA", "dRA", "dDec", "amplitude_max"}
         if unknown:
-            raise InputError(f"unknown prior keys {sorted(unknown)}: use r_p, inc, PA, dRA, dDec")
-        return cls(**{k: tuple(v) for k, v in d.items()})
+            raise InputError(f"unknown prior keys {sorted(unknown)}: use r_p, inc, PA, dRA, dDec, amplitude_max")
+        return cls(**{k: (v if k == "amplitude_max" else tuple(v)) for k, v in d.items()})
 
     def to_dict(self) -> dict:
-        return {k: list(v) for k, v in asdict(self).items()}
+        return {k: (v if k == "amplitude_max" else list(v)) for k, v in asdict(self).items()}
 
     def check_data(self, vis, axisymmetric) -> None:
         """Raise ``ValueError`` if the r_p range lies outside what the data and model can describe."""
@@ -138,6 +163,22 @@ class Priors:
         for x, (mu, sigma) in ((inc, self.inc), (PA, self.PA), (dRA, self.dRA), (dDec, self.dDec)):
             value += -0.5 * ((x - mu) / sigma) ** 2 - np.log(sigma) - 0.5 * np.log(TWO_PI)
         return float(value)
+
+    @property
+    def geometry_centre(self) -> np.ndarray:
+        return np.array([self.inc[0], self.PA[0], self.dRA[0], self.dDec[0]])
+
+    @property
+    def geometry_widths(self) -> np.ndarray:
+        return np.array([self.inc[1], self.PA[1], self.dRA[1], self.dDec[1]])
+
+    def log_prior_geometry(self, g) -> float:
+        """Normalised log prior density of ``(inc, PA, dRA, dDec)`` alone (the no-planet hypothesis)."""
+        g = np.asarray(g, dtype=float)
+        if not 0.0 <= g[0] < 90.0:
+            return -np.inf
+        z = (g - self.geometry_centre) / self.geometry_widths
+        return float(-0.5 * np.sum(z * z) - np.sum(np.log(self.geometry_widths)) - 2.0 * np.log(TWO_PI))
 
     def draw(self, n: int, rng) -> np.ndarray:
         """``n`` samples from the prior, shape (n, 6)."""

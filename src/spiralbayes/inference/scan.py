@@ -10,10 +10,24 @@ Resume key
 A checkpoint is resumed only when it was written for the same inputs: :func:`resume_key` records
 a hash of the data, of the axisymmetric profile (its arrays, or the profile sampled on the
 scanned radii) and frank's settings, each template's content hash (x, phi, δ) and metadata, the
-(r_p, phi_p) grid, the geometry, the quadrature settings (``cell_factor`` and the uv grid they
-imply) and spiralbayes' version. Any difference raises :class:`ResumeMismatchError` naming it;
-``force_resume=True`` keeps the completed templates anyway (same grid required). The thread
-count is not part of the key: it changes ``power`` by ~1e-6 relative only.
+(r_p, phi_p) grid, the geometry, the quadrature settings (the rule, ``cell_factor`` for the
+midpoint rule, and the power path's settings, :class:`~.scan_engine.ScanSettings`) and
+spiralbayes' version; a checkpoint written with other settings, or before they were recorded, is
+refused. Any difference raises :class:`ResumeMismatchError` naming it; ``force_resume=True`` keeps
+the completed templates anyway (same grid required). The thread count is not part of the key: it
+changes the last digits only.
+
+Accuracy
+--------
+Every template's ``cross`` and ``power`` come with error estimates (``cross_error``,
+``power_error``; :mod:`.scan_engine` says how they are made); :meth:`ScanResult.delta_chi2_error`
+combines them and :func:`scan` raises an :class:`~spiralbayes.exceptions.AccuracyWarning` where
+the estimate exceeds ``0.05 + 1e-4 |Δχ²|`` (:mod:`.scan_accuracy`).
+
+Why this module is long: the result class (with its checksummed persistence and the error
+estimates), the runner and the resume key with its readable differences share one set of
+fields; split apart, each would have to know the others' layout. The numerics live elsewhere
+(:mod:`.scan_engine`, :mod:`.uv_levels`, :mod:`.scan_accuracy`).
 """
 
 from __future__ import annotations
@@ -32,9 +46,10 @@ from .._provenance import content_hash, data_hash, json_safe, provenance_record,
 from .._version import __version__
 from ..exceptions import DataWarning, InputError, ResumeMismatchError
 from ..geometry import DiscGeometry
-from ..model import DEFAULT_CELL_FACTOR
+from ..model import DEFAULT_CELL_FACTOR, DEFAULT_RULE
 from ..templates.template import template_metadata
-from .scan_engine import ScanContext, scan_template
+from .scan_accuracy import TOLERANCE, check_terms, warn_if_inaccurate
+from .scan_engine import ScanContext, ScanSettings, scan_template
 from .statistics import bic_threshold, delta_chi2_from_terms
 
 __all__ = ["ScanResult", "default_rp_grid", "resume_key", "scan"]
@@ -75,6 +90,9 @@ class ScanResult:
     distance : float or None
         Distance [pc], for au axes.
     provenance : dict
+    cross_error, power_error : ndarray, shape (n_templates, n_rp, n_phi)
+        Error estimates of ``cross`` and ``power`` (NaN where unknown: not computed, the midpoint
+        rule, or a checkpoint written before they were recorded).
     """
 
     templates: list
@@ -87,6 +105,22 @@ class ScanResult:
     geometry: DiscGeometry
     distance: float | None = None
     provenance: dict = field(default_factory=dict)
+    cross_error: np.ndarray | None = None
+    power_error: np.ndarray | None = None
+
+    def __post_init__(self):
+        for name in ("cross_error", "power_error"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.full(np.shape(self.cross), np.nan))
+
+    def delta_chi2_error(self) -> np.ndarray:
+        """Error estimate of :meth:`delta_chi2` (the paper's fixed amplitude): ``2 cross_error + power_error``."""
+        return 2 * self.cross_error + self.power_error
+
+    def accuracy_violations(self, tolerance=TOLERANCE) -> np.ndarray:
+        """Where the error estimate exceeds ``tolerance[0] + tolerance[1] |Δχ²|`` (boolean, like :attr:`cross`)."""
+        err = np.nan_to_num(self.delta_chi2_error(), nan=0.0)
+        return err > tolerance[0] + tolerance[1] * np.abs(np.nan_to_num(self.dchi2))
 
     def delta_chi2(self, amplitude=None) -> np.ndarray:
         """Δχ² array (template, r_p, phi_p); ``amplitude="free"`` fits a linear amplitude ≥ 0."""
@@ -134,7 +168,7 @@ class ScanResult:
     def save(self, path) -> Path:
         """Write to HDF5 (atomically)."""
         with write_file(path, SCAN_KIND) as f:
-            for name in ("r_p", "phi_p", "cross", "power"):
+            for name in ("r_p", "phi_p", "cross", "power", "cross_error", "power_error"):
                 checked_dataset(f, name, getattr(self, name))
             f.attrs["chi2_AO"] = self.chi2_AO
             f.attrs["n_data"] = self.n_data
@@ -156,9 +190,10 @@ class ScanResult:
             result = cls(json.loads(f.attrs["templates"]), f["r_p"][()], f["phi_p"][()], f["cross"][()],
                          f["power"][()], float(f.attrs["chi2_AO"]), int(f.attrs["n_data"]),
                          DiscGeometry(**json.loads(f.attrs["geometry"])), None if distance < 0 else distance,
-                         json.loads(f.attrs["provenance"]))
+                         json.loads(f.attrs["provenance"]),
+                         *(f[name][()] if name in f else None for name in ("cross_error", "power_error")))
             shape = (len(result.templates), result.r_p.size, result.phi_p.size)
-            if result.cross.shape != shape or result.power.shape != shape:
+            if any(np.shape(a) != shape for a in (result.cross, result.power, result.cross_error, result.power_error)):
                 raise InputError(f"arrays of shape {result.cross.shape} / {result.power.shape} do not match "
                                  f"{shape[0]} templates x {shape[1]} radii x {shape[2]} azimuths")
             return result
@@ -177,7 +212,8 @@ class ScanResult:
 # --------------------------------------------------------------------------------------------
 def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, r_p=None, n_phi_p: int = 90,
          distance: float | None = None, checkpoint=None, client=None, progress: bool = True,
-         cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1, force_resume: bool = False) -> ScanResult:
+         cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1, force_resume: bool = False,
+         rule: str = DEFAULT_RULE, power_path: str = "auto") -> ScanResult:
     """Δχ² of every template at every planet position.
 
     Parameters
@@ -210,14 +246,23 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     progress : bool
         Show a tqdm progress bar.
     cell_factor : float
-        Quadrature cells are at most ``1 / (cell_factor u_max)`` across (see :mod:`spiralbayes.model`).
+        Midpoint rule only: cells at most ``1 / (cell_factor u_max)`` across (:mod:`spiralbayes.model`).
     nthreads : int
-        Threads for the NUFFTs of each template. Results agree to ~1e-6 of ``power`` between
-        thread counts (single-precision power term) and are identical for the same count.
+        Threads for the NUFFTs of each template. Results agree to ~1e-9 between thread counts
+        and are identical for the same count.
     force_resume : bool
         Resume a checkpoint even though it was written for other inputs (its completed
         templates are kept where the names match; the grids must be the same). The
         differences are logged and recorded in ``provenance["forced_resume"]``.
+    rule : {"product", "midpoint"}
+        The quadrature of the perturbation (:func:`spiralbayes.model.make_quadrature`): the exact
+        product rule (default) or the earlier midpoint cells (a reference; no error estimate).
+    power_path : {"auto", "polar", "direct"}
+        How ``power`` is computed (:mod:`.scan_engine`): "auto" takes the cheaper for the data.
+
+    The result carries error estimates (:meth:`ScanResult.delta_chi2_error`); an
+    :class:`~spiralbayes.exceptions.AccuracyWarning` says where they exceed
+    ``0.05 + 1e-4 |Δχ²|``. The power path's own check is in ``provenance["power_check"]``.
     """
     templates = list(templates)
     if not templates:
@@ -228,20 +273,29 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     r_p = _default_rp(axisymmetric) if r_p is None else _check_rp(r_p)
     n_phi_p = _check_n_phi(n_phi_p)
     _check_cell_factor(cell_factor)
+    settings = ScanSettings(rule=rule, cell_factor=float(cell_factor), power_path=power_path)
     _warn_beyond_rmax(axisymmetric, r_p)
     t0 = time.perf_counter()
-    context = ScanContext.build(vis, axisymmetric, geometry, r_p, n_phi_p, cell_factor, nthreads=nthreads)
-    log.info("scan set-up (residual, uv weights on a %d x %d polar grid): %.2f s",
-             *context.uv_weights_hat.shape, time.perf_counter() - t0)
+    x_max = max(float(np.max(t.x)) for t in templates)
+    context = ScanContext.build(vis, axisymmetric, geometry, r_p, n_phi_p, x_max=x_max, nthreads=nthreads,
+                                settings=settings)
+    setup_s = time.perf_counter() - t0
+    log.info("scan set-up (%s power path, %d uv grids): %.2f s", context.power_path, len(context.levels), setup_s)
     _warn_if_weights_too_small(context.chi2_AO, vis.n)
     result = _empty_result(context, templates, vis, distance)
     result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context)
     if checkpoint is not None:
         result = _resume(checkpoint, result, force_resume)
     todo = [i for i in range(len(templates)) if not result.completed[i]]
+    if todo and settings.rule == "product":
+        context.algorithm_error = check_terms(context, templates[0])
+        result.provenance["power_check"] = context.algorithm_error
+    t1 = time.perf_counter()
     runner = _run_dask if client is not None else _run_serial
     runner(context, templates, todo, result, checkpoint, progress, client)
     result.provenance["scan_time_s"] = time.perf_counter() - t0
+    result.provenance["timing_s"] = {"setup": setup_s, "check": t1 - t0 - setup_s, "templates": time.perf_counter() - t1}
+    warn_if_inaccurate(result)
     return result
 
 
@@ -256,8 +310,7 @@ def _default_rp(axisymmetric) -> np.ndarray:
 def _empty_result(context: ScanContext, templates, vis, distance) -> ScanResult:
     shape = (len(templates), context.r_p.size, context.n_phi_p)
     prov = provenance_record(
-        data=vis.provenance, data_hash=data_hash(vis.u, vis.v, vis.V, vis.weights),
-        cell_factor=context.cell_factor, n_theta=context.n_theta, d_rho=context.d_rho)
+        data=vis.provenance, data_hash=data_hash(vis.u, vis.v, vis.V, vis.weights), quadrature=context.describe())
     return ScanResult([template_metadata(t) for t in templates], context.r_p.copy(),
                       2 * np.pi * np.arange(context.n_phi_p) / context.n_phi_p,
                       np.full(shape, np.nan), np.full(shape, np.nan), context.chi2_AO, int(vis.n),
@@ -337,7 +390,7 @@ def resume_key(vis, axisymmetric, templates, context: ScanContext) -> dict:
         "r_p": content_hash(context.r_p),
         "n_phi_p": context.n_phi_p,
         "geometry": context.geometry.to_dict(),
-        "quadrature": {"cell_factor": context.cell_factor, "n_theta": context.n_theta, "d_rho": context.d_rho},
+        "quadrature": context.settings.describe(),
     }
 
 
@@ -365,10 +418,7 @@ def _describe_differences(old: ScanResult, fresh: ScanResult) -> list[str]:
     geometry = _changed(a.get("geometry") or {}, b["geometry"])
     if geometry:
         diffs.append(f"geometry ({geometry})")
-    quadrature = a.get("quadrature") or {}
-    if grid_changed:  # n_theta and d_rho follow from the grid; only cell_factor is news then
-        quadrature = {k: v for k, v in quadrature.items() if k == "cell_factor"}
-    quadrature = _changed(quadrature, {k: v for k, v in b["quadrature"].items() if k in quadrature or not grid_changed})
+    quadrature = _changed(a.get("quadrature") or {}, b["quadrature"])
     if quadrature:
         diffs.append(f"quadrature settings ({quadrature})")
     return diffs
@@ -417,12 +467,16 @@ def _resume(checkpoint, fresh: ScanResult, force: bool = False) -> ScanResult:
         j = rows.get(meta["name"])
         if j is not None and old.completed[j]:
             fresh.cross[i], fresh.power[i] = old.cross[j], old.power[j]
+            fresh.cross_error[i], fresh.power_error[i] = old.cross_error[j], old.power_error[j]
     log.info("resuming from %s: %d of %d templates done", checkpoint, fresh.completed.sum(), len(fresh.templates))
     return fresh
 
 
-def _store(result: ScanResult, index: int, cross, power, checkpoint) -> None:
-    result.cross[index], result.power[index] = cross, power
+def _store(result: ScanResult, index: int, terms, checkpoint) -> None:
+    """Keep one template's :class:`~.scan_engine.TemplateTerms` (and checkpoint)."""
+    result.cross[index], result.power[index] = terms
+    result.cross_error[index] = getattr(terms, "cross_error", np.nan)
+    result.power_error[index] = getattr(terms, "power_error", np.nan)
     if checkpoint is not None:
         result.save(checkpoint)
 
@@ -436,7 +490,7 @@ def _progress(total: int, enabled: bool):
 def _run_serial(context, templates, todo, result, checkpoint, progress, client=None) -> None:
     with _progress(len(todo), progress) as bar:
         for i in todo:
-            _store(result, i, *scan_template(context, templates[i]), checkpoint)
+            _store(result, i, scan_template(context, templates[i]), checkpoint)
             bar.update()
 
 
@@ -460,7 +514,7 @@ def _run_dask(context, templates, todo, result, checkpoint, progress, client) ->
         futures = {client.submit(scan_template, shared, templates[i], pure=False): i for i in todo}
         with _progress(len(todo), progress) as bar:
             for future in as_completed(futures):
-                _store(result, futures[future], *future.result(), checkpoint)
+                _store(result, futures[future], future.result(), checkpoint)
                 bar.update()
     finally:
         if own is not None:

@@ -62,6 +62,7 @@ times [s]; wavelength [m]; brightness [Jy/sr]; images [Jy/pixel]; distances [pc]
 :class:`DiscModel` [au].
 """
 
+from .asymmetric import ExactAxisymmetric, eccentric_ring, lopsided_disc, vortex_arc
 from .coverage import (
     ALMA_LATITUDE,
     UVCoverage,
@@ -99,6 +100,7 @@ from .presets import (
 __all__ = [
     "ALMA_LATITUDE",
     "DiscModel",
+    "ExactAxisymmetric",
     "PRESETS",
     "Preset",
     "Radiometer",
@@ -106,6 +108,7 @@ __all__ = [
     "available_configurations",
     "baseline_uvw",
     "disc_visibilities",
+    "eccentric_ring",
     "elevation",
     "fit_beam",
     "get_preset",
@@ -113,6 +116,7 @@ __all__ = [
     "image_visibilities",
     "image_noise",
     "load_configuration",
+    "lopsided_disc",
     "measure_image_noise",
     "observe",
     "planck",
@@ -122,4 +126,5 @@ __all__ = [
     "sigma_for_sensitivity",
     "simulate_observation",
     "uv_coverage",
+    "vortex_arc",
 ]

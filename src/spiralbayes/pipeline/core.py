@@ -1,4 +1,4 @@
-"""Every end-to-end run: the demo, the frank fit with plots, and scan and sample from a configuration.
+"""The main runs: the demo, the frank fit with plots, and scan and sample from a configuration.
 
 The command line (:mod:`spiralbayes.cli`) only parses arguments and calls these; notebooks can call
 them too. Outputs are written atomically (temporary file, then rename, with the user's umask), JSON
@@ -10,39 +10,42 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ._provenance import atomic_path, to_json
-from .axisymmetric import AxisymmetricModel, fit_axisymmetric
-from .config import describe_config
-from .exceptions import InputError
-from .geometry import DiscGeometry
-from .inference.detection import detect, mirror_index
-from .inference.priors import DEFAULT_WIDTHS, Priors
-from .inference.results import PosteriorResult
-from .inference.sampler import sample_posterior
-from .inference.scan import ScanResult, scan
-from .io import load_visibilities
-from .plotting.axisymmetric import plot_binned_visibilities, plot_profile
-from .plotting.posterior import plot_corner, plot_template_probabilities
-from .plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
-from .simulate import DiscModel, simulate_observation
-from .templates import TemplateBank, default_bank, make_template
-from .visibilities import Visibilities, estimate_weights
+from .._provenance import atomic_path, to_json
+from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
+from ..config import describe_config
+from ..exceptions import InputError
+from ..geometry import DiscGeometry
+from ..inference.alternatives import fit_alternatives
+from ..inference.detection import DELTA_BIC_THRESHOLD, detect, mirror_index
+from ..inference.priors import DEFAULT_WIDTHS, Priors
+from ..inference.refit import GeometryFollowUp, rescan_at_fitted_geometry
+from ..inference.results import PosteriorResult
+from ..inference.sampler import sample_posterior
+from ..inference.scan import ScanResult, scan
+from ..io import load_visibilities
+from ..plotting.alternatives import plot_residual_comparison
+from ..plotting.axisymmetric import plot_binned_visibilities, plot_profile
+from ..plotting.posterior import plot_corner, plot_hypotheses, plot_template_probabilities
+from ..plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
+from ..simulate import DiscModel, simulate_observation
+from ..templates import TemplateBank, default_bank, make_template
+from ..visibilities import Visibilities, estimate_weights
 
 __all__ = [
-    "CompareResult",
     "DemoResult",
+    "ScanRun",
     "load_axisymmetric",
     "load_data",
     "load_templates",
     "run_axisym",
-    "run_compare_config",
     "run_demo",
     "run_sample_config",
+    "run_scan",
     "run_scan_config",
     "save_figure",
     "select_templates",
@@ -61,6 +64,18 @@ class DemoResult:
     scan: object
     files: list
     timings: dict
+    alternatives: object = None
+
+
+@dataclass
+class ScanRun:
+    """What :func:`run_scan` produced: the verdict, scan, alternatives, geometry follow-up, files."""
+
+    verdict: object
+    scan: object
+    alternatives: object
+    follow_up: GeometryFollowUp | None
+    files: list
 
 
 def select_templates(bank, mass=(), tau0=(), beta=(), hand=(), h_p=()):
@@ -91,12 +106,21 @@ def _write_text(path: Path, text: str) -> Path:
     return path
 
 
-def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None) -> list[Path]:
-    """Save the scan, the verdict (JSON and text) and the heatmap PNGs; return the paths."""
+def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None, *, alternatives=None,
+                       vis=None, axisymmetric=None, templates=None) -> list[Path]:
+    """Save the scan, the verdict (JSON and text) and the heatmap PNGs; return the paths.
+
+    With ``alternatives`` also ``alternatives.h5`` and ``alternatives.txt`` (the fits of test 3)
+    and, when ``vis``, ``axisymmetric`` and ``templates`` are given and ``plots`` is on,
+    ``residual_comparison.png`` (:func:`~spiralbayes.plotting.alternatives.plot_residual_comparison`).
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [result.save(out_dir / "scan.h5")]
     files.append(_write_text(out_dir / "verdict.json", to_json(verdict.to_dict(), indent=2)))
     files.append(_write_text(out_dir / "verdict.txt", verdict.summary() + "\n"))
+    if alternatives is not None:
+        files.append(alternatives.save(out_dir / "alternatives.h5"))
+        files.append(_write_text(out_dir / "alternatives.txt", alternatives.table() + "\n"))
     if not plots:
         return files
     done = set()
@@ -108,17 +132,21 @@ def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, ampli
         fig = plot_heatmap_pair(result, t, j, amplitude=amplitude)
         files.append(_save_figure(fig, out_dir / f"heatmap_{meta['name']}.png"))
     files.append(_save_figure(plot_chi2_vs_rp(result, amplitude=amplitude), out_dir / "chi2_vs_rp.png"))
+    if alternatives is not None and None not in (vis, axisymmetric, templates):
+        fig = plot_residual_comparison(vis, axisymmetric, result, alternatives, templates, amplitude=amplitude)
+        files.append(_save_figure(fig, out_dir / "residual_comparison.png"))
     return files
 
 
 def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0), progress: bool = True,
-             dask=None) -> DemoResult:
+             dask=None, alternatives: bool = True) -> DemoResult:
     """Simulate a fiducial-set observation with a planet, fit frank, scan, and decide.
 
     The planet: 1 M_th, tau0 = 3, beta = 10, right-handed, at 50 au (140 pc), phi_p = 0, in a
     power-law disc (10-110 au) whose optical depth at 50 au is the template's tau0 = 3, of
     inclination 30 deg and PA 60 deg. The scan uses the masses given, tau0 = 3 and
     beta = 10, both hands, on the paper's grid (25 radii from 0.02 to 0.5 arcsec, 90 azimuths).
+    With ``alternatives`` the competing asymmetry models are fitted too (test 3).
 
     The templates are the default bank's at H/r = 0.07 (``wake_m{M}_tau3_b10_h0.07_{R,L}``); the
     full default bank also spans H/r = 0.05 and 0.10 (192 templates). The wake generator is
@@ -145,12 +173,18 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
     result = scan(vis, axisym, templates, geometry, r_p=np.linspace(0.02, 0.5, 25), distance=DEMO_DISTANCE,
                   progress=progress, client=dask)
     timings["scan_s"] = time.perf_counter() - t2
-    verdict = detect(result)
+    alts = None
+    if alternatives:
+        t3 = time.perf_counter()
+        alts = fit_alternatives(vis, axisym, geometry, progress=progress)
+        timings["alternatives_s"] = time.perf_counter() - t3
+    verdict = detect(result, alternatives=alts)
     out_dir.mkdir(parents=True, exist_ok=True)
-    files = write_scan_outputs(result, verdict, out_dir)
+    files = write_scan_outputs(result, verdict, out_dir, alternatives=alts, vis=vis, axisymmetric=axisym,
+                               templates=templates)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
     timings["total_s"] = time.perf_counter() - t0
-    return DemoResult(verdict, result, files, timings)
+    return DemoResult(verdict, result, files, timings, alts)
 
 
 def load_data(data: dict, geometry: DiscGeometry | None = None):
@@ -194,7 +228,7 @@ def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> Axisymmetr
     f = config["frank"]
     if f["model"]:
         return AxisymmetricModel.load(f["model"])
-    axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"], Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
+    axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"] or None, Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
                               weights_smooth=f["weights_smooth"], nonnegative=f["nonnegative"],
                               fit_geometry="nonparametric" if config["geometry"]["fit"] else None, progress=progress)
     return axisym.nonnegative() if f["nonnegative"] else axisym
@@ -203,9 +237,24 @@ def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> Axisymmetr
 def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool = False):
     """Run a scan described by a merged configuration (:func:`spiralbayes.config.load_config`).
 
+    Returns ``(verdict, scan, files)`` of the scan at the configured geometry; :func:`run_scan`
+    (which this calls) also returns the alternatives and the geometry follow-up.
+    """
+    run = run_scan(config, progress=progress, force_resume=force_resume)
+    return run.verdict, run.scan, run.files
+
+
+def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False) -> ScanRun:
+    """The scan of a configuration, the alternatives of test 3, the verdict and, when needed, the follow-up.
+
     A checkpoint left in ``[output] dir`` is checked for integrity before anything slow runs,
     and resumed only if it was written for the same inputs (``force_resume`` overrides; see
-    :func:`~spiralbayes.inference.scan.scan`).
+    :func:`~spiralbayes.inference.scan.scan`). Writes the scan's outputs to ``[output] dir``
+    (:func:`write_scan_outputs`). With ``[alternatives] refit_geometry`` on, no detection and the
+    geometry alternative significant (ΔBIC > 10), frank is refitted at the fitted geometry and the
+    scan, alternatives and verdict are repeated there
+    (:func:`~spiralbayes.inference.refit.rescan_at_fitted_geometry`), with their outputs and
+    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
     """
     out_dir = Path(config["output"]["dir"])
     s = config["scan"]
@@ -221,12 +270,34 @@ def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool =
     amplitude = "free" if s["amplitude"] == "free" else None
     result = scan(vis, axisym, templates, axisym.geometry, r_p=r_p, n_phi_p=grid["n_phi_p"],
                   distance=config["geometry"]["distance"], checkpoint=checkpoint, client=s["dask"] or None,
-                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume)
-    verdict = detect(result, amplitude)
-    files = write_scan_outputs(result, verdict, out_dir, config["output"]["plots"], amplitude)
+                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume,
+                  rule=s["quadrature"], power_path=s["power_path"])
+    a = config["alternatives"]
+    alt_kwargs = {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"],
+                  "progress": progress}
+    alts = fit_alternatives(vis, axisym, axisym.geometry, **alt_kwargs) if a["fit"] else None
+    detect_kwargs = {"alternative_threshold": a["threshold"]}
+    verdict = detect(result, amplitude, alternatives=alts, **detect_kwargs)
+    plots = config["output"]["plots"]
+    files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
+                               axisymmetric=axisym, templates=templates)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
     files.append(_write_text(out_dir / "config_used.toml", describe_config(config)))
-    return verdict, result, files
+    follow = None
+    if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
+        follow = rescan_at_fitted_geometry(vis, axisym, templates, alts, previous_scan=result, amplitude=amplitude,
+                                           nthreads=s["nthreads"], progress=progress, alternative_kwargs=alt_kwargs,
+                                           detect_kwargs=detect_kwargs, client=s["dask"] or None,
+                                           cell_factor=s["cell_factor"])
+        sub = out_dir / "refit_geometry"
+        files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
+                                    vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
+        files.append(follow.axisymmetric.save(sub / "axisymmetric.h5"))
+    return ScanRun(verdict, result, alts, follow, files)
+
+
+def _geometry_error_significant(alternatives) -> bool:
+    return "geometry" in alternatives.fits and alternatives.delta_bic()["geometry"] > DELTA_BIC_THRESHOLD
 
 
 def _priors(config: dict, axisym: AxisymmetricModel) -> Priors:
@@ -236,7 +307,7 @@ def _priors(config: dict, axisym: AxisymmetricModel) -> Priors:
     if p["r_p_min"] or p["r_p_max"]:
         default = Priors.default(axisym, widths=widths).r_p
         r_p = (p["r_p_min"] or default[0], p["r_p_max"] or default[1])
-    return Priors.default(axisym, r_p=r_p, widths=widths)
+    return Priors.default(axisym, r_p=r_p, widths=widths, amplitude_max=p["amplitude_max"] or None)
 
 
 def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult:
@@ -246,8 +317,9 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     of the same configuration, else a new frank fit; the scan (walker starts, template pruning) is
     ``[sample] scan``, else ``OUTPUT/scan.h5`` when present. Writes, in ``[output] dir``:
     ``chains/<run_name>.h5`` (the chains), ``<run_name>_posterior.h5`` (the result),
-    ``<run_name>_summary.json``, ``<run_name>_corner.png``, ``<run_name>_templates.png`` and
-    ``<run_name>_config.toml`` (the configuration used).
+    ``<run_name>_summary.json`` (with the verdict: P(planet | data), the Bayes factor),
+    ``<run_name>_corner.png`` (r_p in au at ``[geometry] distance``), ``<run_name>_hypotheses.png``,
+    ``<run_name>_templates.png`` and ``<run_name>_config.toml`` (the configuration used).
     """
     out_dir = Path(config["output"]["dir"])
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -263,7 +335,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     scan_result = ScanResult.load(scan_path) if scan_path else None
     _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))
     sampler = {k: s[k] for k in ("n_walkers", "max_steps", "check_every", "convergence", "min_ess", "seed",
-                                  "prune_delta_lnL", "evidence_draws")}
+                                  "prune_delta_lnL", "evidence_draws", "flush_every", "planet_prior")}
     result = sample_posterior(vis, axisym, templates, scan=scan_result, priors=_priors(config, axisym),
                               run_name=run_name, chains_dir=out_dir / "chains", n_steps=s["n_steps"] or None,
                               processes=s["processes"] if s["processes"] > 1 else None,
@@ -271,7 +343,8 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     result.save(out_dir / f"{run_name}_posterior.h5")
     summary = {**result.to_json(), "summary": result.summary()}
     _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))
-    _save_figure(plot_corner(result), out_dir / f"{run_name}_corner.png")
+    _save_figure(plot_corner(result, distance=config["geometry"]["distance"]), out_dir / f"{run_name}_corner.png")
+    _save_figure(plot_hypotheses(result), out_dir / f"{run_name}_hypotheses.png")
     _save_figure(plot_template_probabilities(result), out_dir / f"{run_name}_templates.png")
     return result
 
@@ -312,88 +385,3 @@ def run_axisym(vis: Visibilities, out_dir, geometry: DiscGeometry | None = None,
     for path in written:
         log.info("wrote %s", path)
     return model
-
-
-@dataclass
-class CompareResult:
-    """Outcome of :func:`run_compare_config`: the three methods' verdicts and what they were based on."""
-
-    verdict: object
-    scan: object
-    residuals: object
-    gap: object
-    table: list
-    files: list
-    timings: dict
-
-
-def compare_table(verdict, residuals, gap) -> list[dict]:
-    """One row per method: the statistic, its value, the criterion and the verdict."""
-    det = residuals.detection
-    where = f"{verdict.template} at r_p = {verdict.r_p:.3f}\", phi_p = {verdict.phi_p_deg:.0f} deg"
-    return [
-        {"method": "visibility scan", "statistic": f"Delta BIC ({where})", "value": round(verdict.delta_bic, 2),
-         "criterion": "Delta BIC > 10, and a compact peak with the mirror template below half of it",
-         "verdict": "detected" if verdict.detected else "not detected"},
-        {"method": f"CLEAN residuals ({residuals.method})",
-         "statistic": f"peak |R|/sigma in the disc (p_false = {det.p_false_alarm:.2g} over {det.n_beams:.0f} beams)",
-         "value": round(det.peak_snr, 2), "criterion": "p_false < 2.7e-3 detected, < 0.05 marginal",
-         "verdict": det.verdict},
-        {"method": "gap depth (CLEAN profile)",
-         "statistic": "delta = I_ring / I_gap" + (f" (gap at {gap.r_gap:.3f}\")" if gap.r_gap is not None else ""),
-         "value": round(gap.delta, 3), "criterion": "delta > 1.5 clear; 1 < delta <= 1.5 (> 3 sigma) marginal",
-         "verdict": gap.verdict},
-    ]
-
-
-def _format_table(rows: list[dict]) -> str:
-    keys = ("method", "verdict", "value", "statistic", "criterion")
-    widths = {k: max(len(k), *(len(str(r[k])) for r in rows)) for k in keys}
-    line = "  ".join(k.ljust(widths[k]) for k in keys)
-    body = ["  ".join(str(r[k]).ljust(widths[k]) for k in keys) for r in rows]
-    return "\n".join([line, "-" * len(line), *body]) + "\n"
-
-
-def run_compare_config(config: dict, *, progress: bool = True) -> CompareResult:
-    """The visibility scan and the image-space baselines on the same data (needs CASA).
-
-    Runs :func:`run_scan_config` (writing its usual outputs), then
-    :func:`spiralbayes.baselines.clean_residuals` and :func:`spiralbayes.baselines.gap_depth` on
-    the CLEAN image with the settings of ``[compare]``, and writes ``compare.png`` (the paper's
-    Fig. 7 layout), ``compare_verdicts.txt`` and ``compare_verdicts.json`` to ``[output] dir``;
-    CASA's files go to ``OUTPUT/casa``.
-    """
-    from ._casa import import_casa
-    from .baselines import clean_residuals, gap_depth
-    from .plotting.compare import plot_comparison
-
-    import_casa()  # fail before the scan if CASA is missing
-    c = config["compare"]
-    out_dir = Path(config["output"]["dir"])
-    timings = {}
-    t0 = time.perf_counter()
-    verdict, result, files = run_scan_config(config, progress=progress)
-    timings["scan_s"] = time.perf_counter() - t0
-    vis = load_data(config["data"])
-    axisym = AxisymmetricModel.load(out_dir / "axisymmetric.h5")
-    r_out = c["r_out"] or 1.1 * axisym.R_eff(0.99)
-    t1 = time.perf_counter()
-    residuals = clean_residuals(vis, axisym, out_dir / "casa", method=c["residuals"], r_out=r_out,
-                                imsize=c["imsize"] or None, cell=c["cell"] or None, threshold_sigma=c["threshold_sigma"],
-                                weighting=c["weighting"], robust=c["robust"], niter=c["niter"],
-                                deconvolver=c["deconvolver"], keep_files=c["keep_casa_files"])
-    timings["clean_s"] = time.perf_counter() - t1
-    gap = gap_depth(residuals.data, axisym.geometry, r_out)
-    table = compare_table(verdict, residuals, gap)
-    distance = config["geometry"]["distance"] or None
-    fig = plot_comparison(residuals, gap, result, verdict, axisym.geometry, distance=distance)
-    files.append(_save_figure(fig, out_dir / "compare.png", dpi=110))
-    files.append(_write_text(out_dir / "compare_verdicts.txt", _format_table(table)))
-    record = {"table": table, "timings": {**timings, "tclean": [residuals.data.timings, residuals.model.timings]},
-              "clean": {"beam_arcsec_deg": residuals.data.beam, "cell_arcsec": residuals.data.cell,
-                        "settings": residuals.data.settings, "iterations": [residuals.data.iterations,
-                                                                           residuals.model.iterations]},
-              "residual_detection": asdict(residuals.detection),
-              "gap": {k: v for k, v in asdict(gap).items() if k not in ("r", "profile", "profile_error")}}
-    files.append(_write_text(out_dir / "compare_verdicts.json", json.dumps(record, indent=2, default=json_default)))
-    return CompareResult(verdict, result, residuals, gap, table, files, timings)

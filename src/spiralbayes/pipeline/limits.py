@@ -1,0 +1,173 @@
+"""``spiralbayes limits`` and ``forecast``: exclusion limits, completeness and Table 3 from a scan; forecasts."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
+from ..config import describe_config
+from ..geometry import DiscGeometry
+from ..inference.scan import ScanResult, scan
+from ..simulate import DiscModel, simulate_observation
+from ..templates import make_template
+from .core import _write_text, load_data, load_templates, run_scan_config, save_figure
+
+__all__ = ["LimitsRun", "TAURUS_DEMO", "default_limits_config", "run_forecast", "run_limits", "run_limits_config",
+           "run_limits_demo"]
+
+log = logging.getLogger(__name__)
+
+TAURUS_DEMO = {"distance": 140.0, "tau0": 0.3, "beta": 10.0, "masses": (0.1, 0.3, 1.0, 3.0)}
+
+
+@dataclass
+class LimitsRun:
+    limits: object
+    completeness: list
+    table: str
+    files: list
+
+
+def _slug(text: str) -> str:
+    return "".join(c if c.isalnum() or c in ".-" else "_" for c in text).strip("_")
+
+
+def _matching_scan(path: Path, templates, r_p, n_phi_p: int):
+    """The scan saved at ``path`` when it holds exactly these templates and grid, else None."""
+    if not path.exists():
+        return None
+    saved = ScanResult.load(path)
+    same = ([t["name"] for t in saved.templates] == [t.name for t in templates]
+            and np.allclose(saved.r_p, r_p) and saved.phi_p.size == n_phi_p and np.all(saved.completed))
+    return saved if same else None
+
+
+def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict | None = None, name: str = "disc",
+               distance: float | None = None, progress: bool = True, plots: bool = True) -> LimitsRun:
+    """Exclusion limits, completeness (optional), Table 3 (Markdown, CSV), HDF5 and plots in ``out_dir``."""
+    from ..inference.completeness import completeness, injection_engine
+    from ..inference.limits import compute_limits
+    from ..inference.limits_table import table_csv, table_markdown
+    from ..plotting.limits import plot_completeness, plot_excluded_fraction, plot_mass_radius
+
+    lc = {**default_limits_config(), **(limits_config or {})}
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    limits = compute_limits(result, cl=lc["cl"], method=lc["method"], hand=lc["hand"],
+                            resolution=lc["resolution"] or None, vis=vis, axisymmetric=axisym,
+                            resolution_factor=lc["resolution_factor"], extent_fraction=lc["extent_fraction"],
+                            distance=distance, mstar=lc["mstar"], h_ref=lc["h_ref"] or None, r_ref=lc["r_ref"],
+                            flaring=lc["flaring"])
+    files = [limits.save(out_dir / "limits.h5")]
+    comps = []
+    if lc["completeness"]:
+        hands = list(lc["inject_hand"])
+        keep = [templates[i] for fam in limits.families for h in hands for i in fam.members.get(h, []) if i is not None]
+        engine = injection_engine(vis, axisym, templates, result, keep=keep, progress=progress)
+        for fam in limits.families:
+            if not all(h in fam.members for h in hands):
+                log.warning("family %s lacks hand(s) %s: no completeness for it", fam.label, hands)
+                continue
+            comp = completeness(vis, axisym, templates, result, family=fam, n_azimuths=lc["n_azimuths"], hands=hands,
+                                engine=engine, progress=progress)
+            comps.append(comp)
+            files.append(comp.save(out_dir / f"completeness_{_slug(fam.label)}.h5"))
+    thresholds = tuple(lc["thresholds"])
+    first = {c.family.label: c for c in comps}
+    table = table_markdown(limits, comps[0] if len(comps) == 1 else None, name=name, thresholds=thresholds)
+    if len(comps) > 1:
+        table += "\n" + "\n".join(f"Minimum detectable mass, {label}: 50 %: {_det(c, 0.5)}; 90 %: {_det(c, 0.9)}"
+                                  for label, c in first.items()) + "\n"
+    files.append(_write_text(out_dir / "table3.md", table))
+    files.append(_write_text(out_dir / "table3.csv", table_csv(limits, comps[0] if len(comps) == 1 else None,
+                                                                 name=name, thresholds=thresholds)))
+    files.append(_write_text(out_dir / "limits_summary.txt",
+                             "\n".join(limits.summary(f) for f in limits.families) + "\n"))
+    if plots:
+        for fam in limits.families:
+            slug = _slug(fam.label)
+            files.append(save_figure(plot_excluded_fraction(limits, fam), out_dir / f"excluded_fraction_{slug}.png"))
+            files.append(save_figure(plot_mass_radius(limits, fam, first.get(fam.label)),
+                                      out_dir / f"mass_radius_{slug}.png"))
+        for comp in comps:
+            files.append(save_figure(plot_completeness(comp), out_dir / f"completeness_{_slug(comp.family.label)}.png"))
+    return LimitsRun(limits, comps, table, files)
+
+
+def _det(comp, level) -> str:
+    m = comp.m_det(level)
+    return "none" if not np.isfinite(m).any() else f"{np.nanmin(m):.2g}-{np.nanmax(m):.2g} M_th"
+
+
+def default_limits_config() -> dict:
+    from ..config import default_config
+
+    return default_config()["limits"]
+
+
+def run_limits_config(config: dict, *, progress: bool = True) -> LimitsRun:
+    """``spiralbayes limits CONFIG``: reuse (or run) the scan of the configuration, then :func:`run_limits`.
+
+    The scan is ``OUTPUT/scan.h5`` when it holds the configuration's templates and grid (and the
+    axisymmetric model ``OUTPUT/axisymmetric.h5`` beside it); otherwise the scan is run first.
+    """
+    out_dir = Path(config["output"]["dir"])
+    templates = load_templates(config["templates"])
+    grid = config["grid"]
+    r_p = np.linspace(grid["r_p_min"], grid["r_p_max"], grid["n_r_p"])
+    result = _matching_scan(out_dir / "scan.h5", templates, r_p, grid["n_phi_p"])
+    if result is None or not (out_dir / "axisymmetric.h5").exists():
+        _, result, _ = run_scan_config(config, progress=progress)
+    vis = load_data(config["data"])
+    axisym = AxisymmetricModel.load(out_dir / "axisymmetric.h5")
+    _write_text(out_dir / "config_used_limits.toml", describe_config(config))
+    name = config["limits"]["name"] or Path(config["data"]["path"]).stem
+    return run_limits(vis, axisym, templates, result, out_dir, limits_config=config["limits"], name=name,
+                      distance=config["geometry"]["distance"], progress=progress, plots=config["output"]["plots"])
+
+
+def run_limits_demo(out_dir="spiralbayes-limits-demo", *, seed: int = 3, progress: bool = True) -> LimitsRun:
+    """Table 3 for a synthetic Taurus-comparison disc, in one call (``spiralbayes limits --demo``).
+
+    The Taurus set-up (C-6, 1.33 mm, 50 uJy/beam, 7 min) observes the paper's power-law disc
+    (10-110 au at 140 pc, optical depth 0.3 at 50 au) without a planet; frank fits it; the family
+    tau0 = 0.3, beta = 10 (masses 0.1-3 M_th, both hands, made for 1.33 mm) is scanned on the
+    paper's grid (25 radii, 0.02-0.5 arcsec, 90 azimuths); limits at 95 %, completeness from 8
+    azimuths per radius.
+    """
+    out_dir = Path(out_dir)
+    d = TAURUS_DEMO
+    geometry = DiscGeometry(30.0, 60.0)
+    disc = DiscModel(distance=d["distance"], tau_ref=d["tau0"])
+    vis = simulate_observation("taurus", disc, geometry, seed=seed)
+    axisym = fit_axisymmetric(vis, geometry, progress=progress)
+    templates = []
+    for mass in d["masses"]:
+        right = make_template(mass, d["tau0"], d["beta"], "R", wavelength=1.33e-3)
+        templates += [right, right.mirror()]
+    result = scan(vis, axisym, templates, geometry, r_p=np.linspace(0.02, 0.5, 25), distance=d["distance"],
+                  progress=progress)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = [result.save(out_dir / "scan.h5"), axisym.save(out_dir / "axisymmetric.h5")]
+    run = run_limits(vis, axisym, templates, result, out_dir, name="synthetic Taurus disc (no planet)",
+                     distance=d["distance"], progress=progress)
+    run.files[:0] = files
+    return run
+
+
+def run_forecast(args: dict) -> list:
+    """Forecasts for the command line: ``args`` holds preset(s), template parameters and r_p [au]."""
+    from ..inference.forecast import forecast
+
+    template = make_template(args["mass"], args["tau0"], args["beta"], args["hand"], wavelength=args["wavelength"])
+    disc = DiscModel(distance=args["distance"], tau_ref=args["disc_tau"] or args["tau0"])
+    geometry = DiscGeometry(args["inc"], args["pa"])
+    out = []
+    for preset in args["presets"]:
+        out.append(forecast(disc, template, args["r_au"] / args["distance"], preset, geometry=geometry,
+                            time_on_source=args["time"], sensitivity=args["sensitivity"]))
+    return out
