@@ -61,7 +61,7 @@ def main() -> None:
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     vis, axisym = observation()
-    templates = list(default_bank().select(tau0=3.0))
+    templates = list(default_bank().select(tau0=3.0, h_p=0.07))
     print(f"N_vis = {vis.n}, templates = {len(templates)}, grid = {R_P.size} r_p x {N_PHI} phi_p")
 
     with Clock() as t_scan:

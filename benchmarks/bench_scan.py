@@ -86,20 +86,15 @@ def _current_rss_mb() -> float:
 
 def h_p_bank(n: int):
     """The default bank's templates at three aspect ratios (H/r as a bank dimension)."""
-    from spiralbayes.templates import make_template
-
-    base = list(default_bank())[:n]
-    out = []
-    for h in H_P:
-        for t in base:
-            out.append(t if h == t.h_p else make_template(t.mass, t.tau0, t.beta, t.hand, h_p=h))
-    return out
+    bank = default_bank()  # since issue 9 it holds all three aspect ratios
+    base = list(bank.select(h_p=0.07))[:n]
+    return [bank.get(t.mass, t.tau0, t.beta, t.hand, h_p=h) for h in H_P for t in base]
 
 
 # --- cases ----------------------------------------------------------------------------------------
 def case_bank(args) -> dict:
     vis, axisym = observation()
-    bank = list(default_bank())[: args.templates]
+    bank = list(default_bank().select(h_p=0.07))[: args.templates]  # the paper's 64
     out = {"N_vis": vis.n, "templates": len(bank)}
     t0 = time.perf_counter()
     serial = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)

@@ -71,7 +71,17 @@ def test_quadrature_matches_converged_image(template):
 
 
 def test_planet_position_lands_where_geometry_says(template):
-    """The template's brightest point, placed at (r_p, phi_p), shows up there in the dirty image."""
+    """A compact bright spot of a template, placed at (r_p, phi_p), shows up there in the dirty image.
+
+    The spot (a Gaussian of 0.02 r_p at x = 1.2, φ = 30°) replaces the wake so that the brightest
+    point of the map is also the brightest after the beam (the wake's own maximum need not be).
+    """
+    from spiralbayes.templates import SpiralTemplate
+
+    X, P = np.meshgrid(template.x, template.phi, indexing="ij")
+    x0, p0 = 1.2, np.radians(30.0)
+    d2 = X**2 + x0**2 - 2 * X * x0 * np.cos(P - p0)
+    template = SpiralTemplate(x=template.x, phi=template.phi, delta=np.exp(-0.5 * d2 / 0.02**2))
     i, j = np.unravel_index(np.argmax(template.delta), template.delta.shape)
     geom = DiscGeometry(45.0, 30.0, 0.05, 0.02)
     r_p, phi_p = 0.3, np.radians(110.0)

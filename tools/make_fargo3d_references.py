@@ -44,7 +44,7 @@ import reference_common as rc  # noqa: E402
 HERE = Path(__file__).resolve().parent
 RUNS = {  # name: (mu = M_p/M_th, h_p, reference output or None for the last)
     "spiralref_mu1_h007": (1.0, 0.07, 8),
-    "spiralref_mu0.3_h007": (0.3, 0.07, None),
+    "spiralref_mu0.3_h007": (0.3, 0.07, 8),
 }
 OUTPUT_NOTES = {
     "spiralref_mu1_h007": "output 8 (40 orbits): the wake is steady from ~20 orbits (arm peak changes of "
@@ -52,6 +52,10 @@ OUTPUT_NOTES = {
                           "m ~ 3-5 pattern grows at the outer gap edge (x ~ 1.1-1.3) and makes the arm "
                           "amplitude fluctuate by ~10-30 %, so the map at 40 orbits is the reference and "
                           "the last output (60 orbits) is kept as dsigma_last",
+    "spiralref_mu0.3_h007": "output 8 (40 orbits): the run (Ntot = 1200, 60 orbits planned) was stopped "
+                            "after output 8 when the reference helper stopped, so 40 orbits is its last "
+                            "output; the same time as the 1 M_th reference, whose wake is steady from ~20 "
+                            "orbits (see its steadiness attribute; this run's is its own)",
 }
 FARGO3D_URL_DEFAULT = "/work/.mirror/FARGO3D+fargo3d/repo"   # or https://github.com/FARGO3D/fargo3d
 FARGO3D_COMMIT = "f359328107f0f3ec6a8e99e623582485276f6bff"
@@ -169,6 +173,11 @@ def reader_check(run: Path, n: int, tau0: float, x, phi, delta_ref, valid):
 
 
 def wall_time(runs_dir: Path, name: str):
+    """Wall time (s) and state of a run from the .start/.end epoch stamps in ``runs_dir/logs``.
+
+    A run with no ``.end`` stamp is "running" if its output directory changed in the last 10 min,
+    otherwise "stopped" (killed before Ntot), timed to the modification time of its last field.
+    """
     logs = runs_dir / "logs"
     try:
         start = int((logs / f"{name}.start").read_text())
@@ -177,7 +186,19 @@ def wall_time(runs_dir: Path, name: str):
     end_file = logs / f"{name}.end"
     if end_file.exists():
         return int(end_file.read_text()) - start, "finished"
-    return int(time.time()) - start, "running"
+    last = max((p.stat().st_mtime for p in (runs_dir / name).glob("gasdens*.dat")), default=time.time())
+    if time.time() - last < 600:
+        return int(time.time()) - start, "running"
+    return int(last) - start, "stopped before Ntot (timed to its last output)"
+
+
+def wall_time_to_output(runs_dir: Path, name: str, n: int):
+    """Seconds from the run's start stamp to the writing of output ``n`` (its gasdens file)."""
+    try:
+        start = int((runs_dir / "logs" / f"{name}.start").read_text())
+    except FileNotFoundError:
+        return None
+    return int((runs_dir / name / f"gasdens{n}.dat").stat().st_mtime) - start
 
 
 def main(argv=None):
@@ -258,6 +279,7 @@ def main(argv=None):
             "parameter_file": f"tools/fargo3d/{name}.par", "planet_file": f"tools/fargo3d/{name}.cfg",
             "output": int(n), "orbits": round(orbits, 2), "planet_r": planet["r"], "planet_phi": planet["phi"],
             "run_state": state, "wall_time_s": wall,
+            "wall_time_to_reference_output_s": wall_time_to_output(args.runs_dir, name, n),
             "valid_x_min": float(x[valid].min()), "valid_x_max": float(x[valid].max()),
             "outside_valid": "dsigma and delta set to 0 (damping zones / outside the run)",
             "steadiness": steady, "orientation_check": orient, "diagnostics": diag,

@@ -8,7 +8,7 @@ A notebook session needs only the names exported here::
     import spiralbayes as sb
     vis = sb.load_visibilities("disc.txt")
     disc = sb.fit_axisymmetric(vis, sb.DiscGeometry(inc=30, PA=60))
-    result = sb.scan(vis, disc, sb.default_bank().select(tau0=3, beta=10))
+    result = sb.scan(vis, disc, sb.default_bank().select(tau0=3, beta=10, h_p=0.07))
     print(sb.detect(result).summary())
 """
 

@@ -56,11 +56,12 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
     "templates": {
-        "bank": ("default", "'default' (the built-in 64-template wake bank, cached) or the path of a TemplateBank HDF5 file"),
+        "bank": ("default", "'default' (the built-in 192-template wake bank: the paper's 64 for H/r = 0.05, 0.07, 0.10; cached) or the path of a TemplateBank HDF5 file"),
         "mass": ([], "planet masses M_p/M_th to keep (empty: all)"),
         "tau0": ([], "initial optical depths at r_p to keep (empty: all)"),
         "beta": ([], "cooling times t_c Omega to keep (empty: all)"),
         "hand": ([], "'R' and/or 'L' (empty: both)"),
+        "h_p": ([], "disc aspect ratios H/r at r_p to keep (empty: all; the default bank has 0.05, 0.07, 0.10)"),
     },
     "grid": {
         "r_p_min": (0.02, "smallest planet radius [arcsec] (paper: 0.02)"),
@@ -226,7 +227,8 @@ CHECKS: dict[str, dict[str, object]] = {
     "frank": {"N": _zero_or_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
               "weights_smooth": _non_negative},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
-                  "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False)))},
+                  "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),
+                  "h_p": _each(_number(_positive))},
     "grid": {"r_p_min": _positive, "r_p_max": _positive, "n_r_p": _int_at_least(1), "n_phi_p": _even_positive},
     "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive,
              "quadrature": _choice("product", "midpoint"), "power_path": _choice("auto", "polar", "direct")},

@@ -30,8 +30,9 @@ def test_fast_completeness_equals_brute_force_rescans(bright_case):
     assert np.all(binomial_agreement(fast.probability, brute.probability, fast.n_trials))
     assert (fast.recovered == brute.recovered).mean() >= 0.9
     # 1 M_th planets are found at 0.45 arcsec, 0.3 M_th ones nowhere (their Δχ² ~ 10-40 < 6 ln N + 10);
-    # at 0.25 arcsec, inside C-4's ~0.3 arcsec beam, both hands fit alike and test 2 rejects them
-    assert fast.probability[1, 1] == 1.0 and fast.probability[1, 0] == 0.0 and fast.probability[0].max() == 0.0
+    # at 0.25 arcsec, inside C-4's ~0.3 arcsec beam, the hands are hard to tell apart and test 2
+    # rejects some (all with the version-1 templates, 1 of 3 azimuths since the issue-9 calibration)
+    assert fast.probability[1, 1] == 1.0 and fast.probability[1, 0] < 1.0 and fast.probability[0].max() == 0.0
     assert np.all(fast.delta_bic[0, 1] > 10)
 
 

@@ -17,7 +17,7 @@ def test_injected_planet_is_recovered(planet_scan):
     assert planet_scan.delta_bic()[0] > 10
     assert planet_scan.best(1)["delta_chi2"] < 0.2 * best["delta_chi2"]  # left hand clearly lower
     verdict = detect(planet_scan)
-    assert verdict.detected and verdict.template == "wake_m1_tau3_b10_R"
+    assert verdict.detected and verdict.template == "wake_m1_tau3_b10_h0.07_R"
     assert verdict.r_p_au == pytest.approx(50.0, abs=7)
     assert "detected" in verdict.summary()
 

@@ -67,7 +67,9 @@ def test_detection_probability_matches_noise_realisations(taurus_template):
 def test_time_scaling_and_its_limits(taurus_forecast, taurus_template):
     """Linear scaling at fixed uv coverage against a forecast whose tracks are rebuilt for the time."""
     t90 = taurus_forecast.time_for_probability(0.9)
-    assert t90 < taurus_forecast.time_on_source  # this planet is easy: P(7 min) ~ 1
+    # this planet is near the threshold: 90 % needs about the Taurus set-up's 7 min (7.4 min with
+    # the issue-9 templates, 5-7 before)
+    assert 0.5 * taurus_forecast.time_on_source < t90 < 2 * taurus_forecast.time_on_source
     assert taurus_forecast.probability(t90) == pytest.approx(0.9, abs=1e-4)
     longer = forecast(DISC, taurus_template, R_P, "taurus", geometry=GEOMETRY, n_phi=18, time_on_source=70.0)
     assert longer.n_data == 10 * taurus_forecast.n_data and longer.time_on_source == pytest.approx(70.0)

@@ -36,3 +36,10 @@ def test_plots_return_figures(small_bank):
     assert len(panels) == 4  # 2 masses × 2 τ0
     with pytest.raises(ValueError, match="no templates"):
         plot_bank_overview(small_bank, beta=3.0)
+    # a bank with several aspect ratios: one H/r per figure (0.07 by default)
+    mixed = TemplateBank(list(small_bank) + [make_template(1.0, 3.0, 10.0, "L", h_p=0.05, **TINY)])
+    fig = plot_bank_overview(mixed, beta=10.0, hand="L")
+    assert len([ax for ax in fig.axes if ax.collections and ax.get_label() != "<colorbar>"]) == 4
+    assert "0.07" in fig._suptitle.get_text()
+    fig = plot_bank_overview(mixed, beta=10.0, hand="L", h_p=0.05)
+    assert len([ax for ax in fig.axes if ax.collections and ax.get_label() != "<colorbar>"]) == 1

@@ -85,7 +85,14 @@ def test_load_rejects_other_files(tmp_path):
 
 def test_default_bank_builds_once_and_caches(tmp_path, monkeypatch):
     bank = default_bank(cache_dir=tmp_path, **TINY)
-    assert len(bank) == 64
+    assert len(bank) == 192  # the paper's 64 for each H/r in {0.05, 0.07, 0.10}
+    for h in (0.05, 0.07, 0.10):
+        sub = bank.select(h_p=h)
+        assert len(sub) == 64 and all(t.h_p == h for t in sub)
+        assert all(f"_h{h:.2f}_" in t.name for t in sub)
+    assert bank.get(1.0, 3.0, 10.0, "L", h_p=0.05).name == "wake_m1_tau3_b10_h0.05_L"
+    with pytest.raises(LookupError, match="3 templates match"):
+        bank.get(1.0, 3.0, 10.0, "L")
     files = list(tmp_path.glob("bank-*.h5"))
     assert len(files) == 1
 
@@ -97,8 +104,10 @@ def test_default_bank_builds_once_and_caches(tmp_path, monkeypatch):
     assert again.names == bank.names
     np.testing.assert_array_equal(again[5].delta, bank[5].delta)
     monkeypatch.undo()
-    # a changed generator setting gets its own cache file
-    default_bank(cache_dir=tmp_path, **{**TINY, "n_phi": 180})
+    # a changed generator setting or set of aspect ratios gets its own cache file
+    default_bank(cache_dir=tmp_path, h_ps=(0.07,), **{**TINY, "n_phi": 180})
+    assert len(list(tmp_path.glob("bank-*.h5"))) == 2
+    assert len(default_bank(cache_dir=tmp_path, h_ps=(0.07,), **{**TINY, "n_phi": 180})) == 64
     assert len(list(tmp_path.glob("bank-*.h5"))) == 2
 
 
@@ -113,6 +122,27 @@ def test_default_cache_dir_env(monkeypatch, tmp_path):
 def test_corrupt_cache_is_rebuilt(tmp_path):
     key = wake_mod.WakeSettings(**TINY).key()
     (tmp_path / f"bank-{key}.h5").write_bytes(b"not hdf5")
-    bank = default_bank(cache_dir=tmp_path, **TINY)
+    bank = default_bank(cache_dir=tmp_path, h_ps=(0.07,), **TINY)
     assert len(bank) == 64
     assert TemplateBank.load(tmp_path / f"bank-{key}.h5").names == bank.names
+
+
+def test_aspect_ratio_is_carried_by_names_metadata_and_mirror_matching(tmp_path):
+    from spiralbayes.inference.detection import mirror_index
+    from spiralbayes.templates.template import template_metadata
+
+    ts = [make_template(1.0, 3.0, 10.0, hand, h_p=h, store_brightness=False, **TINY)
+          for h in (0.05, 0.10) for hand in "RL"]
+    bank = TemplateBank.load(TemplateBank(ts).save(tmp_path / "b.h5"))
+    assert bank.names == ["wake_m1_tau3_b10_h0.05_R", "wake_m1_tau3_b10_h0.05_L",
+                          "wake_m1_tau3_b10_h0.10_R", "wake_m1_tau3_b10_h0.10_L"]
+    assert [t.h_p for t in bank] == [0.05, 0.05, 0.10, 0.10]
+    assert bank[2].mirror().name == bank[3].name
+    meta = [template_metadata(t) for t in bank]
+    assert [m["h_p"] for m in meta] == [0.05, 0.05, 0.10, 0.10]
+    # each template's mirror is the other hand at the same H/r, not the same hand elsewhere
+    from types import SimpleNamespace
+
+    result = SimpleNamespace(templates=meta)
+    assert [mirror_index(result, i) for i in range(4)] == [1, 0, 3, 2]
+    assert len(bank.select(h_p=[0.05, 0.07])) == 2 and len(bank.select(h_p=0.07)) == 0

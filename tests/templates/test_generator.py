@@ -46,12 +46,16 @@ def test_isothermal_thick_disc_suppressed_like_linear_theory():
         assert ratio == pytest.approx(factor, rel=0.05), tau0
 
 
-def test_paper_grid_has_64_templates():
+def test_paper_grid_has_64_templates_per_aspect_ratio():
     grid = paper_grid(n_x=24, n_phi=90, n_eta=256)
     assert len(grid) == 64
     assert len({t.name for t in grid}) == 64
     assert {t.hand for t in grid} == {"R", "L"}
     assert all(t.delta.dtype == np.float32 and t.delta.shape == (24, 90) for t in grid)
+    two = paper_grid(masses=(1.0,), taus=(3.0,), betas=(0.0,), h_ps=(0.05, 0.10), n_x=24, n_phi=90, n_eta=256)
+    assert [t.name for t in two] == ["wake_m1_tau3_b0_h0.05_R", "wake_m1_tau3_b0_h0.05_L",
+                                     "wake_m1_tau3_b0_h0.10_R", "wake_m1_tau3_b0_h0.10_L"]
+    assert [t.h_p for t in two] == [0.05, 0.05, 0.10, 0.10]
 
 
 @pytest.mark.parametrize(
@@ -71,11 +75,6 @@ def test_make_template_bad_inputs(args, kwargs, match):
         make_template(*args, **{**SMALL, **kwargs})
 
 
-def test_wakeflow_backend_is_optional():
-    try:
-        import wakeflow  # noqa: F401
-    except ImportError:
-        with pytest.raises(ImportError, match="wakeflow"):
-            make_template(1.0, 1.0, 0.0, backend="wakeflow", **SMALL)
-    else:  # pragma: no cover
-        pytest.skip("wakeflow installed")
+def test_wakeflow_backend_was_removed_with_a_pointer():
+    with pytest.raises(ValueError, match="template_from_perturbation"):
+        make_template(1.0, 1.0, 0.0, backend="wakeflow", **SMALL)

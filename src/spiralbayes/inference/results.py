@@ -275,10 +275,10 @@ class PosteriorResult:
                 f"(+{s['A']['hi'] - s['A']['median']:.2f} -{s['A']['median'] - s['A']['lo']:.2f})")
 
     def marginals(self) -> dict:
-        """``P(value | data, planet)`` of each value of hand, mass, beta and tau0 (summed over templates)."""
+        """``P(value | data, planet)`` of each value of hand, mass, beta, tau0 and h_p (summed over templates)."""
         probs = self.template_probabilities
         out: dict = {}
-        for key in ("hand", "mass", "beta", "tau0"):
+        for key in ("hand", "mass", "beta", "tau0", "h_p"):
             table: dict = {}
             for r in self.runs:
                 value = r.metadata.get(key)

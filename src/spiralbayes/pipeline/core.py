@@ -78,13 +78,13 @@ class ScanRun:
     files: list
 
 
-def select_templates(bank, mass=(), tau0=(), beta=(), hand=()):
+def select_templates(bank, mass=(), tau0=(), beta=(), hand=(), h_p=()):
     """The templates of ``bank`` matching every non-empty criterion (lists of allowed values)."""
     chosen = bank.select(mass=list(mass) or None, tau0=list(tau0) or None, beta=list(beta) or None,
-                         hand=list(hand) or None)
+                         hand=list(hand) or None, h_p=list(h_p) or None)
     if not len(chosen):
         raise InputError(f"no template matches mass={list(mass)}, tau0={list(tau0)}, beta={list(beta)}, "
-                         f"hand={list(hand)}; the bank has {bank.names}")
+                         f"hand={list(hand)}, h_p={list(h_p)}; the bank has {bank.names}")
     return list(chosen)
 
 
@@ -147,6 +147,10 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
     inclination 30 deg and PA 60 deg. The scan uses the masses given, tau0 = 3 and
     beta = 10, both hands, on the paper's grid (25 radii from 0.02 to 0.5 arcsec, 90 azimuths).
     With ``alternatives`` the competing asymmetry models are fitted too (test 3).
+
+    The templates are the default bank's at H/r = 0.07 (``wake_m{M}_tau3_b10_h0.07_{R,L}``); the
+    full default bank also spans H/r = 0.05 and 0.10 (192 templates). The wake generator is
+    calibrated against wakeflow and FARGO3D reference maps (docs/templates.md).
     """
     out_dir = Path(out_dir)
     timings = {}
@@ -210,7 +214,8 @@ def load_data(data: dict, geometry: DiscGeometry | None = None):
 def load_templates(templates: dict) -> list:
     """The templates chosen by the ``[templates]`` section of a configuration."""
     bank = default_bank() if templates["bank"] == "default" else TemplateBank.load(templates["bank"])
-    return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"])
+    return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"],
+                            templates.get("h_p", ()))
 
 
 def _geometry(config: dict) -> DiscGeometry:

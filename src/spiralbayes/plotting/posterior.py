@@ -175,12 +175,13 @@ def plot_hypotheses(result, *, top: int = 12):
 
 
 def plot_template_probabilities(result, *, top: int = 20):
-    """Bar chart of ``P(T | data, planet)`` (the ``top`` templates) and the marginals over hand, mass, beta, tau0."""
+    """Bar chart of ``P(T | data, planet)`` (the ``top`` templates) and the marginals over hand, mass, beta,
+    tau0 and H/r (``h_p``)."""
     probs = result.template_probabilities
     names = sorted(probs, key=probs.get, reverse=True)[:top]
     marg = result.marginals()
-    fig = _figure(figsize=(11, 4))
-    gs = fig.add_gridspec(1, 5, width_ratios=[3, 1, 1, 1, 1])
+    fig = _figure(figsize=(12.5, 4))
+    gs = fig.add_gridspec(1, 6, width_ratios=[3, 1, 1, 1, 1, 1])
     ax = fig.add_subplot(gs[0])
     modes = {r.name: r.mode for r in result.runs}
     colors = ["tab:blue" if modes[n] == "mcmc" else "tab:gray" for n in names]
@@ -191,7 +192,7 @@ def plot_template_probabilities(result, *, top: int = 20):
     ax.set_ylim(0, 1)
     p = getattr(result, "p_planet", float("nan"))
     ax.set_title(f"templates (grey: Laplace only); P(planet | data) = {p:.3g}", fontsize=9)
-    for k, key in enumerate(("hand", "mass", "beta", "tau0"), start=1):
+    for k, key in enumerate(("hand", "mass", "beta", "tau0", "h_p"), start=1):
         sub = fig.add_subplot(gs[k])
         table = marg.get(key, {})
         labels = [f"{v:g}" if isinstance(v, (int, float)) else str(v) for v in table]

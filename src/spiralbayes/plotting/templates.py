@@ -94,10 +94,10 @@ def plot_template(template: SpiralTemplate, *, rmax: float | None = None, vmax: 
     return fig
 
 
-def plot_bank_overview(bank: TemplateBank, *, beta: float = 0.0, hand: str = "R",
+def plot_bank_overview(bank: TemplateBank, *, beta: float = 0.0, hand: str = "R", h_p: float | None = None,
                        rmax: float | None = None, vmax: float | None = None, cmap: str = "RdBu_r",
                        panel_size: float = 2.6) -> Figure:
-    """Residual maps of a bank's templates on a mass × τ0 grid for one β and hand.
+    """Residual maps of a bank's templates on a mass × τ0 grid for one β, hand and H/r.
 
     Parameters
     ----------
@@ -107,6 +107,8 @@ def plot_bank_overview(bank: TemplateBank, *, beta: float = 0.0, hand: str = "R"
         Cooling time shown.
     hand : {'R', 'L'}
         Handedness shown.
+    h_p : float, optional
+        Disc aspect ratio shown (default: 0.07 if the bank has it, else its first).
     rmax : float, optional
         Outer radius [r_p].
     vmax : float, optional
@@ -117,9 +119,12 @@ def plot_bank_overview(bank: TemplateBank, *, beta: float = 0.0, hand: str = "R"
     matplotlib.figure.Figure
         Rows: masses (increasing downwards); columns: τ0 (increasing to the right).
     """
-    sub = bank.select(beta=beta, hand=hand)
+    if h_p is None:
+        have = sorted({float(t.h_p) for t in bank})
+        h_p = 0.07 if any(np.isclose(h, 0.07) for h in have) else (have[0] if have else None)
+    sub = bank.select(beta=beta, hand=hand, h_p=h_p)
     if len(sub) == 0:
-        raise InputError(f"the bank has no templates with beta={beta}, hand={hand!r}")
+        raise InputError(f"the bank has no templates with beta={beta}, hand={hand!r}, h_p={h_p}")
     params = sub.parameters
     masses = np.unique(params["mass"])
     taus = np.unique(params["tau0"])
@@ -148,5 +153,5 @@ def plot_bank_overview(bank: TemplateBank, *, beta: float = 0.0, hand: str = "R"
                 ax.set_ylabel(rf"$M_p$ = {m:g} $M_{{th}}$")
     if mesh is not None:
         fig.colorbar(mesh, ax=axes, label=r"$\delta$", shrink=0.6)
-    fig.suptitle(rf"templates, $\beta$ = {beta:g}, hand {hand}")
+    fig.suptitle(rf"templates, $\beta$ = {beta:g}, hand {hand}, $H/r$ = {h_p:g}")
     return fig

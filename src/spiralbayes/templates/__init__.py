@@ -7,7 +7,7 @@ planet at φ = 0, hand R = anticlockwise orbit with trailing arms).
 
 * :class:`SpiralTemplate` — one map with its metadata; mirror, evaluate, resample.
 * :class:`TemplateBank` — many templates in one HDF5 file; :func:`default_bank` caches the
-  paper's 64-template grid made by :func:`paper_grid`.
+  paper's 64-template grid made by :func:`paper_grid` for H/r ∈ {0.05, 0.07, 0.10} (192).
 * :func:`make_template` — the built-in semi-analytic generator (:mod:`.wake`).
 * :func:`read_fargo3d`, :func:`read_fits_template` — bring your own simulations.
 """

@@ -9,11 +9,13 @@ HDF5 layout (``format_version`` 1)::
                                   provenance (JSON)
 
 δ is stored as float32 (7 significant digits, far below the physics' accuracy), which keeps the
-paper's 64-template bank at 320 × 720 cells to 59 MB in memory and on disk.
+paper's 64-template grid at 320 × 720 cells to 59 MB in memory and on disk (177 MB for the
+default bank's three aspect ratios).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import os
@@ -30,7 +32,7 @@ from .generator import paper_grid
 from .template import SpiralTemplate, validate_hand
 from .wake import WakeSettings
 
-__all__ = ["TemplateBank", "default_bank", "default_cache_dir"]
+__all__ = ["DEFAULT_H_PS", "TemplateBank", "default_bank", "default_cache_dir"]
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +111,7 @@ class TemplateBank(Sequence):
         return int(sum(t.delta.nbytes for t in self._templates))
 
     # ----------------------------------------------------------------- selection
-    def select(self, *, mass=None, tau0=None, beta=None, hand=None, rtol: float = 1e-6) -> "TemplateBank":
+    def select(self, *, mass=None, tau0=None, beta=None, hand=None, h_p=None, rtol: float = 1e-6) -> "TemplateBank":
         """Sub-bank of templates matching every given criterion.
 
         Each criterion is a scalar or a list of accepted values; floats compare with relative
@@ -127,17 +129,19 @@ class TemplateBank(Sequence):
         out = [
             t for t in self._templates
             if accepted(t.mass, mass) and accepted(t.tau0, tau0) and accepted(t.beta, beta)
-            and (hands is None or t.hand in hands)
+            and accepted(t.h_p, h_p) and (hands is None or t.hand in hands)
         ]
         return TemplateBank(out, self.provenance)
 
-    def get(self, mass: float, tau0: float, beta: float, hand: str = "R") -> SpiralTemplate:
-        """The single template with these parameters (``LookupError`` if none or several)."""
-        sub = self.select(mass=mass, tau0=tau0, beta=beta, hand=hand)
+    def get(self, mass: float, tau0: float, beta: float, hand: str = "R", h_p: float | None = None) -> SpiralTemplate:
+        """The single template with these parameters (``LookupError`` if none or several; give
+        ``h_p`` when the bank holds several aspect ratios)."""
+        sub = self.select(mass=mass, tau0=tau0, beta=beta, hand=hand, h_p=h_p)
         if len(sub) != 1:
+            p = self.parameters
             raise LookupError(
-                f"{len(sub)} templates match mass={mass}, tau0={tau0}, beta={beta}, hand={hand!r}; "
-                f"available: {sorted(set(zip(self.parameters['mass'], self.parameters['tau0'])))}"
+                f"{len(sub)} templates match mass={mass}, tau0={tau0}, beta={beta}, hand={hand!r}, h_p={h_p}; "
+                f"available (mass, tau0, h_p): {sorted(set(zip(p['mass'], p['tau0'], p['h_p'])))}"
             )
         return sub[0]
 
@@ -195,14 +199,21 @@ def default_cache_dir() -> Path:
     return base / "spiralbayes"
 
 
-def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = False,
-                 progress: bool = False, **options) -> TemplateBank:
-    """The paper's 64-template bank from the built-in generator, cached on disk.
+DEFAULT_H_PS = (0.05, 0.07, 0.10)
+"""Disc aspect ratios ``H/r`` at r_p of the default bank (the paper fixes 0.07; 0.05 and 0.10
+bracket the discs surveyed, and planets in discs thinner or thicker than the template are missed
+or mis-located: see docs/templates.md)."""
 
-    Built on first use with :func:`~spiralbayes.templates.generator.paper_grid` (a few seconds) and
+
+def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = False,
+                 progress: bool = False, h_ps: Sequence[float] = DEFAULT_H_PS, **options) -> TemplateBank:
+    """The default wake bank: the paper's 64-template grid for each ``H/r`` in ``h_ps``
+    (default {0.05, 0.07, 0.10}: 192 templates), from the built-in generator, cached on disk.
+
+    Built on first use with :func:`~spiralbayes.templates.generator.paper_grid` (seconds) and
     stored as ``bank-<key>.h5`` in ``cache_dir`` (default :func:`default_cache_dir`), where ``key`` hashes
-    the generator settings and version, so a changed generator rebuilds. Loading a cached bank
-    takes well under a second.
+    the generator settings, version and ``h_ps``, so a changed generator rebuilds. Loading a cached
+    bank takes well under a second. Select one aspect ratio with ``bank.select(h_p=0.07)``.
 
     Parameters
     ----------
@@ -212,29 +223,44 @@ def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = Fal
         Rebuild even if a cached copy exists.
     progress : bool
         Show a progress bar while building.
+    h_ps : sequence of float
+        Disc aspect ratios ``H/r`` at r_p.
     **options
-        :class:`~spiralbayes.templates.wake.WakeSettings` fields (e.g. ``n_phi``, ``wavelength``).
+        Other :class:`~spiralbayes.templates.wake.WakeSettings` fields (e.g. ``n_phi``, ``wavelength``).
     """
-    settings = WakeSettings(**options)
-    key = settings.key()
+    if "h_p" in options:
+        h_ps = (options.pop("h_p"),)
+    h_ps = tuple(float(h) for h in np.atleast_1d(h_ps))
+    settings = WakeSettings(h_p=h_ps[0], **options)
+    key = _bank_key(settings, h_ps)
+    n_expected = 64 * len(h_ps)
     folder = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
     path = folder / f"bank-{key}.h5"
     if path.exists() and not rebuild:
         try:
             bank = TemplateBank.load(path)
-            if bank.provenance.get("generator_key") == key and len(bank) == 64:
+            if bank.provenance.get("generator_key") == key and len(bank) == n_expected:
                 log.debug("loaded cached template bank %s", path)
                 return bank
             log.warning("cached bank %s does not match the generator; rebuilding", path)
         except (ValueError, OSError, KeyError) as exc:
             log.warning("cached bank %s unreadable (%s); rebuilding", path, exc)
     t0 = time.perf_counter()
-    templates = paper_grid(progress=progress, **options)
+    templates = paper_grid(h_ps=h_ps, progress=progress, **options)
     bank = TemplateBank(templates, {"generator_key": key, "generator_settings": settings.to_dict(),
+                                    "h_ps": list(h_ps),
                                     "generator": "spiralbayes.templates.generator.paper_grid"})
-    log.info("built the default template bank in %.1f s", time.perf_counter() - t0)
+    log.info("built the default template bank (%d templates) in %.1f s", len(bank), time.perf_counter() - t0)
     try:
         bank.save(path)
     except OSError as exc:  # read-only cache: still return the bank
         log.warning("could not cache the template bank at %s (%s)", path, exc)
     return bank
+
+
+def _bank_key(settings: WakeSettings, h_ps: tuple) -> str:
+    """Cache key: the generator settings' key (with the first H/r) and every H/r of the bank."""
+    if len(h_ps) == 1:
+        return settings.key()
+    blob = settings.key() + json.dumps([round(h, 12) for h in h_ps])
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]

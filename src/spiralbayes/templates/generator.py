@@ -3,8 +3,12 @@
 :func:`make_template` turns the wake map of :mod:`.wake` (δΣ/Σ and the temperature response)
 into a brightness residual with the S22 radiative transfer
 (:func:`~spiralbayes.templates.radiative.template_from_perturbation`); :func:`paper_grid` makes
-the 64 templates of Stevenson et al. (2024). An experimental ``backend="wakeflow"`` takes δΣ/Σ
-from the optional wakeflow package instead.
+the 64 templates of Stevenson et al. (2024) for each disc aspect ratio.
+
+There is no wakeflow backend: wakeflow 1.4.0 runs only with several workarounds and takes 20–130 s
+per model (see ``tools/make_wakeflow_references.py``, which uses it to make the reference maps the
+generator is calibrated against, docs/templates.md). To use a wakeflow map as a template, compute
+δΣ/Σ with wakeflow and pass it to :func:`~spiralbayes.templates.radiative.template_from_perturbation`.
 """
 
 from __future__ import annotations
@@ -72,9 +76,8 @@ def make_template(
         Grid size (log-spaced radii, uniform azimuths; keep ``n_phi`` a multiple of 90).
     x_range : (float, float)
         Radial extent ``(x_min, x_max)`` in ``r/r_p``.
-    backend : {'builtin', 'wakeflow'}
-        'wakeflow' takes δΣ/Σ from the optional ``wakeflow`` package (experimental; see
-        :func:`_wakeflow_perturbation`).
+    backend : {'builtin'}
+        Only the built-in generator (the wakeflow backend was removed: see the module docstring).
     store_brightness : bool
         Keep the normalised intensity map (for plots).
     **options
@@ -102,9 +105,10 @@ def _make_from_settings(mass, tau0, beta, hand, st: WakeSettings, backend="built
     if backend == "builtin":
         dsig = surface_density_perturbation(mass, beta, st)
     elif backend == "wakeflow":
-        dsig = _wakeflow_perturbation(mass, st, x, phi)
+        raise InputError("backend='wakeflow' was removed: compute δΣ/Σ with wakeflow (as "
+                         "tools/make_wakeflow_references.py does) and pass it to template_from_perturbation")
     else:
-        raise InputError(f"unknown backend {backend!r}: use 'builtin' or 'wakeflow'")
+        raise InputError(f"unknown backend {backend!r}: use 'builtin'")
     sig_ax = x**-st.sigma_slope * (gap_profile(x, mass, st) if st.gap else 1.0)
     tfac = None
     if beta > 0:
@@ -121,89 +125,35 @@ def _make_from_settings(mass, tau0, beta, hand, st: WakeSettings, backend="built
         x, phi, dsig, tau0, temperature_factor=tfac, sigma_axisym=sig_ax, hand="R", mass=mass,
         beta=beta, h_p=st.h_p, flaring=st.flaring, sigma_slope=st.sigma_slope,
         wavelength=st.wavelength, mstar=st.mstar, r_p_au=st.r_p_au, mu=st.mu,
-        name=template_name(mass, tau0, beta, "R"), provenance=prov, store_brightness=store_brightness,
+        name=template_name(mass, tau0, beta, "R", h_p=st.h_p), provenance=prov, store_brightness=store_brightness,
     )
     return tmpl if hand == "R" else tmpl.mirror()
 
 
 def paper_grid(
-    masses=PAPER_MASSES, taus=PAPER_TAUS, betas=PAPER_BETAS, hands=("R", "L"),
+    masses=PAPER_MASSES, taus=PAPER_TAUS, betas=PAPER_BETAS, hands=("R", "L"), h_ps=None,
     *, store_brightness: bool = False, progress: bool = False, **options,
 ) -> list[SpiralTemplate]:
     """The paper's template grid: ``M_p/M_th ∈ {0.1, 0.3, 1, 3} × τ0 ∈ {0.1, 0.3, 1, 3} ×
-    β ∈ {0, 10} × {R, L}`` = 64 templates (Stevenson et al. 2024, sec. 2.3).
+    β ∈ {0, 10} × {R, L}`` = 64 templates (Stevenson et al. 2024, sec. 2.3) for each disc aspect
+    ratio in ``h_ps`` (default: ``options["h_p"]``, else 0.07 as in the paper).
 
-    ``options`` go to :class:`WakeSettings` (e.g. ``n_x``, ``n_phi``, ``h_p``). Ordered by mass,
+    ``options`` go to :class:`WakeSettings` (e.g. ``n_x``, ``n_phi``). Ordered by H/r, then mass,
     then τ0, then β, then hand.
     """
-    st = WakeSettings(**options)
-    combos = [(m, t, b, h) for m in masses for t in taus for b in betas for h in hands]
+    if h_ps is None:
+        h_ps = (options.pop("h_p", WakeSettings.h_p),)
+    elif "h_p" in options:
+        raise InputError("paper_grid: give the aspect ratios as h_ps=..., not h_p=")
+    settings = [WakeSettings(h_p=float(hp), **options) for hp in h_ps]
+    combos = [(st, m, t, b, h) for st in settings for m in masses for t in taus for b in betas for h in hands]
     it = combos
     if progress:
         from tqdm.auto import tqdm
 
         it = tqdm(combos, desc="templates", unit="tmpl")
     out = []
-    for m, t, b, h in it:
+    for st, m, t, b, h in it:
         out.append(_make_from_settings(float(m), float(t), float(b), validate_hand(h), st,
                                        store_brightness=store_brightness))
     return out
-
-
-# ---------------------------------------------------------------------------- wakeflow backend
-def _wakeflow_perturbation(mass: float, st: WakeSettings, x, phi) -> np.ndarray:  # pragma: no cover
-    """δΣ/Σ from wakeflow (Hilder et al. 2023), interpolated onto ``(x, phi)``. Experimental.
-
-    Requires ``pip install wakeflow`` (not a dependency; see DESIGN.md for its NumPy-2
-    workarounds). wakeflow's mass unit differs (``M_1 = (2/3) h³ M_*``), so the planet mass is
-    passed in Jupiter masses. If wakeflow's interface has changed, compute δΣ/Σ with it directly
-    and call :func:`template_from_perturbation`.
-    """
-    try:
-        import wakeflow  # noqa: F401
-        from wakeflow import WakeflowModel
-    except ImportError as exc:
-        raise ImportError(
-            "backend='wakeflow' needs the optional package wakeflow (pip install wakeflow); "
-            "use backend='builtin' otherwise"
-        ) from exc
-    import glob
-    import os
-    import tempfile
-
-    from ..units import thermal_mass
-
-    m_jup = mass * thermal_mass(st.r_p_au, st.mstar, h_ref=st.h_p, r_ref=st.r_p_au,
-                                flaring=st.flaring, unit="Mjup")
-    cwd = os.getcwd()
-    with tempfile.TemporaryDirectory() as tmp:
-        try:
-            os.chdir(tmp)
-            model = WakeflowModel()
-            model.configure(
-                name="spiralbayes", system="spiralbayes", m_star=st.mstar, m_planet=m_jup,
-                r_outer=st.x_max * st.r_p_au, r_inner=st.x_min * st.r_p_au, r_planet=st.r_p_au,
-                r_ref=st.r_p_au, q=st.q, p=st.sigma_slope, hr=st.h_p, cw_rotation=False,
-                grid_type="cylindrical", n_r=st.n_x, n_phi=st.n_phi, r_log=True,
-                make_midplane_plots=False, show_midplane_plots=False, dimensionless=True,
-            )
-            model.run(overwrite=True)
-            files = sorted(glob.glob(os.path.join(tmp, "**", "*delta*rho*.npy"), recursive=True))
-            if not files:
-                raise RuntimeError("no delta_rho .npy output found")
-            drho = np.load(files[0])
-        except Exception as exc:
-            raise RuntimeError(
-                f"wakeflow {getattr(wakeflow, '__version__', '?')} run failed or its output layout "
-                f"was not recognised ({exc}); compute δΣ/Σ with wakeflow yourself and pass it to "
-                "template_from_perturbation, or use backend='builtin'"
-            ) from exc
-        finally:
-            os.chdir(cwd)
-    drho = np.squeeze(drho)
-    if drho.shape != (x.size, phi.size):
-        if drho.shape == (phi.size, x.size):
-            drho = drho.T
-        else:
-            raise RuntimeError(f"wakeflow returned shape {drho.shape}, expected ({x.size}, {phi.size})")
-    return np.nan_to_num(drho)  # dimensionless wakeflow output: δρ/ρ0

@@ -62,9 +62,14 @@ def check_tau0(tau0) -> None:
         raise InputError(f"tau0 (initial optical depth at r_p) must be positive, got {tau0!r}")
 
 
-def template_name(mass: float, tau0: float, beta: float, hand: str, prefix: str = "wake") -> str:
-    """Canonical template name, e.g. ``wake_m1_tau0.3_b10_R``."""
-    return f"{prefix}_m{mass:g}_tau{tau0:g}_b{beta:g}_{hand}"
+def template_name(mass: float, tau0: float, beta: float, hand: str, prefix: str = "wake",
+                  h_p: float | None = None) -> str:
+    """Canonical template name, e.g. ``wake_m1_tau0.3_b10_h0.07_R`` (``h_p`` given: the disc
+    aspect ratio at r_p, two decimals when that is exact) or ``wake_m1_tau0.3_b10_h0.07_R``."""
+    h = ""
+    if h_p is not None and np.isfinite(h_p):
+        h = f"_h{h_p:.2f}" if abs(h_p - round(h_p, 2)) < 1e-12 else f"_h{h_p:g}"
+    return f"{prefix}_m{mass:g}_tau{tau0:g}_b{beta:g}{h}_{hand}"
 
 
 @dataclass(eq=False)

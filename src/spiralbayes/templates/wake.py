@@ -24,20 +24,48 @@ speed ``c_s ∝ r^{-q}`` with ``q = 1/2 − f``; ``Σ ∝ r^{-p}``; rotation ant
    ``χ0 = (γ_B + 1) β_p Λ(η) / 2^{3/4}`` with ``β_p = M_p/M_1 = 1.5 M_p/M_th``
    (``M_1 = (2/3) h_p³ M_*``, Goodman & Rafikov 2001). ``γ_B = 1`` for β = 0 and the adiabatic
    γ_eff at ``|1 − x^{3/2}| = 1/2`` otherwise. Λ, the linear wake profile for ``M_p = M_1``, is
-   modelled as a zero-mean pulse: a positive Gaussian (width ``profile_width`` ≈ 0.8 in η, about
-   one scale height; peak ``profile_amp``, calibrated so that a 1 M_th planet gives
-   ``δΣ/Σ ≈ 0.3–0.5`` at 0.5–2 r_p, as in hydro runs) with a trailing negative lobe of equal area.
+   modelled as a zero-mean pulse: a positive Gaussian (peak ``profile_amp`` = 0.4, width
+   ``profile_width`` = 0.95 in η) and a *broad* negative lobe of equal area (width 11.5 × 0.95 in
+   η, i.e. ≈ 0.5 rad at h_p = 0.07, centred 0.5 × 0.95 behind the peak), then made exactly
+   zero-mean on the η period. **Calibrated (issue 9)** against all 11 reference maps
+   (``tests/data/references/wakeflow_isothermal.h5``: wakeflow 1.4.0, H/r 0.05–0.10 × 0.1–1 M_th;
+   ``fargo3d_isothermal.h5``: our FARGO3D runs, H/r 0.07 × 0.3 and 1 M_th), each for τ0 = 0.3
+   and 3: the four numbers maximise the mean over the 22 δ maps of the beam-smoothed (0.061″ at
+   140 pc) image-plane recovery ``(2⟨S,T⟩ − ⟨T,T⟩)/⟨S,S⟩`` (capped at 1), by Nelder–Mead from a
+   first fit to wakeflow alone; mean 0.81 over the wakeflow maps and 0.61 over FARGO3D's (version
+   1: 0.21 and −0.41). The version-1 pulse's narrow trailing lobe (1.5 × 0.8 wide at −2.5 × 0.8)
+   cancelled the arm inside one beam; wakeflow's negative part is a shallow background spread
+   over the annulus. Within ``near_planet`` = 4/3 H_p of the planet (= 2l, where the Burgers
+   solve starts) the amplitude factor ``1/g`` is held at its value there instead of falling to 0
+   at r_p (g → ∞): wakeflow's linear box holds 6× the version-1 smoothed power at 0.9–1.1 r_p;
+   0.5, 0.8, 4/3, 2 and 3 H_p were tried (mean wakeflow recovery 0.74, 0.75, 0.77, 0.78, 0.78
+   with the first pulse fit; FARGO3D's 1 M_th case falls beyond 4/3). Pure Burgers decay is kept:
+   Cimerman & Rafikov (2021) find it over-damps far from the planet, but at x = 1.5–2 the
+   generator's peak δΣ/Σ already equals wakeflow's (within 5 %, h0.05–0.10 × 0.1–1 M_th) and
+   exceeds FARGO3D's (by 15–60 %, h0.07 × 0.3 and 1 M_th), so no slower decay was fitted.
    Solved numerically (MUSCL–Godunov, second order, periodic in η), so shocks form and the wave
    decays as an N-wave, ``δΣ/Σ ∝ β_p^{1/2} t^{-1/2}``; the shock front moves ahead of the linear
    ridge by ``∝ √(β_p t)``, which opens the spiral with mass. (Cimerman & Rafikov 2021 note that
    pure Burgers decay over-damps far from the planet.)
 4. **Inner secondary arm** (Miranda & Rafikov 2019; Bae & Zhu 2018; separation from Fung & Dong
-   2015, ``φ_sep ≈ 102° (q_p/10⁻³)^{0.2}``): a copy of the primary inner arm behind it by φ_sep,
+   2015, ``φ_sep ≈ 102° (q_p/10⁻³)^{0.2}``): a copy of the primary inner arm at ``φ_wake + φ_sep``
+   (towards +φ for hand R, further along the winding: our FARGO3D run
+   ``fargo3d_isothermal.h5:h0.07_mu1`` has its secondary arm 78–86° from the primary at
+   x = 0.4–0.55, where Fung & Dong give 82°; version 1 put the copy at ``φ_wake − φ_sep``),
    switched on below ``x ≈ 0.75`` and fully on by ``x = 0.5``, for ``M_p ≳ M_th`` (weight rising
    from 0 at 0.3 M_th to 1 at 1 M_th). No outer secondary arm (Miranda & Rafikov 2019).
+   **Off by default since issue 9** (``secondary=False``): against that FARGO3D run (40 orbits)
+   the copy, on either side, changes the beam-smoothed recovery little (τ0 = 0.3: 0.36 without,
+   0.33 with it at +φ_sep, 0.31 at −φ_sep; τ0 = 3: 0.54 in all three), FARGO3D's secondary arm
+   being twice the primary's amplitude at x ≈ 0.5 where the copy has the primary's, and
+   wakeflow has no secondary arm (its mean recovery drops from 0.81 to 0.79 with the copy).
 5. **Gap** (Kanagawa et al. 2016, PASJ 68, 43; 2015 ApJL 806 L15): depth
    ``Σ_min/Σ_0 = 1/(1 + 0.04 K)``, ``K = q_p² h_p⁻⁵ α⁻¹``, full width
-   ``Δ = 0.41 r_p (q_p² h_p⁻³ α⁻¹)^{1/4}``, with α = 10⁻³ by default; shape
+   ``Δ = 0.41 r_p (q_p² h_p⁻³ α⁻¹)^{1/4}``, with α = 10⁻² by default (**calibrated, issue 9**:
+   the gap of ``fargo3d_isothermal.h5:h0.07_mu1`` after 40 orbits has Σ_min/Σ_0 = 0.78 at
+   x = 1.11, which α = 10⁻² gives, 0.78; α = 10⁻³, the version-1 default, gives 0.26 — the
+   equilibrium of a much older disc — and cut the τ0 = 3, 1 M_th recovery against FARGO3D from
+   0.51 to 0.03; the run's own ν is α = 2 × 10⁻⁴, so this α is an effective "gap age"); shape
    ``1 − (1 − depth) 2^{−(|x − 1|/(Δ/2))⁴}``. The gap enters through the optical depth only
    (δ is relative to the azimuthal mean).
 6. **Brightness** (S22; :mod:`.radiative`): ``T = T_0(r) (Σ/Σ_0)^{(γ−1) f_β}`` (linearised:
@@ -84,7 +112,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 """Bumped whenever the generator's output changes (it invalidates cached banks)."""
 
 PAPER_MASSES = (0.1, 0.3, 1.0, 3.0)
@@ -112,7 +140,8 @@ class WakeSettings:
     gamma : float
         Adiabatic index (1.4).
     alpha : float
-        Shakura–Sunyaev viscosity for the gap depth/width (Kanagawa et al. 2016); 1e-3.
+        Shakura–Sunyaev viscosity for the gap depth/width (Kanagawa et al. 2016); 1e-2, calibrated
+        to the gap of the FARGO3D reference ``h0.07_mu1`` at 40 orbits (module docstring, step 5).
     mstar : float
         Stellar mass [M_sun] for the temperature scale (0.8).
     r_p_au : float
@@ -128,11 +157,18 @@ class WakeSettings:
         Radial extent in ``r/r_p`` (edges of the first and last cells); the paper's truncated
         domain is 0.2–2.2.
     profile_amp, profile_width : float
-        Peak and Gaussian width (in η) of the linear wake profile Λ for ``M_p = M_1`` (calibrated).
+        Peak (0.4) and Gaussian width in η (0.95) of the linear wake profile Λ for ``M_p = M_1``.
+    lobe_offset, lobe_width : float
+        Centre (−0.5) and width (11.5) of Λ's negative lobe, in units of ``profile_width``. All four
+        calibrated against the reference maps (module docstring, step 3).
+    near_planet : float
+        Within this many ``H_p`` of the planet the wake amplitude is held at its value there
+        (4/3: the start of the Burgers solve; calibrated against wakeflow, step 3).
     m_eff_factor : float
         ``m_eff h_p`` in the cooling frequency ``ω = m_eff |Ω − Ω_p|`` (0.5–1; default 0.5).
     secondary, gap, nonlinear : bool
-        Include the inner secondary arm / the gap / Burgers evolution (False: linear profile).
+        Include the inner secondary arm (default False, see step 4) / the gap / Burgers evolution
+        (False: linear profile).
     n_eta : int
         Points of the periodic Burgers grid in η (length ``3π/h_p``).
     cfl : float
@@ -143,7 +179,7 @@ class WakeSettings:
     flaring: float = 0.25
     sigma_slope: float = 1.0
     gamma: float = 1.4
-    alpha: float = 1e-3
+    alpha: float = 1e-2
     mstar: float = 0.8
     r_p_au: float = 50.0
     mu: float = 2.34
@@ -152,10 +188,13 @@ class WakeSettings:
     n_phi: int = 720
     x_min: float = 0.2
     x_max: float = 2.2
-    profile_amp: float = 0.5
-    profile_width: float = 0.8
+    profile_amp: float = 0.4
+    profile_width: float = 0.95
+    lobe_offset: float = -0.5
+    lobe_width: float = 11.5
     m_eff_factor: float = 0.5
-    secondary: bool = True
+    near_planet: float = 4.0 / 3.0
+    secondary: bool = False
     gap: bool = True
     nonlinear: bool = True
     n_eta: int = 2048
@@ -177,7 +216,9 @@ class WakeSettings:
             "x_max": self.x_max > 1,
             "profile_amp": self.profile_amp >= 0,
             "profile_width": self.profile_width > 0,
+            "lobe_width": self.lobe_width > 0,
             "m_eff_factor": self.m_eff_factor > 0,
+            "near_planet": self.near_planet >= 0,
             "n_eta": int(self.n_eta) >= 64,
             "cfl": 0 < self.cfl <= 1,
         }
@@ -342,18 +383,22 @@ def gap_profile(x, mass: float, settings: WakeSettings | None = None) -> np.ndar
     return 1.0 - (1.0 - depth) * 2.0 ** (-((np.abs(x - 1.0) / (0.5 * width)) ** 4))
 
 
-def linear_profile(eta, amp: float = 0.5, width: float = 0.8) -> np.ndarray:
+def linear_profile(eta, amp: float = 0.5, width: float = 0.8, lobe_offset: float = -2.5,
+                   lobe_width: float = 1.5) -> np.ndarray:
     """Model of the linear wake profile Λ(η) for ``M_p = M_1`` (zero mean).
 
     A positive Gaussian of peak ``amp`` and width ``width`` centred on η = 0 (the linear ridge)
-    plus a trailing negative lobe (Gaussian of width ``1.5 width`` centred at ``−2.5 width``) of
-    equal area, after the shape of the linear solutions of Goodman & Rafikov (2001, Fig. 1) and
-    Rafikov (2002). Positive η is the side the wave propagates towards (where the shock forms).
+    plus a negative lobe (Gaussian of width ``lobe_width · width`` centred at
+    ``lobe_offset · width``) of equal area, after the shape of the linear solutions of Goodman &
+    Rafikov (2001, Fig. 1) and Rafikov (2002). Positive η is the side the wave propagates towards
+    (where the shock forms). The defaults of :class:`WakeSettings` (0.4, 0.95, −0.5, 11.5) are
+    calibrated against the reference maps (module docstring, step 3); these arguments' defaults are the
+    version-1 shape.
     """
     eta = np.asarray(eta, dtype=float)
-    w2 = 1.5 * width
+    w2 = lobe_width * width
     pos = np.exp(-0.5 * (eta / width) ** 2)
-    neg = (width / w2) * np.exp(-0.5 * ((eta + 2.5 * width) / w2) ** 2)
+    neg = (width / w2) * np.exp(-0.5 * ((eta - lobe_offset * width) / w2) ** 2)
     return amp * (pos - neg)
 
 
@@ -401,6 +446,10 @@ def _primary_and_secondary(x, phi, mass, beta, st: WakeSettings) -> np.ndarray:
     phi_w = wake_phase(x, beta, st)
     t = wave_time(x, beta, st)
     g = g_factor(x, beta, st)
+    if st.near_planet > 0:  # hold the amplitude within near_planet H_p of the planet (step 3)
+        d = st.near_planet * h
+        g_in, g_out = g_factor(np.array([1.0 - d, 1.0 + d]), beta, st)
+        g = np.where(np.abs(x - 1.0) < d, np.where(x < 1.0, g_in, g_out), g)
     dx_start = 4.0 / 3.0 * h  # 2 l, l = (2/3) H_p (Bollati et al. 2021)
     t0_in, t0_out = wave_time(np.array([1.0 - dx_start, 1.0 + dx_start]), beta, st)
     t0 = np.where(x < 1.0, t0_in, t0_out)
@@ -410,7 +459,9 @@ def _primary_and_secondary(x, phi, mass, beta, st: WakeSettings) -> np.ndarray:
     n_eta = st.n_eta
     d_eta = L / n_eta
     eta = -0.5 * L + d_eta * np.arange(n_eta)
-    chi0 = (gamma_B + 1.0) * beta_p * linear_profile(eta, st.profile_amp, st.profile_width) / 2.0**0.75
+    lam = linear_profile(eta, st.profile_amp, st.profile_width, st.lobe_offset, st.lobe_width)
+    lam -= lam.mean()  # zero mean on the period, also when a wide lobe is cut by it
+    chi0 = (gamma_B + 1.0) * beta_p * lam / 2.0**0.75
     chi = solve_burgers(chi0, d_eta, tau, st.cfl)  # row i ↔ radius i
     side = np.where(x < 1.0, -1.0, 1.0)
     scale = 2.0 / ((gamma_B + 1.0) * g)
@@ -431,5 +482,5 @@ def _primary_and_secondary(x, phi, mass, beta, st: WakeSettings) -> np.ndarray:
             if sel.size:
                 qp = mass * h**3
                 phi_sep = np.radians(102.0) * (qp / 1e-3) ** 0.2  # Fung & Dong (2015)
-                dsig[sel] += (w_mass * w_x[sel])[:, None] * primary(phi + phi_sep, sel)
+                dsig[sel] += (w_mass * w_x[sel])[:, None] * primary(phi - phi_sep, sel)
     return dsig
