@@ -128,8 +128,9 @@ def test_planet_behind_false_peak_with_frank_refit(planet_templates):
         warnings.simplefilter("ignore")
         axisym = fit_axisymmetric(vis, GEOMETRY, progress=False)
         result, alternatives, verdict = verdict_for(vis, axisym, pair)
-        assert not verdict.detected and verdict.best_alternative == "geometry"
-        assert verdict.candidate["r_p"] == pytest.approx(R_P_TRUE, abs=0.02)
+        assert not verdict.detected and verdict.best_alternative == "geometry" and verdict.test3_passed is False
+        if verdict.candidate is not None:  # version-1 templates: the false peak failed test 2 (see above)
+            assert verdict.candidate["r_p"] == pytest.approx(R_P_TRUE, abs=0.02)
         follow = rescan_at_fitted_geometry(vis, axisym, pair, alternatives, previous_scan=result)
     assert follow.verdict.detected and follow.verdict.test3_passed
     assert follow.verdict.r_p == pytest.approx(R_P_TRUE, abs=0.02)
