@@ -228,12 +228,23 @@ def sample_image_dft(image, pixel_size, u, v, geometry=None, *, PA=0.0, dRA=0.0,
     iy, ix = np.nonzero(keep)
     lk, mk, flux = l[ix] * ARCSEC, m[iy] * ARCSEC, image[keep]
     ur, vr = geometry.rotate_uv(u, v)
-    out = np.empty(ur.size, dtype=complex)
-    for start in range(0, ur.size, chunk):
+    return point_sources_dft(ur, vr, lk, mk, flux, chunk=chunk) * geometry.phase_factor(u, v)
+
+
+def point_sources_dft(u, v, x, y, flux, *, chunk: int = 2048) -> np.ndarray:
+    """Plain NumPy direct sum ``sum_k flux_k exp(2 pi i (u x_k + v y_k))`` over point sources.
+
+    ``u``, ``v`` [wavelengths] and ``x``, ``y`` [rad] in any one frame; evaluated ``chunk``
+    baselines at a time to bound memory. The reference every direct-sum check builds on.
+    """
+    u = np.asarray(u, dtype=float)
+    v = np.asarray(v, dtype=float)
+    out = np.empty(u.size, dtype=complex)
+    for start in range(0, u.size, chunk):
         sl = slice(start, start + chunk)
-        phase = 2 * np.pi * (np.outer(ur[sl], lk) + np.outer(vr[sl], mk))
+        phase = 2 * np.pi * (np.outer(u[sl], x) + np.outer(v[sl], y))
         out[sl] = np.exp(1j * phase) @ flux
-    return out * geometry.phase_factor(u, v)
+    return out
 
 
 def sample_image_fft_bilinear(image, pixel_size, u, v, geometry=None, *, PA=0.0, dRA=0.0, dDec=0.0,

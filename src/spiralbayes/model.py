@@ -32,7 +32,7 @@ from typing import Callable
 import numpy as np
 
 from .exceptions import InputError
-from .fourier import NUFFT_EPSILON, image_axes
+from .fourier import NUFFT_EPSILON, image_axes, point_sources_dft
 from .geometry import DiscGeometry
 from .quadrature import ProductQuadrature, TemplateSpectrum, make_product_quadrature
 from .units import ARCSEC
@@ -313,11 +313,7 @@ def perturbation_visibilities_dft(u, v, geometry: DiscGeometry, profile: Profile
     v = np.asarray(v, dtype=float)
     flux, pos = _placed_cells(u, v, profile, template, r_p, phi_p, quad, cell_factor, rule)
     xi, eta = geometry.disc_frame_uv(u, v)
-    out = np.empty(u.size, dtype=complex)
-    for start in range(0, u.size, chunk):
-        sl = slice(start, start + chunk)
-        phase = 2 * np.pi * (np.outer(xi[sl], pos[:, 0]) + np.outer(eta[sl], pos[:, 1]))
-        out[sl] = np.exp(1j * phase) @ flux
+    out = point_sources_dft(xi, eta, pos[:, 0], pos[:, 1], flux, chunk=chunk)
     return geometry.cos_inc * geometry.phase_factor(u, v) * out
 
 

@@ -32,6 +32,7 @@ from functools import cached_property
 import numpy as np
 
 from ..exceptions import InputError
+from ..fourier import point_sources_dft
 from ..geometry import DiscGeometry
 from ..units import ARCSEC
 
@@ -179,9 +180,5 @@ def field_visibilities_dft(field, grid: DiscGrid, u, v, geometry: DiscGeometry, 
     flux = (np.asarray(field, dtype=float) * grid.cell_area[:, None]).ravel()
     pos = grid.positions
     xi, eta = geometry.disc_frame_uv(u, v)
-    out = np.empty(u.size, dtype=complex)
-    for start in range(0, u.size, chunk):
-        sl = slice(start, start + chunk)
-        phase = 2 * np.pi * (np.outer(xi[sl], pos[:, 0]) + np.outer(eta[sl], pos[:, 1]))
-        out[sl] = np.exp(1j * phase) @ flux
+    out = point_sources_dft(xi, eta, pos[:, 0], pos[:, 1], flux, chunk=chunk)
     return geometry.cos_inc * geometry.phase_factor(u, v) * out

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -99,8 +100,9 @@ class ChainStore:
                 f"chain file {self.path} (group {self.group!r}) was written for different inputs (differ in {diff}): "
                 "delete it or choose another run_name to start afresh")
 
-    def write(self, state: ChainState) -> None:
-        """Replace the group with ``state`` (the whole file is rewritten through a temporary copy)."""
+    @contextmanager
+    def _rewrite(self):
+        """The file open for editing as a temporary copy that replaces it on success (kill-safe)."""
         import h5py
 
         with atomic_path(self.path) as tmp:
@@ -109,22 +111,20 @@ class ChainStore:
             with h5py.File(tmp, "a") as f:
                 f.attrs["kind"] = CHAIN_KIND
                 f.attrs["format_version"] = FORMAT_VERSION
-                if self.group in f:
-                    del f[self.group]
-                _write_group(f.create_group(self.group), state)
+                yield f
+
+    def write(self, state: ChainState) -> None:
+        """Replace the group with ``state`` (the whole file is rewritten through a temporary copy)."""
+        with self._rewrite() as f:
+            if self.group in f:
+                del f[self.group]
+            _write_group(f.create_group(self.group), state)
 
     def write_root(self, **items) -> None:
         """JSON attributes of the file's root (the run's summary)."""
-        import h5py
-
-        with atomic_path(self.path) as tmp:
-            if self.path.exists():
-                shutil.copyfile(self.path, tmp)
-            with h5py.File(tmp, "a") as f:
-                f.attrs["kind"] = CHAIN_KIND
-                f.attrs["format_version"] = FORMAT_VERSION
-                for key, value in items.items():
-                    f.attrs[key] = json.dumps(value, default=json_default)
+        with self._rewrite() as f:
+            for key, value in items.items():
+                f.attrs[key] = json.dumps(value, default=json_default)
 
 
 def _write_group(g, s: ChainState) -> None:
