@@ -15,9 +15,9 @@ import json
 from pathlib import Path
 
 from ._provenance import FORMAT_VERSION, atomic_path
-from .exceptions import DataFileError, MissingFileError, SpiralbayesError
+from .exceptions import DataFileError, InputError, MissingFileError, SpiralbayesError
 
-__all__ = ["checked_dataset", "open_file", "read_kind", "require_file", "write_file"]
+__all__ = ["checked_dataset", "open_file", "read_kind", "refuse_other_kind", "require_file", "write_file"]
 
 
 def require_file(path, what: str, hint: str = "") -> Path:
@@ -48,10 +48,32 @@ def write_file(path, kind: str):
     """Yield an open, writable ``h5py.File`` tagged ``kind``; it replaces ``path`` only on success."""
     import h5py
 
+    refuse_other_kind(path, kind)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs["kind"] = kind
         f.attrs["format_version"] = FORMAT_VERSION
         yield f
+
+
+def refuse_other_kind(path, kind: str) -> None:
+    """Raise :class:`~spiralbayes.exceptions.InputError` if ``path`` holds another kind of spiralbayes result.
+
+    No command overwrites a result of another kind (a chain file written onto ``scan.h5`` lost the
+    scan). Files that are not spiralbayes HDF5 results (no ``kind``) are not judged here.
+    """
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        return
+    try:
+        with h5py.File(path, "r") as f:
+            found = read_kind(f)
+    except OSError:  # not HDF5, or damaged: the writer replaces it as before
+        return
+    if found and found != kind:
+        raise InputError(f"{path} holds another kind of result ({found}), refusing to overwrite it with a "
+                         f"{kind}: choose another output name or folder, or delete the file")
 
 
 @contextlib.contextmanager

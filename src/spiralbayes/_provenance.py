@@ -22,7 +22,7 @@ import numpy as np
 
 from ._version import __version__
 
-__all__ = ["atomic_path", "content_hash", "provenance_record", "data_hash", "json_default", "json_safe", "to_json",
+__all__ = ["atomic_path", "check_output_name", "content_hash", "provenance_record", "data_hash", "json_default", "json_safe", "to_json",
            "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
@@ -50,6 +50,30 @@ def atomic_path(path):
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
+
+
+def check_output_name(name, what: str) -> str:
+    """``name`` if it is a plain file name stem that stays inside its output folder, else InputError.
+
+    Refused: empty names, path separators (``/``, and ``\\`` for Windows users), ``..`` or a
+    leading ``.`` (hidden files and parent folders), NUL and other control characters.
+
+    Parameters
+    ----------
+    name : str
+        The configurable name (e.g. ``[sample] run_name``).
+    what : str
+        The option, for the message.
+    """
+    from .exceptions import InputError
+
+    text = str(name)
+    bad = (not text.strip() or "/" in text or "\\" in text or text.startswith(".") or ".." in text
+           or any(ord(c) < 32 for c in text))
+    if bad:
+        raise InputError(f"{what} = {text!r} must be a plain name (letters, digits, '_', '-'; no '/', '\\', '..' "
+                         "or leading '.'): outputs stay inside the output folder")
+    return text
 
 
 def _umask() -> int:

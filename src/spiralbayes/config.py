@@ -181,6 +181,16 @@ def _even_positive(v):
     return None if v >= 2 and v % 2 == 0 else "must be a positive, even integer (the paper uses 90: 4 deg steps)"
 
 
+def _plain_name(v):
+    from ._provenance import check_output_name
+
+    try:
+        check_output_name(v, "name")
+    except ValueError:
+        return "must be a plain name (no '/', '\\', '..' or leading '.'): outputs stay inside [output] dir"
+    return None
+
+
 def _inclination(v):
     return None if math.isfinite(v) and 0 <= v < 90 else "must be an inclination in degrees in [0, 90)"
 
@@ -234,7 +244,7 @@ CHECKS: dict[str, dict[str, object]] = {
              "quadrature": _choice("product", "midpoint"), "power_path": _choice("auto", "polar", "direct")},
     "alternatives": {"models": _each(_string(_choice(*ALTERNATIVE_MODELS))), "threshold": _finite,
                      "n_starts": _int_at_least(1)},
-    "sample": {"n_walkers": _int_at_least(2), "n_steps": _int_at_least(0), "max_steps": _int_at_least(1),
+    "sample": {"run_name": _plain_name, "n_walkers": _int_at_least(2), "n_steps": _int_at_least(0), "max_steps": _int_at_least(1),
                "check_every": _int_at_least(1), "convergence": _choice("raise", "warn", "ignore"),
                "min_ess": _positive, "processes": _int_at_least(1), "seed": _int_at_least(0),
                "prune_delta_lnL": _positive, "evidence_draws": _int_at_least(1),

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._hdf5 import refuse_other_kind
 from .._provenance import FORMAT_VERSION, atomic_path, json_default
 from ..exceptions import DataFileError, ResumeMismatchError
 
@@ -66,6 +67,7 @@ class ChainStore:
 
         if not self.path.exists():
             return None
+        refuse_other_kind(self.path, CHAIN_KIND)
         try:
             f = h5py.File(self.path, "r")
         except OSError:
@@ -105,6 +107,7 @@ class ChainStore:
         """The file open for editing as a temporary copy that replaces it on success (kill-safe)."""
         import h5py
 
+        refuse_other_kind(self.path, CHAIN_KIND)
         with atomic_path(self.path) as tmp:
             if self.path.exists():
                 shutil.copyfile(self.path, tmp)

@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._provenance import data_hash, provenance_record
+from .._provenance import check_output_name, data_hash, provenance_record
 from .._version import __version__
 from ..axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
 from ..axisymmetric.gp import ProfilePrior
@@ -378,7 +378,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
     if prior_t.shape != (len(templates),) or np.any(prior_t <= 0):
         raise InputError("template_prior must hold one positive probability per template")
     prior_t = prior_t / prior_t.sum()
-    chain_path = Path(chains_dir) / f"{run_name}.h5"
+    chain_path = Path(chains_dir) / f"{check_output_name(run_name, 'run_name')}.h5"
     chain_path.parent.mkdir(parents=True, exist_ok=True)
     selected = _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL)
     likelihood_kwargs = dict(likelihood_kwargs or {})

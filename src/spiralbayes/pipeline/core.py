@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._provenance import atomic_path, to_json
+from .._provenance import atomic_path, check_output_name, to_json
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..config import describe_config
 from ..exceptions import InputError
@@ -324,7 +324,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     out_dir = Path(config["output"]["dir"])
     out_dir.mkdir(parents=True, exist_ok=True)
     s = config["sample"]
-    run_name = s["run_name"]
+    run_name = check_output_name(s["run_name"], "sample.run_name")
     vis = load_data(config["data"], _geometry(config))
     scanned = out_dir / "axisymmetric.h5"
     if not config["frank"]["model"] and scanned.exists():
@@ -373,6 +373,7 @@ def run_axisym(vis: Visibilities, out_dir, geometry: DiscGeometry | None = None,
         Passed to :func:`fit_axisymmetric`.
     """
     out_dir = Path(out_dir)
+    check_output_name(prefix, "prefix")
     out_dir.mkdir(parents=True, exist_ok=True)
     model = fit_axisymmetric(vis, geometry, **fit_kwargs)
     written = [model.save(out_dir / f"{prefix}_model.h5")]
