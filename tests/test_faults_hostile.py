@@ -13,16 +13,22 @@ alternative; command-line papercuts. The data are the small synthetic observatio
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from spiralbayes.exceptions import ConfigError, DataWarning, InputError
+from spiralbayes._provenance import data_hash
+from spiralbayes.exceptions import ConfigError, DataWarning, InputError, ResumeMismatchError
+from spiralbayes.inference.scan import ScanResult
+from spiralbayes.io import load_visibilities
+from spiralbayes.io.data_checks import MIN_SEARCH_VISIBILITIES
 
-from .test_faults import GRID, _config, setup  # noqa: F401  (the module's fixture)
+from .test_faults import GEOMETRY, GRID, _config, setup  # noqa: F401  (the module's fixture)
 
 
 def _hashes(*roots) -> dict:
@@ -85,3 +91,200 @@ def test_no_writer_overwrites_a_result_of_another_kind(setup, tmp_path):
     with Unchanged(tmp_path), pytest.raises(InputError, match="holds another kind of result"):
         setup.model.save(scan_file)
     assert setup.result.save(scan_file) == scan_file  # the same kind is replaced as before
+
+
+# --- 2. stale intermediate files are reused only when made from the same inputs -----------------
+def _fitted(model, vis):
+    """``model`` as if frank had fitted it to ``vis`` (the data hash a fit records)."""
+    return dataclasses.replace(model, provenance={**model.provenance,
+                                                  "data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights)})
+
+
+def _other(vis):
+    return vis.with_weights(vis.weights * 1.01, "other data")
+
+
+def test_scan_api_refuses_a_model_fitted_to_other_data(setup):
+    from spiralbayes.inference.scan import scan
+
+    stale = _fitted(setup.model, _other(setup.vis))
+    with pytest.raises(InputError, match="was fitted to other data .*allow_other_data=True"):
+        scan(setup.vis, stale, setup.templates[:1], progress=False, **GRID)
+    ok = scan(setup.vis, _fitted(setup.model, setup.vis), setup.templates[:1], progress=False, **GRID)
+    forced = scan(setup.vis, stale, setup.templates[:1], progress=False, allow_other_data=True, **GRID)
+    np.testing.assert_array_equal(ok.cross, forced.cross)  # the check decides nothing else
+
+
+def _sample_config(tmp_path, setup, out, **sections):
+    sections.setdefault("frank", "")  # no [frank] model: OUTPUT/axisymmetric.h5 or a fit
+    return _config(tmp_path / "c.toml", setup, out, geometry="inc = 30.0\nPA = 60.0", **sections)
+
+
+def test_sample_refuses_an_axisymmetric_model_left_by_a_run_on_other_data(setup, tmp_path):
+    from spiralbayes.config import load_config
+    from spiralbayes.pipeline import run_sample_config
+
+    out = tmp_path / "out"
+    _fitted(setup.model, _other(setup.vis)).save(out / "axisymmetric.h5")
+    cfg = _sample_config(tmp_path, setup, out)
+    with Unchanged(out, *_inputs(setup)), pytest.raises(ResumeMismatchError, match=r"axisymmetric.h5 was fitted for "
+                                                         r"other inputs — the data \(hash"):
+        run_sample_config(load_config(cfg), progress=False)
+
+
+def test_sample_refuses_a_scan_of_other_data_or_geometry(setup, tmp_path):
+    from spiralbayes.config import load_config
+    from spiralbayes.pipeline import run_sample_config
+
+    out = tmp_path / "out"
+    _fitted(setup.model, setup.vis).save(out / "axisymmetric.h5")
+    key = setup.result.provenance["resume_key"]
+    dataclasses.replace(setup.result, provenance={**setup.result.provenance, "data_hash": "0" * 16,
+                                                  "resume_key": {**key, "data": "0" * 16}}).save(out / "scan.h5")
+    cfg = _sample_config(tmp_path, setup, out)
+    with Unchanged(out, *_inputs(setup)), pytest.raises(ResumeMismatchError, match=r"scan.h5 was computed for other "
+                                                         r"inputs — the data"):
+        run_sample_config(load_config(cfg), progress=False)
+    dataclasses.replace(setup.result, geometry=GEOMETRY.replace(inc=31.0)).save(out / "scan.h5")
+    with Unchanged(out), pytest.raises(ResumeMismatchError, match=r"geometry \(inc: 31.0 -> 30.0\)"):
+        run_sample_config(load_config(cfg), progress=False)
+
+
+def test_limits_refuses_a_scan_of_other_data_or_templates_instead_of_relabelling_or_rescanning(setup, tmp_path,
+                                                                                             monkeypatch):
+    import spiralbayes.pipeline.limits as limits_module
+    from spiralbayes.config import load_config
+
+    monkeypatch.setattr(limits_module, "run_scan_config", lambda *a, **k: pytest.fail("must not rescan"))
+    out = tmp_path / "out"
+    _fitted(setup.model, setup.vis).save(out / "axisymmetric.h5")
+    key = setup.result.provenance["resume_key"]
+    dataclasses.replace(setup.result, provenance={**setup.result.provenance,
+                                                  "resume_key": {**key, "data": "0" * 16}}).save(out / "scan.h5")
+    cfg = _sample_config(tmp_path, setup, out)
+    with Unchanged(out, *_inputs(setup)), pytest.raises(ResumeMismatchError, match="scan.h5 was computed for other "
+                                                         "inputs — the data"):
+        limits_module.run_limits_config(load_config(cfg), progress=False)
+    setup.result.save(out / "scan.h5")
+    cfg = _sample_config(tmp_path, setup, out, templates=f'bank = "{setup.files.bank}"\nmass = [0.3]')
+    with Unchanged(out), pytest.raises(ResumeMismatchError, match=r"the templates \(names\)"):
+        limits_module.run_limits_config(load_config(cfg), progress=False)
+
+
+def test_force_resume_records_the_checkpoints_geometry_not_the_requested_one(setup, tmp_path):
+    from spiralbayes.inference.scan import scan
+
+    checkpoint = tmp_path / "checkpoint.h5"
+    checkpoint.write_bytes(setup.checkpoint.read_bytes())  # complete, at inc = 30
+    forced = scan(setup.vis, setup.model, setup.templates, GEOMETRY.replace(inc=31.0), checkpoint=checkpoint,
+                  progress=False, force_resume=True, **GRID)
+    record = forced.provenance["forced_resume"]
+    assert forced.geometry.inc == 30.0 and record["requested"]["geometry"]["inc"] == 31.0
+    assert forced.provenance["resume_key"] == setup.result.provenance["resume_key"]
+    assert record["templates_from_checkpoint"] == [t.name for t in setup.templates]
+    np.testing.assert_array_equal(forced.cross, setup.result.cross)
+
+
+def test_cli_force_resume_says_so_in_config_used(setup, tmp_path):
+    from spiralbayes.cli import main
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "scan_checkpoint.h5").write_bytes(setup.checkpoint.read_bytes())
+    cfg = _config(tmp_path / "c.toml", setup, out, alternatives="fit = false",
+                  frank=f'model = "{setup.model.save(tmp_path / "m.h5")}"\nalpha = 1.3')
+    refit = dataclasses.replace(setup.model, hyperparameters={**setup.model.hyperparameters, "alpha": 1.3})
+    cfg = _config(tmp_path / "c.toml", setup, out, alternatives="fit = false",
+                  frank=f'model = "{refit.save(tmp_path / "refit.h5")}"')
+    assert main(["-q", "scan", "--force-resume", str(cfg)]) == 0
+    assert (out / "config_used.toml").read_text().startswith("# FORCED RESUME (--force-resume)")
+    assert ScanResult.load(out / "scan.h5").provenance["forced_resume"]["differences"]
+
+
+# --- 3. nonsense data -----------------------------------------------------------------------------
+def _table(path: Path, vis, rows=None) -> Path:
+    """A uvtable of ``vis`` written with numpy (5 columns, %.10g)."""
+    table = np.column_stack([vis.u, vis.v, vis.V.real, vis.V.imag, vis.weights])
+    np.savetxt(path, table if rows is None else table[rows], fmt="%.10g", header="wavelength[m] = 1.3e-3")
+    return path
+
+
+def test_exactly_duplicated_rows_warn_with_the_count_and_the_fix(setup, tmp_path):
+    path = _table(tmp_path / "twice.txt", setup.vis, np.r_[np.arange(setup.vis.n), np.arange(setup.vis.n)])
+    with Unchanged(tmp_path), pytest.warns(DataWarning, match=f"{setup.vis.n} of {2 * setup.vis.n} rows repeat "
+                                                                "another row exactly.*remove them"):
+        load_visibilities(path)
+
+
+def test_a_last_row_cut_mid_number_is_refused(setup, tmp_path):
+    path = _table(tmp_path / "cut.txt", setup.vis)
+    text = path.read_text()
+    path.write_text(text[: len(text) - 6])  # cut inside the last weight
+    with Unchanged(tmp_path), pytest.raises(InputError, match=r"last row's column\(s\) 5 have fewer digits.*cut "
+                                                               "mid-number"):
+        load_visibilities(path)
+    whole = _table(tmp_path / "whole.txt", setup.vis)
+    whole.write_text(whole.read_text().rstrip("\n"))  # no final newline but nothing cut: accepted
+    assert load_visibilities(whole).n == setup.vis.n
+
+
+@pytest.mark.parametrize("case,match", [
+    ("zero", "every baseline has u = v = 0"),
+    ("line", "lie on one line through the origin"),
+    ("one", "lie on one line through the origin"),
+])
+def test_degenerate_uv_coverage_is_refused_on_load(setup, tmp_path, case, match):
+    vis = setup.vis
+    if case == "zero":
+        vis = dataclasses.replace(vis, u=0 * vis.u, v=0 * vis.v)
+    elif case == "line":
+        vis = dataclasses.replace(vis, v=0.5 * vis.u)
+    else:
+        vis = vis.subset([0])
+    path = _table(tmp_path / "bad.txt", vis)
+    with Unchanged(tmp_path), warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        with pytest.raises(InputError, match=match):
+            load_visibilities(path)
+
+
+def test_scan_refuses_too_few_visibilities_and_a_non_positive_distance(setup):
+    from spiralbayes.inference.scan import scan
+
+    for distance in (-1.0, 0.0, float("nan")):
+        with pytest.raises(InputError, match="distance = .* must be a positive, finite distance in pc"):
+            scan(setup.vis, setup.model, setup.templates[:1], distance=distance, progress=False, **GRID)
+    few = setup.vis.subset(np.arange(MIN_SEARCH_VISIBILITIES - 1))
+    with pytest.raises(InputError, match=f"only {MIN_SEARCH_VISIBILITIES - 1} visibilities: a search needs at least "
+                                         f"{MIN_SEARCH_VISIBILITIES}"):
+        scan(few, setup.model, setup.templates[:1], progress=False, **GRID)
+
+
+def test_frank_with_fewer_visibilities_than_collocation_points_warns(setup):
+    from spiralbayes.axisymmetric import fit_axisymmetric
+
+    few = setup.vis.subset(np.argsort(np.hypot(setup.vis.u, setup.vis.v))[:60])  # the shortest baselines
+    with pytest.warns(DataWarning, match="frank's N = 80 exceeds the 60 visibilities.*N = 0 in \\[frank\\]"):
+        fit_axisymmetric(few, GEOMETRY, N=80, Rmax=1.2, progress=False, max_iter=20, convergence_failure="ignore")
+
+
+def test_a_config_without_geometry_refuses_to_fit_frank_face_on(setup, tmp_path, monkeypatch):
+    import spiralbayes.pipeline.core as core
+    from spiralbayes.config import load_config
+    from spiralbayes.pipeline import run_scan
+
+    monkeypatch.setattr(core, "fit_axisymmetric", lambda *a, **k: pytest.fail("frank must not run"))
+    out = tmp_path / "out"
+    cfg = _config(tmp_path / "c.toml", setup, out, frank="")
+    with Unchanged(tmp_path, *_inputs(setup)), pytest.raises(ConfigError, match=r"no \[geometry\] inc and PA.*fit = "
+                                                                                  "true"):
+        run_scan(load_config(cfg), progress=False)
+
+
+def test_cli_axisym_without_inc_and_pa_refuses(setup, tmp_path, capsys):
+    from spiralbayes.cli import main
+
+    with Unchanged(tmp_path, *_inputs(setup)):
+        assert main(["axisym", str(setup.files.data), "--out", str(tmp_path / "ax")]) == 2
+    err = capsys.readouterr().err
+    assert "give --inc and --pa [deg]" in err and "--fit-geometry" in err and err.count("\n") == 1

@@ -80,8 +80,15 @@ def _cmd_axisym(args) -> int:
     from .io import load_visibilities
     from .pipeline import run_axisym
 
+    from ._hdf5 import require_file
+    from .exceptions import InputError
+
+    require_file(args.data, "visibility file")
+    if (args.inc is None or args.pa is None) and not args.fit_geometry:
+        raise InputError("axisym needs the disc geometry: give --inc and --pa [deg] (and --dra/--ddec [arcsec] "
+                         "if off-centre), or --fit-geometry to fit it with frank")
     vis = load_visibilities(args.data)
-    geometry = DiscGeometry(args.inc, args.pa, args.dra, args.ddec)
+    geometry = None if args.inc is None or args.pa is None else DiscGeometry(args.inc, args.pa, args.dra, args.ddec)
     model = run_axisym(vis, args.out, geometry, distance=args.distance,
                        fit_geometry="nonparametric" if args.fit_geometry else None, progress=not args.quiet)
     print(f"sky (projected) flux {model.total_flux * model.geometry.cos_inc:.4g} Jy, face-on (deprojected) flux "
@@ -196,9 +203,12 @@ def _cmd_templates(args) -> int:
     return 0
 
 
-def _geometry_args(p):
-    p.add_argument("--inc", type=float, default=30.0, help="inclination [deg]")
-    p.add_argument("--pa", type=float, default=60.0, help="position angle, east of north [deg]")
+def _geometry_args(p, required: bool = False):
+    """--inc, --pa, --dra, --ddec; with ``required`` inc and PA have no default (the data's disc, not a guess)."""
+    p.add_argument("--inc", type=float, default=None if required else 30.0,
+                   help="inclination [deg]" + (" (required unless --fit-geometry)" if required else ""))
+    p.add_argument("--pa", type=float, default=None if required else 60.0,
+                   help="position angle, east of north [deg]" + (" (required unless --fit-geometry)" if required else ""))
     p.add_argument("--dra", type=float, default=0.0, help="RA offset of the disc centre [arcsec]")
     p.add_argument("--ddec", type=float, default=0.0, help="Dec offset of the disc centre [arcsec]")
 
@@ -234,8 +244,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("data", help="visibility file (uvtable, .npz, .h5 or Measurement Set)")
     p.add_argument("--out", default="spiralbayes-axisym")
     p.add_argument("--distance", type=float, default=None, help="[pc], for an au axis")
-    p.add_argument("--fit-geometry", action="store_true", help="fit inc, PA and offsets with frank")
-    _geometry_args(p)
+    p.add_argument("--fit-geometry", action="store_true",
+                   help="fit inc, PA and offsets with frank (started from --inc/--pa when given)")
+    _geometry_args(p, required=True)
     p.set_defaults(func=_cmd_axisym)
 
     p = sub.add_parser("scan", help="grid scan of a template bank over planet positions (TOML config)",

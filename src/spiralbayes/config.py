@@ -27,7 +27,8 @@ import tomllib
 from .asymmetries import ALTERNATIVE_MODELS
 from .exceptions import ConfigError, MissingFileError
 
-__all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "default_config", "describe_config", "load_config", "merge_config"]
+__all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "default_config", "describe_config", "geometry_given", "load_config",
+           "merge_config"]
 
 # section -> key -> (default, description)
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
@@ -329,7 +330,7 @@ def _coerce(section: str, key: str, value, default):
     return value
 
 
-def load_config(path, schema: dict = SCHEMA) -> dict:
+def load_config(path, schema: dict = SCHEMA) -> LoadedConfig:
     """Read a TOML configuration file, merge it with the defaults and check every value.
 
     Relative paths (:data:`PATH_KEYS`) are taken relative to the configuration file.
@@ -354,6 +355,9 @@ def load_config(path, schema: dict = SCHEMA) -> dict:
         config = merge_config(user, schema)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
+    config = LoadedConfig(config)
+    config.given = {section: sorted(values) for section, values in user.items() if isinstance(values, dict)}
+    config.source = str(path)
     for section, key in PATH_KEYS:
         value = config.get(section, {}).get(key)
         if not value or (section, key, value) == ("templates", "bank", "default"):
@@ -361,6 +365,24 @@ def load_config(path, schema: dict = SCHEMA) -> dict:
         resolved = Path(value).expanduser()
         config[section][key] = str(resolved if resolved.is_absolute() else (path.parent / resolved).resolve())
     return config
+
+
+class LoadedConfig(dict):
+    """A merged configuration read from a file: a plain dict that also knows the file (``source``) and
+    which options the file stated (``given``: section -> option names), so that a missing
+    ``[geometry]`` can be refused rather than replaced by the defaults silently."""
+
+    given: dict | None = None
+    source: str = ""
+
+
+def geometry_given(config: dict) -> bool:
+    """Whether the configuration file stated the disc geometry (``[geometry] inc`` or ``PA``).
+
+    Configurations built in code (no record of what the file held) count as stated.
+    """
+    given = getattr(config, "given", None)
+    return given is None or bool({"inc", "PA"} & set(given.get("geometry", ())))
 
 
 def describe_config(config: dict | None = None, schema: dict = SCHEMA) -> str:

@@ -275,4 +275,4 @@ def brute_force_injection(vis, axisymmetric, templates, injection: Injection, ge
     injected = injected_visibilities(vis, axisymmetric, injection, geometry, cell_factor=scan_kwargs.get("cell_factor"),
                                      phi_multiple=scan_kwargs.get("n_phi_p", 90))
     model = axisymmetric if refit is None else refit(injected)
-    return scan(injected, model, templates, geometry, **scan_kwargs)
+    return scan(injected, model, templates, geometry, allow_other_data=refit is None, **scan_kwargs)

@@ -36,7 +36,7 @@ import json
 import logging
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +45,9 @@ from .._hdf5 import checked_dataset, open_file, write_file
 from .._provenance import content_hash, data_hash, json_safe, provenance_record, to_json
 from .._version import __version__
 from ..exceptions import DataWarning, InputError, ResumeMismatchError
+from ..axisymmetric.provenance import check_fitted_to
 from ..geometry import DiscGeometry
+from ..io.data_checks import check_search_data
 from ..model import DEFAULT_CELL_FACTOR, DEFAULT_RULE
 from ..templates.template import template_metadata
 from .scan_accuracy import TOLERANCE, check_terms, warn_if_inaccurate
@@ -213,7 +215,7 @@ class ScanResult:
 def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, r_p=None, n_phi_p: int = 90,
          distance: float | None = None, checkpoint=None, client=None, progress: bool = True,
          cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1, force_resume: bool = False,
-         rule: str = DEFAULT_RULE, power_path: str = "auto") -> ScanResult:
+         rule: str = DEFAULT_RULE, power_path: str = "auto", allow_other_data: bool = False) -> ScanResult:
     """Δχ² of every template at every planet position.
 
     Parameters
@@ -259,6 +261,9 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
         product rule (default) or the earlier midpoint cells (a reference; no error estimate).
     power_path : {"auto", "polar", "direct"}
         How ``power`` is computed (:mod:`.scan_engine`): "auto" takes the cheaper for the data.
+    allow_other_data : bool
+        Scan with an axisymmetric model whose recorded data hash is not that of ``vis`` (e.g.
+        injected signals); by default such a model is refused (InputError).
 
     The result carries error estimates (:meth:`ScanResult.delta_chi2_error`); an
     :class:`~spiralbayes.exceptions.AccuracyWarning` says where they exceed
@@ -267,6 +272,9 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     templates = list(templates)
     if not templates:
         raise InputError("no templates to scan: pass a TemplateBank or a list of SpiralTemplate")
+    check_search_data(vis, distance=distance)
+    if not allow_other_data:
+        check_fitted_to(axisymmetric, vis)
     geometry = geometry or getattr(axisymmetric, "geometry", None)
     if geometry is None:
         raise InputError("geometry is needed: pass geometry=DiscGeometry(...) or an AxisymmetricModel")
@@ -461,14 +469,38 @@ def _resume(checkpoint, fresh: ScanResult, force: bool = False) -> ScanResult:
             raise ResumeMismatchError(f"checkpoint {checkpoint} cannot be force-resumed: its planet grid differs "
                                       "(r_p or n_phi_p); delete it to start afresh")
         log.warning("force-resuming %s although %s differ", checkpoint, "; ".join(diffs))
-        fresh.provenance["forced_resume"] = {"checkpoint": str(checkpoint), "differences": diffs}
     rows = {m["name"]: i for i, m in enumerate(old.templates)}
+    kept = []
     for i, meta in enumerate(fresh.templates):
         j = rows.get(meta["name"])
         if j is not None and old.completed[j]:
             fresh.cross[i], fresh.power[i] = old.cross[j], old.power[j]
             fresh.cross_error[i], fresh.power_error[i] = old.cross_error[j], old.power_error[j]
+            kept.append(meta["name"])
+    if diffs:
+        fresh = _record_forced_resume(fresh, old, checkpoint, diffs, kept)
     log.info("resuming from %s: %d of %d templates done", checkpoint, fresh.completed.sum(), len(fresh.templates))
+    return fresh
+
+
+def _record_forced_resume(fresh: ScanResult, old: ScanResult, checkpoint, diffs, kept) -> ScanResult:
+    """Record the truth of a forced resume: the numbers kept were computed with the checkpoint's inputs.
+
+    When every template comes from the checkpoint, the result takes the checkpoint's geometry and
+    resume key (what its numbers were computed with) and keeps the requested ones under
+    ``provenance["forced_resume"]["requested"]``; otherwise the result is mixed and says which
+    templates came from the checkpoint.
+    """
+    record = {"checkpoint": str(checkpoint), "differences": diffs, "templates_from_checkpoint": kept,
+              "checkpoint_geometry": old.geometry.to_dict(), "checkpoint_resume_key": old.provenance.get("resume_key")}
+    if len(kept) == len(fresh.templates):
+        record["requested"] = {"geometry": fresh.geometry.to_dict(), "resume_key": fresh.provenance["resume_key"]}
+        fresh.provenance["resume_key"] = old.provenance.get("resume_key")
+        fresh = replace(fresh, geometry=old.geometry)
+    else:
+        record["mixed"] = ("templates_from_checkpoint were computed with the checkpoint's inputs, the others with "
+                           "the requested ones")
+    fresh.provenance["forced_resume"] = record
     return fresh
 
 

@@ -33,6 +33,7 @@ from .._hdf5 import require_file
 from ..exceptions import InputError
 from ..visibilities import Visibilities
 from .checks import WeightCheck, check_uv_units, check_weights
+from .data_checks import check_duplicate_rows, check_uv_coverage
 from .hdf5 import (
     read_hdf5,
     visibilities_from_hdf5_group,
@@ -93,6 +94,10 @@ def load_visibilities(path, *, check_weights_on_load: bool = True, **kwargs) -> 
     Keyword arguments go to that reader (an option the reader does not take raises
     :class:`~spiralbayes.exceptions.InputError` listing those it does). The file is never modified.
 
+    The data are checked on load (:mod:`~spiralbayes.io.data_checks`): a uvtable whose last row
+    was cut mid-number and all-zero or one-line uv coverage are refused; exactly repeated rows
+    raise a :class:`~spiralbayes.exceptions.DataWarning`.
+
     With ``check_weights_on_load`` (default) the weights are compared with the scatter of the
     data and a :class:`~spiralbayes.exceptions.DataWarning` says how to fix them when they do
     not look statistical (:func:`check_weights`).
@@ -102,6 +107,8 @@ def load_visibilities(path, *, check_weights_on_load: bool = True, **kwargs) -> 
     reader = {"ms": read_ms, "uvtable": read_uvtable, "npz": read_npz, "hdf5": read_hdf5}[fmt]
     _check_options(reader, fmt, path, kwargs)
     vis = reader(path, **kwargs)
+    check_uv_coverage(vis.u, vis.v, str(path))
+    check_duplicate_rows(vis.u, vis.v, vis.V, vis.weights, str(path))
     if check_weights_on_load:
         check_weights(vis, str(path))
     return vis

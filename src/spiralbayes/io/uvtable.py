@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from .._provenance import atomic_path
+from .data_checks import check_last_row
 from ..exceptions import InputError
 from ..visibilities import Visibilities
 from ._common import (
@@ -170,6 +171,7 @@ def read_uvtable(
         If ``path`` does not exist.
     """
     path = _existing_file(path)
+    check_last_row(path)
     header = _parse_uvtable_header(path)
     table = _load_table(path, header.first_data_line)
     cols = _column_layout(path, table.shape[1], header.columns)

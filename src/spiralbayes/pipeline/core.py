@@ -17,8 +17,9 @@ import numpy as np
 
 from .._provenance import atomic_path, check_output_name, to_json
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
-from ..config import describe_config
-from ..exceptions import InputError
+from ..axisymmetric.provenance import check_fitted_to
+from ..config import describe_config, geometry_given
+from ..exceptions import ConfigError, InputError
 from ..geometry import DiscGeometry
 from ..inference.alternatives import fit_alternatives
 from ..inference.detection import DELTA_BIC_THRESHOLD, detect, mirror_index
@@ -35,6 +36,7 @@ from ..plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
 from ..simulate import DiscModel, simulate_observation
 from ..templates import TemplateBank, default_bank, make_template
 from ..visibilities import Visibilities, estimate_weights
+from .reuse import reusable_axisymmetric, reusable_scan
 
 __all__ = [
     "DemoResult",
@@ -227,7 +229,13 @@ def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> Axisymmetr
     """The axisymmetric model of a configuration: ``[frank] model`` if given, else a frank fit."""
     f = config["frank"]
     if f["model"]:
-        return AxisymmetricModel.load(f["model"])
+        model = AxisymmetricModel.load(f["model"])
+        check_fitted_to(model, vis, f"[frank] model {f['model']}")
+        return model
+    if not config["geometry"]["fit"] and not geometry_given(config):
+        raise ConfigError(f"{getattr(config, 'source', '') or 'the configuration'}: no [geometry] inc and PA, and frank "
+                          "must be fitted: give the disc's inclination and position angle in degrees ([geometry] "
+                          "inc = ..., PA = ...), or set [geometry] fit = true to fit them")
     axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"] or None, Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
                               weights_smooth=f["weights_smooth"], nonnegative=f["nonnegative"],
                               fit_geometry="nonparametric" if config["geometry"]["fit"] else None, progress=progress)
@@ -282,7 +290,10 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
                                axisymmetric=axisym, templates=templates)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
-    files.append(_write_text(out_dir / "config_used.toml", describe_config(config)))
+    forced = result.provenance.get("forced_resume")
+    note = "" if not forced else ("# FORCED RESUME (--force-resume): the numbers kept from the checkpoint were computed "
+                                  "with other inputs: " + "; ".join(forced["differences"]) + "\n")
+    files.append(_write_text(out_dir / "config_used.toml", note + describe_config(config)))
     follow = None
     if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
         follow = rescan_at_fitted_geometry(vis, axisym, templates, alts, previous_scan=result, amplitude=amplitude,
@@ -328,11 +339,12 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     vis = load_data(config["data"], _geometry(config))
     scanned = out_dir / "axisymmetric.h5"
     if not config["frank"]["model"] and scanned.exists():
-        config = {**config, "frank": {**config["frank"], "model": str(scanned)}}
-    axisym = load_axisymmetric(config, vis, progress=progress)
+        axisym = reusable_axisymmetric(scanned, vis, config)
+    else:
+        axisym = load_axisymmetric(config, vis, progress=progress)
     templates = load_templates(config["templates"])
     scan_path = s["scan"] or (out_dir / "scan.h5" if (out_dir / "scan.h5").exists() else "")
-    scan_result = ScanResult.load(scan_path) if scan_path else None
+    scan_result = reusable_scan(scan_path, vis, axisym) if scan_path else None
     _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))
     sampler = {k: s[k] for k in ("n_walkers", "max_steps", "check_every", "convergence", "min_ess", "seed",
                                   "prune_delta_lnL", "evidence_draws", "flush_every", "planet_prior")}

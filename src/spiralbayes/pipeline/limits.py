@@ -14,7 +14,9 @@ from ..geometry import DiscGeometry
 from ..inference.scan import ScanResult, scan
 from ..simulate import DiscModel, simulate_observation
 from ..templates import make_template
+from .._hdf5 import require_file
 from .core import _write_text, load_data, load_templates, run_scan_config, save_figure
+from .reuse import reusable_axisymmetric, reusable_scan
 
 __all__ = ["LimitsRun", "TAURUS_DEMO", "default_limits_config", "run_forecast", "run_limits", "run_limits_config",
            "run_limits_demo"]
@@ -34,16 +36,6 @@ class LimitsRun:
 
 def _slug(text: str) -> str:
     return "".join(c if c.isalnum() or c in ".-" else "_" for c in text).strip("_")
-
-
-def _matching_scan(path: Path, templates, r_p, n_phi_p: int):
-    """The scan saved at ``path`` when it holds exactly these templates and grid, else None."""
-    if not path.exists():
-        return None
-    saved = ScanResult.load(path)
-    same = ([t["name"] for t in saved.templates] == [t.name for t in templates]
-            and np.allclose(saved.r_p, r_p) and saved.phi_p.size == n_phi_p and np.all(saved.completed))
-    return saved if same else None
 
 
 def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict | None = None, name: str = "disc",
@@ -112,18 +104,25 @@ def default_limits_config() -> dict:
 def run_limits_config(config: dict, *, progress: bool = True) -> LimitsRun:
     """``spiralbayes limits CONFIG``: reuse (or run) the scan of the configuration, then :func:`run_limits`.
 
-    The scan is ``OUTPUT/scan.h5`` when it holds the configuration's templates and grid (and the
-    axisymmetric model ``OUTPUT/axisymmetric.h5`` beside it); otherwise the scan is run first.
+    The scan is ``OUTPUT/scan.h5`` with the axisymmetric model ``OUTPUT/axisymmetric.h5`` beside
+    it, reused only when both were made from this configuration's data, geometry, frank settings,
+    templates and grid (:mod:`.reuse`; otherwise refused, naming what differs); when neither
+    exists the scan is run first.
     """
     out_dir = Path(config["output"]["dir"])
     templates = load_templates(config["templates"])
     grid = config["grid"]
     r_p = np.linspace(grid["r_p_min"], grid["r_p_max"], grid["n_r_p"])
-    result = _matching_scan(out_dir / "scan.h5", templates, r_p, grid["n_phi_p"])
-    if result is None or not (out_dir / "axisymmetric.h5").exists():
+    scan_file, model_file = out_dir / "scan.h5", out_dir / "axisymmetric.h5"
+    if scan_file.exists() or model_file.exists():  # reused only when made from these inputs, else refused
+        vis = load_data(config["data"])
+        axisym = reusable_axisymmetric(require_file(model_file, "axisymmetric model", "run 'spiralbayes scan' with "
+                                                    "this configuration first"), vis, config)
+        result = reusable_scan(require_file(scan_file, "scan"), vis, axisym, templates, r_p, grid["n_phi_p"])
+    else:
         _, result, _ = run_scan_config(config, progress=progress)
-    vis = load_data(config["data"])
-    axisym = AxisymmetricModel.load(out_dir / "axisymmetric.h5")
+        vis = load_data(config["data"])
+        axisym = AxisymmetricModel.load(model_file)
     _write_text(out_dir / "config_used_limits.toml", describe_config(config))
     name = config["limits"]["name"] or Path(config["data"]["path"]).stem
     return run_limits(vis, axisym, templates, result, out_dir, limits_config=config["limits"], name=name,
