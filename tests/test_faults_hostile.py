@@ -24,6 +24,8 @@ import pytest
 
 from spiralbayes._provenance import data_hash
 from spiralbayes.exceptions import ConfigError, DataWarning, InputError, ResumeMismatchError
+from spiralbayes.inference.detection import detect
+from spiralbayes.inference.results import PosteriorResult
 from spiralbayes.inference.scan import ScanResult
 from spiralbayes.io import load_visibilities
 from spiralbayes.io.data_checks import MIN_SEARCH_VISIBILITIES
@@ -288,3 +290,52 @@ def test_cli_axisym_without_inc_and_pa_refuses(setup, tmp_path, capsys):
         assert main(["axisym", str(setup.files.data), "--out", str(tmp_path / "ax")]) == 2
     err = capsys.readouterr().err
     assert "give --inc and --pa [deg]" in err and "--fit-geometry" in err and err.count("\n") == 1
+
+
+# --- 4. a coin flip is not a result ---------------------------------------------------------------
+class _Posterior(PosteriorResult):
+    """A PosteriorResult reduced to its Bayes factor (the verdict's only input on these branches)."""
+
+    def __init__(self, ln_b: float, planet_prior: float = 0.5):
+        self._ln_b, self.planet_prior, self.null = ln_b, planet_prior, object()
+
+    @property
+    def ln_bayes_factor(self) -> float:
+        return self._ln_b
+
+
+@pytest.mark.parametrize("ln_b,expected", [
+    (0.01, "inconclusive"),  # AS 209: P(planet | data) = 0.5035
+    (-0.99, "inconclusive"),
+    (0.99, "inconclusive"),
+    (-1.01, "no planet preferred"),
+    (-3.6, "no planet preferred"),  # P = 0.027, a planet-free dataset of docs/performance.md
+])
+def test_posterior_verdict_has_an_inconclusive_band_on_the_jeffreys_scale(ln_b, expected):
+    post = _Posterior(ln_b)
+    assert post.p_planet == pytest.approx(1 / (1 + np.exp(-ln_b)))  # prior odds 1
+    assert post.verdict.startswith(expected + ":")
+    assert not post.planet_preferred
+    assert ("no planet position is reported" in post.verdict) is (expected == "inconclusive")
+    assert post.inconclusive is (abs(ln_b) < 1)
+
+
+def test_posterior_outside_the_band_with_p_above_half_prefers_the_planet():
+    assert _Posterior(1.01).planet_preferred and not _Posterior(1.01).inconclusive
+    assert not _Posterior(1.5, planet_prior=0.1).planet_preferred  # P(planet | data) = 0.29 < 0.5
+
+
+def test_scan_verdict_names_an_alternative_only_when_it_beats_the_disc():
+    from tests.inference.test_detection import N_DATA, compact_peak, fake_alternatives, fake_scan
+
+    shape = (13, 90)
+    weak = fake_scan(compact_peak(shape, 6, 10, 30.0), compact_peak(shape, 6, 80, 5.0))  # spiral Delta BIC -35.6
+    lopsided = 30.0  # Delta BIC = 30 - 4 ln N = -11.9 against the disc: itself disfavoured
+    verdict = detect(weak, alternatives=fake_alternatives(lopsided=lopsided, geometry=1.0))
+    text = verdict.summary()
+    assert verdict.alternative_delta_bic == pytest.approx(lopsided - 4 * np.log(N_DATA))
+    assert verdict.delta_bic_vs_alternative < 0
+    assert "explains the data better" not in text and "no competing asymmetry model explains the data" in text
+    assert "rescan_at_fitted_geometry" not in text and not verdict.detected
+    strong = detect(weak, alternatives=fake_alternatives(lopsided=200.0))  # Delta BIC 158: the explanation
+    assert "the lopsided model explains the data better than any spiral template" in strong.summary()

@@ -254,13 +254,19 @@ class Verdict:
         if self.test3_passed:
             return (f" Test 3: the spiral is preferred over the best competing asymmetry model ({label}, {own}) "
                     f"by Delta BIC = {margin:.1f} (> {thr:g}).")
-        if margin < 0:
+        alternative_significant = (self.alternative_delta_bic is not None
+                                   and self.alternative_delta_bic > DELTA_BIC_THRESHOLD)
+        if margin < 0 and alternative_significant:
             text = (f" Test 3: the {label} model explains the data better than any spiral template "
                     f"(by Delta BIC = {-margin:.1f}; {own}).")
+        elif margin < 0:  # the best alternative is itself no better than the axisymmetric disc
+            text = (f" Test 3: no competing asymmetry model explains the data either: the best, {label}, is not "
+                    f"significant against the axisymmetric disc ({own}, <= {DELTA_BIC_THRESHOLD:g}), though it "
+                    f"scores Delta BIC = {-margin:.1f} above the best spiral template.")
         else:
             text = (f" Test 3: the spiral is not clearly preferred over the {label} model "
                     f"(Delta BIC = {margin:.1f} <= {thr:g}; {own}).")
-        if self.best_alternative == "geometry":
+        if self.best_alternative == "geometry" and alternative_significant:
             text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
         return text
 

@@ -7,9 +7,11 @@ each template (:class:`TemplateRun`). With evidences ``Z_0`` and ``Z_T``, prior 
     P(planet | data) = P(planet) sum_T pi_T Z_T / [P(planet) sum_T pi_T Z_T + (1 - P(planet)) Z_0],
 
 the Bayes factor is ``B = sum_T pi_T Z_T / Z_0``, and ``P(T | data, planet) = pi_T Z_T / sum``.
-:attr:`PosteriorResult.verdict` says "no planet preferred" when ``P(planet | data) < 0.5``
-(then no position is reported as a finding), otherwise it gives the most probable template's
-planet position and amplitude.
+:attr:`PosteriorResult.verdict` says "inconclusive" when ``|ln B| <`` :data:`INCONCLUSIVE_LN_B`
+(= 1, the Jeffreys scale's "not worth more than a bare mention", B < e ~ 2.7 either way; Kass &
+Raftery 1995, Trotta 2008): the data do not decide between planet and no planet, and no position
+is reported. Otherwise "no planet preferred" when ``P(planet | data) < 0.5`` (no position
+reported as a finding), else the most probable template's planet position and amplitude.
 
 Samples (:data:`SAMPLE_NAMES`): ``r_p`` [arcsec], ``phi_p`` [rad, wrapped around its circular
 mean], ``A`` (drawn exactly from its conditional posterior for each sample), ``inc``, ``PA``
@@ -28,6 +30,9 @@ import numpy as np
 from .._hdf5 import open_file, write_file
 from .._provenance import json_default
 from ..exceptions import InputError
+
+INCONCLUSIVE_LN_B = 1.0
+"""|ln B(planet : none)| below this is "inconclusive" (Jeffreys scale: B < e either way)."""
 from ..units import TWO_PI
 from .diagnostics import _ChainView, _import_arviz
 from .likelihood import PARAMETER_NAMES
@@ -250,8 +255,14 @@ class PosteriorResult:
         return out
 
     @property
+    def inconclusive(self) -> bool:
+        """True when ``|ln B| <`` :data:`INCONCLUSIVE_LN_B`: the data do not decide (Jeffreys scale)."""
+        return bool(np.isfinite(self.ln_bayes_factor) and abs(self.ln_bayes_factor) < INCONCLUSIVE_LN_B)
+
+    @property
     def planet_preferred(self) -> bool:
-        return bool(self.p_planet >= 0.5)
+        """P(planet | data) >= 0.5 and the Bayes factor outside the inconclusive band."""
+        return bool(self.p_planet >= 0.5 and not self.inconclusive)
 
     def amplitude(self, template=None) -> dict:
         """The amplitude's posterior (median, 16/84, 2.5/97.5) for a template (default: most probable)."""
@@ -263,6 +274,10 @@ class PosteriorResult:
         p, lnb = self.p_planet, self.ln_bayes_factor
         if np.isnan(p):
             return f"most probable template {self.best.name} (no no-planet hypothesis computed)"
+        if self.inconclusive:
+            return (f"inconclusive: P(planet | data) = {p:.3g}, ln B(planet : none) = {lnb:.2f} (|ln B| < "
+                    f"{INCONCLUSIVE_LN_B:g}: the data do not decide between a planet and none on the Jeffreys scale; "
+                    f"no planet position is reported; prior P(planet) = {self.planet_prior:g})")
         if p < 0.5:
             return (f"no planet preferred: P(planet | data) = {p:.3g}, ln B(planet : none) = {lnb:.2f} "
                     f"(prior P(planet) = {self.planet_prior:g})")
