@@ -339,3 +339,120 @@ def test_scan_verdict_names_an_alternative_only_when_it_beats_the_disc():
     assert "rescan_at_fitted_geometry" not in text and not verdict.detected
     strong = detect(weak, alternatives=fake_alternatives(lopsided=200.0))  # Delta BIC 158: the explanation
     assert "the lopsided model explains the data better than any spiral template" in strong.summary()
+
+
+# --- 5. papercuts ---------------------------------------------------------------------------------
+def _bad_config(tmp_path) -> Path:
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text("[grid]\nn_r_p = 5.5\n")
+    return cfg
+
+
+def test_debug_and_quiet_are_accepted_after_the_command(tmp_path, capsys):
+    from spiralbayes.cli import main
+
+    cfg = _bad_config(tmp_path)
+    with pytest.raises(ConfigError):  # the traceback, as with --debug first
+        main(["scan", str(cfg), "--debug"])
+    assert main(["scan", str(cfg), "-q"]) == 2
+    assert "(--debug shows the traceback)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv,attr,value", [
+    (["simulate", "--out", "x.h5", "--dra", "-1.9e-3"], "dra", -1.9e-3),
+    (["simulate", "--out", "x.h5", "--ddec", "-2E-3"], "ddec", -2e-3),
+    (["simulate", "--out", "x.h5", "--planet-phi", "-30"], "planet_phi", -30.0),
+    (["simulate", "--out", "x.h5", "--pa=-12.5"], "pa", -12.5),
+])
+def test_negative_numbers_are_values_not_options(argv, attr, value):
+    from spiralbayes.cli import _join_negative_numbers, build_parser
+
+    assert getattr(build_parser().parse_args(_join_negative_numbers(argv)), attr) == value
+
+
+def test_presets_are_listed_and_help_shows_defaults(capsys):
+    from spiralbayes.cli import main
+    from spiralbayes.simulate import PRESETS
+
+    with pytest.raises(SystemExit):
+        main(["simulate", "--out", "x.h5", "--preset", "nonsense"])
+    err = capsys.readouterr().err
+    assert all(name in err for name in PRESETS)
+    with pytest.raises(SystemExit):
+        main(["forecast", "-h"])
+    out = capsys.readouterr().out
+    assert "(default: 0.9)" in out and "(default: 140.0)" in out and "taurus" in out
+
+
+def test_probability_outside_zero_one_is_refused_before_anything_is_printed(capsys):
+    from spiralbayes.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["forecast", "--probability", "1.5"])
+    captured = capsys.readouterr()
+    assert info.value.code == 2 and captured.out == ""
+    assert "--probability: 1.5 is not a probability in (0, 1)" in captured.err
+
+
+def test_forecast_text_uses_the_asked_probability_and_never_says_zero_minutes():
+    from types import SimpleNamespace
+
+    from spiralbayes.inference.forecast import Forecast, format_minutes
+
+    times = {0.5: 0.3, 0.9: 95.0}
+    stub = SimpleNamespace(r_p=0.357, distance=140.0, expected=np.array([2.0, 4.0]), template={"name": "t"},
+                           setup={"name": "fiducial"}, time_on_source=40.0, n_data=100, threshold=lambda: 73.0,
+                           probability=lambda: 0.5, time_for_probability=lambda p: times[p])
+    assert "50 % needs < 1 min on source" in Forecast.summary(stub, 0.5)
+    assert "90 % needs 95 min (1.6 h) on source" in Forecast.summary(stub, 0.9)
+    assert format_minutes(float("inf")).startswith("not reachable") and format_minutes(12.4) == "12 min"
+
+
+def test_posterior_summary_json_gives_phi_p_in_degrees_with_the_unit_in_the_key():
+    from spiralbayes.pipeline.core import _summary_with_units
+
+    stats = {"phi_p": {"median": 0.5, "lo": 0.4, "hi": 0.6, "std": 0.05}, "r_p": {"median": 0.3}, "inc": {"median": 30}}
+    out = _summary_with_units(stats)
+    assert out["phi_p_deg"]["median"] == pytest.approx(0.5 * 180 / np.pi)
+    assert out["phi_p_deg"]["std"] == pytest.approx(0.05 * 180 / np.pi)
+    assert out["r_p_arcsec"] == {"median": 0.3} and out["inc_deg"] == {"median": 30}
+
+
+def test_scan_file_datasets_carry_units(setup, tmp_path):
+    import h5py
+
+    with h5py.File(setup.result.save(tmp_path / "scan.h5"), "r") as f:
+        units = {name: f[name].attrs["units"] for name in f}
+    assert units["r_p"] == "arcsec" and units["phi_p"] == "rad" and units["cross"].startswith("dimensionless")
+    assert set(units) == {"r_p", "phi_p", "cross", "power", "cross_error", "power_error"}
+
+
+def test_no_template_matches_shows_the_values_not_every_name():
+    from spiralbayes.pipeline import select_templates
+    from spiralbayes.templates import TemplateBank, make_template
+
+    bank = TemplateBank([make_template(m, 3.0, 10.0, h, n_x=30, n_phi=48) for m in (0.3, 1.0) for h in "RL"])
+    with pytest.raises(InputError) as info:
+        select_templates(bank, mass=[99])
+    text = str(info.value)
+    assert "mass 0.3, 1; tau0 3; beta 10; hand L, R" in text and "wake_" not in text and len(text) < 300
+
+
+def test_an_unreachable_dask_scheduler_is_reported_before_frank(setup, tmp_path, monkeypatch):
+    import socket
+    import time
+
+    import spiralbayes.pipeline.core as core
+    from spiralbayes.config import load_config
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    monkeypatch.setattr(core, "fit_axisymmetric", lambda *a, **k: pytest.fail("frank must not run"))
+    monkeypatch.setattr(core, "load_data", lambda *a, **k: pytest.fail("the data must not be read"))
+    cfg = _config(tmp_path / "c.toml", setup, tmp_path / "out", frank="", geometry="inc = 30.0\nPA = 60.0",
+                  scan=f'dask = "tcp://127.0.0.1:{port}"')
+    t0 = time.monotonic()
+    with Unchanged(tmp_path), pytest.raises(InputError, match=f"no Dask scheduler answers at 127.0.0.1:{port}"):
+        core.run_scan(load_config(cfg), progress=False)
+    assert time.monotonic() - t0 < core.DASK_CONNECT_TIMEOUT_S + 1

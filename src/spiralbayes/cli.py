@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import re
 import sys
 from pathlib import Path
 
@@ -181,10 +182,7 @@ def _cmd_forecast(args) -> int:
                               "inc": args.inc, "pa": args.pa, "r_au": args.r_au, "presets": args.preset,
                               "time": args.time, "sensitivity": args.sensitivity})
     for fc in forecasts:
-        print(fc.summary())
-        t = fc.time_for_probability(args.probability)
-        print(f"  on-source time for P(Delta BIC > 10) = {args.probability:.0%}: "
-              + ("not reachable" if t == float("inf") else f"{t:.0f} min ({t / 60:.1f} h)"))
+        print(fc.summary(args.probability))
     return 0
 
 
@@ -213,12 +211,45 @@ def _geometry_args(p, required: bool = False):
     p.add_argument("--ddec", type=float, default=0.0, help="Dec offset of the disc centre [arcsec]")
 
 
+def _common_flags(p, default) -> None:
+    """-v, --debug, -q: accepted before and after the command (``default=SUPPRESS`` keeps the first)."""
+    p.add_argument("-v", "--verbose", action="store_true", default=default, help="debug logging")
+    p.add_argument("--debug", action="store_true", default=default, help="show the full traceback of errors")
+    p.add_argument("-q", "--quiet", action="store_true", default=default, help="no progress bars, warnings only")
+
+
+def _probability(text: str) -> float:
+    value = float(text)
+    if not 0 < value < 1:
+        raise argparse.ArgumentTypeError(f"{text} is not a probability in (0, 1), e.g. 0.9")
+    return value
+
+
+def _preset_names() -> list[str]:
+    from .simulate import PRESETS
+
+    return list(PRESETS)
+
+
+class _Parser(argparse.ArgumentParser):
+    """Sub-command parsers: defaults shown in --help, -v/--debug/-q accepted after the command."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        _common_flags(self, argparse.SUPPRESS)
+
+    def add_argument(self, *args, **kwargs):
+        default = kwargs.get("default")
+        shown = args and args[0].startswith("-") and default not in (None, False, "", argparse.SUPPRESS)
+        if shown and "%(default)" not in (kwargs.get("help") or ""):
+            kwargs["help"] = f"{kwargs.get('help') or ''} (default: %(default)s)".strip()
+        return super().add_argument(*args, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="spiralbayes", description=DESCRIPTION)
-    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
-    parser.add_argument("--debug", action="store_true", help="show the full traceback of errors")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars, warnings only")
-    sub = parser.add_subparsers(dest="command", required=True)
+    _common_flags(parser, False)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     p = sub.add_parser("demo", help="simulate a planet, fit frank, scan, decide, plot (a few minutes)")
     p.add_argument("--out", default="spiralbayes-demo", help="output folder")
@@ -227,7 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_demo)
 
     p = sub.add_parser("simulate", help="synthetic ALMA observation of a disc (preset of Stevenson et al. 2024)")
-    p.add_argument("--preset", default="fiducial")
+    p.add_argument("--preset", default="fiducial", choices=_preset_names(), help="set-up of Table 1")
     p.add_argument("--out", required=True, help="output file (.txt/.npz uvtable, .h5, or .ms)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--distance", type=float, default=140.0, help="[pc]")
@@ -282,7 +313,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_limits)
 
     p = sub.add_parser("forecast", help="expected Delta chi^2, detection probability and time needed for a planet")
-    p.add_argument("--preset", nargs="+", default=["fiducial"], help="one or more set-ups of Table 1")
+    p.add_argument("--preset", nargs="+", default=["fiducial"], choices=_preset_names(), metavar="PRESET",
+                   help=f"one or more set-ups of Table 1: {', '.join(_preset_names())}")
     p.add_argument("--mass", type=float, default=1.0, help="M_p/M_th")
     p.add_argument("--tau0", type=float, default=3.0)
     p.add_argument("--beta", type=float, default=10.0)
@@ -295,7 +327,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--time", type=float, default=None, help="total time on source [min] (default: the preset's)")
     p.add_argument("--sensitivity", type=float, default=None, help="image noise [Jy/beam] (default: scaled as t^-1/2)")
     p.add_argument("--wavelength", type=float, default=0.0, help="template wavelength [m] (0: the first preset's)")
-    p.add_argument("--probability", type=float, default=0.9, help="detection probability for the time estimate")
+    p.add_argument("--probability", type=_probability, default=0.9,
+                   help="detection probability for the time estimate, in (0, 1)")
     p.set_defaults(func=_cmd_forecast)
 
     p = sub.add_parser("templates", help="build (or load) the default template bank")
@@ -305,8 +338,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
+def _join_negative_numbers(argv: list[str]) -> list[str]:
+    """``--dra -1.9e-3`` -> ``--dra=-1.9e-3`` (argparse takes '-1.9e-3' for an option, not a number)."""
+    out: list[str] = []
+    for token in argv:
+        if out and _NUMBER.match(token) and out[-1].startswith("--") and "=" not in out[-1]:
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(_join_negative_numbers(argv))
     level = logging.DEBUG if args.verbose else (logging.WARNING if args.quiet else logging.INFO)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     try:

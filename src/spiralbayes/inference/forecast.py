@@ -47,7 +47,7 @@ from .detection import DELTA_BIC_THRESHOLD
 from .scan_engine import ScanContext, scan_template
 from .statistics import N_SPIRAL_PARAMETERS
 
-__all__ = ["Forecast", "compare_setups", "detectable_mass", "forecast", "setup_for_time"]
+__all__ = ["Forecast", "compare_setups", "detectable_mass", "forecast", "format_minutes", "setup_for_time"]
 
 log = logging.getLogger(__name__)
 
@@ -162,15 +162,16 @@ class Forecast:
             return float(np.exp(lo))
         return float(np.exp(brentq(lambda lt: self.probability(np.exp(lt)) - probability, lo, hi, xtol=1e-6)))
 
-    def summary(self) -> str:
+    def summary(self, probability: float = 0.9) -> str:
+        """One paragraph: E[Δχ²], the threshold, P(ΔBIC > 10) and the time for ``probability``."""
         where = f"r_p = {self.r_p:.3f} arcsec" + (f" ({self.r_p * self.distance:.0f} au)" if self.distance else "")
         e = self.expected
-        t90 = self.time_for_probability(0.9)
+        needed = format_minutes(self.time_for_probability(probability))
         return (f"{self.template.get('name', 'planet')} at {where} with {self.setup.get('name', 'set-up')} "
                 f"({self.time_on_source:.0f} min, N = {self.n_data}): E[Δχ²] = {e.mean():.1f} "
                 f"(range over phi_p {e.min():.1f}-{e.max():.1f}, sd {2 * np.sqrt(e.mean()):.1f}) against "
                 f"6 ln N + 10 = {self.threshold():.1f}; P(ΔBIC > 10) = {self.probability():.2f}; "
-                f"90 % needs {t90:.0f} min on source (linear scaling, fixed uv coverage).")
+                f"{100 * probability:g} % needs {needed} on source (linear scaling, fixed uv coverage).")
 
     def to_dict(self) -> dict:
         return {"template": self.template, "r_p": self.r_p, "n_data": self.n_data,
@@ -295,3 +296,13 @@ def detectable_mass(masses, expected, threshold: float) -> tuple[float, bool]:
     i = 0 if t < e[0] else m.size - 2
     slope = (e[i + 1] - e[i]) / (m[i + 1] - m[i])
     return float(np.exp(m[i] + (t - e[i]) / slope)), True
+
+
+def format_minutes(minutes: float) -> str:
+    """A time on source for people: "not reachable", "< 1 min", "12 min" or "95 min (1.6 h)"."""
+    if not np.isfinite(minutes):
+        return "not reachable (beyond 10^6 min)"
+    if minutes < 1:
+        return "< 1 min"
+    text = f"{minutes:.0f} min"
+    return text + (f" ({minutes / 60:.1f} h)" if minutes >= 60 else "")

@@ -57,6 +57,10 @@ from .statistics import bic_threshold, delta_chi2_from_terms
 __all__ = ["ScanResult", "default_rp_grid", "resume_key", "scan"]
 
 SCAN_KIND = "spiralbayes.ScanResult"
+DATASET_UNITS = {"r_p": "arcsec", "phi_p": "rad", "cross": "dimensionless (chi^2 units)",
+                 "power": "dimensionless (chi^2 units)", "cross_error": "dimensionless (chi^2 units)",
+                 "power_error": "dimensionless (chi^2 units)"}
+"""The ``units`` attribute of each dataset of a saved scan (Δχ² = 2 cross - power)."""
 
 log = logging.getLogger(__name__)
 
@@ -171,7 +175,7 @@ class ScanResult:
         """Write to HDF5 (atomically)."""
         with write_file(path, SCAN_KIND) as f:
             for name in ("r_p", "phi_p", "cross", "power", "cross_error", "power_error"):
-                checked_dataset(f, name, getattr(self, name))
+                checked_dataset(f, name, getattr(self, name)).attrs["units"] = DATASET_UNITS[name]
             f.attrs["chi2_AO"] = self.chi2_AO
             f.attrs["n_data"] = self.n_data
             f.attrs["geometry"] = json.dumps(self.geometry.to_dict())

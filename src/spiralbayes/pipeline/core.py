@@ -86,8 +86,19 @@ def select_templates(bank, mass=(), tau0=(), beta=(), hand=(), h_p=()):
                          hand=list(hand) or None, h_p=list(h_p) or None)
     if not len(chosen):
         raise InputError(f"no template matches mass={list(mass)}, tau0={list(tau0)}, beta={list(beta)}, "
-                         f"hand={list(hand)}, h_p={list(h_p)}; the bank has {bank.names}")
+                         f"hand={list(hand)}, h_p={list(h_p)}; the bank ({len(bank)} templates) has "
+                         f"{_bank_values(bank)}")
     return list(chosen)
+
+
+def _bank_values(bank) -> str:
+    """The values each template parameter takes in ``bank``, e.g. ``mass 0.3, 1, 3; hand L, R``."""
+    parts = []
+    for key in ("mass", "tau0", "beta", "hand", "h_p"):
+        values = sorted({getattr(t, key) for t in bank if getattr(t, key, None) is not None}, key=str)
+        values = [v for v in values if not (isinstance(v, float) and v != v)]
+        parts.append(f"{key} {', '.join(f'{v:g}' if isinstance(v, float) else str(v) for v in values) or '-'}")
+    return "; ".join(parts)
 
 
 def save_figure(fig, path, dpi: int = 120, **kwargs) -> Path:
@@ -155,6 +166,8 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
     calibrated against wakeflow and FARGO3D reference maps (docs/templates.md).
     """
     out_dir = Path(out_dir)
+    if isinstance(dask, str):
+        check_dask_address(dask)
     timings = {}
     t0 = time.perf_counter()
     geometry = DiscGeometry(30.0, 60.0)
@@ -269,6 +282,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     checkpoint = out_dir / "scan_checkpoint.h5" if s["checkpoint"] else None
     if checkpoint is not None and checkpoint.exists():
         ScanResult.load(checkpoint)  # a truncated or foreign file fails now, not after the frank fit
+    check_dask_address(s["dask"])
     vis = load_data(config["data"], _geometry(config))
     axisym = load_axisymmetric(config, vis, progress=progress)
     templates = load_templates(config["templates"])
@@ -305,6 +319,38 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
                                     vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
         files.append(follow.axisymmetric.save(sub / "axisymmetric.h5"))
     return ScanRun(verdict, result, alts, follow, files)
+
+
+DASK_CONNECT_TIMEOUT_S = 3.0
+"""How long :func:`check_dask_address` waits for the scheduler's port [s]."""
+
+
+def check_dask_address(address: str, timeout: float = DASK_CONNECT_TIMEOUT_S) -> None:
+    """Refuse an unreachable Dask scheduler before anything slow runs (frank, the scan set-up).
+
+    ``""`` (serial) and ``"local"`` (a LocalCluster) need no check; ``tcp://host:port`` (or
+    ``host:port``) must accept a TCP connection within ``timeout`` seconds.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    if not address or address == "local":
+        return
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    try:
+        host, port = parts.hostname, parts.port or 8786
+    except ValueError:
+        raise InputError(f"scan.dask = {address!r} is not a scheduler address (tcp://host:8786, 'local' or "
+                         "empty)") from None
+    if not host:
+        raise InputError(f"scan.dask = {address!r} is not a scheduler address (tcp://host:8786, 'local' or empty)")
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise InputError(f"scan.dask = {address!r}: no Dask scheduler answers at {host}:{port} within {timeout:g} s "
+                         f"({exc.__class__.__name__}); start one (dask scheduler), use 'local', or leave it empty "
+                         "for a serial scan") from None
 
 
 def _geometry_error_significant(alternatives) -> bool:
@@ -353,12 +399,27 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
                               processes=s["processes"] if s["processes"] > 1 else None,
                               mcmc_templates=s["mcmc_templates"] or None, progress=progress, **sampler)
     result.save(out_dir / f"{run_name}_posterior.h5")
-    summary = {**result.to_json(), "summary": result.summary()}
+    summary = {**result.to_json(), "summary": _summary_with_units(result.summary())}
     _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))
     _save_figure(plot_corner(result, distance=config["geometry"]["distance"]), out_dir / f"{run_name}_corner.png")
     _save_figure(plot_hypotheses(result), out_dir / f"{run_name}_hypotheses.png")
     _save_figure(plot_template_probabilities(result), out_dir / f"{run_name}_templates.png")
     return result
+
+
+_SUMMARY_UNITS = {"r_p": ("r_p_arcsec", 1.0), "phi_p": ("phi_p_deg", 180.0 / np.pi), "A": ("A", 1.0),
+                  "inc": ("inc_deg", 1.0), "PA": ("PA_deg", 1.0), "dRA": ("dRA_arcsec", 1.0),
+                  "dDec": ("dDec_arcsec", 1.0)}
+
+
+def _summary_with_units(stats: dict) -> dict:
+    """The posterior statistics with the unit in each key and phi_p in degrees (as the text reports it)."""
+    out = {}
+    for name, values in stats.items():
+        key, scale = _SUMMARY_UNITS.get(name, (name, 1.0))
+        out[key] = {k: v * scale if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+                    for k, v in values.items()} if isinstance(values, dict) else values
+    return out
 
 
 def run_axisym(vis: Visibilities, out_dir, geometry: DiscGeometry | None = None, *,
