@@ -456,3 +456,18 @@ def test_an_unreachable_dask_scheduler_is_reported_before_frank(setup, tmp_path,
     with Unchanged(tmp_path), pytest.raises(InputError, match=f"no Dask scheduler answers at 127.0.0.1:{port}"):
         core.run_scan(load_config(cfg), progress=False)
     assert time.monotonic() - t0 < core.DASK_CONNECT_TIMEOUT_S + 1
+
+
+def test_compare_on_a_uvtable_without_wavelength_names_the_option_before_the_scan(setup, tmp_path, monkeypatch):
+    import spiralbayes._casa as casa
+    import spiralbayes.pipeline.compare as compare
+    from spiralbayes.config import load_config
+
+    monkeypatch.setattr(casa, "import_casa", lambda: None)  # as if CASA were installed
+    monkeypatch.setattr(compare, "run_scan_config", lambda *a, **k: pytest.fail("must fail before the scan"))
+    table = tmp_path / "obs.txt"
+    vis = setup.vis
+    np.savetxt(table, np.column_stack([vis.u, vis.v, vis.V.real, vis.V.imag, vis.weights]), fmt="%.10g")
+    cfg = _config(tmp_path / "c.toml", setup, tmp_path / "out", data=f'path = "{table}"')
+    with Unchanged(tmp_path), pytest.raises(ConfigError, match=r"set \[data\] wavelength = <metres>"):
+        compare.run_compare_config(load_config(cfg), progress=False)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from .._provenance import json_default
 from ..axisymmetric import AxisymmetricModel
+from ..exceptions import ConfigError
 from .core import _write_text, load_data, run_scan_config, save_figure
 
 __all__ = ["CompareResult", "compare_table", "run_compare_config"]
@@ -71,10 +72,14 @@ def run_compare_config(config: dict, *, progress: bool = True) -> CompareResult:
     c = config["compare"]
     out_dir = Path(config["output"]["dir"])
     timings = {}
+    vis = load_data(config["data"])
+    if vis.wavelength is None:  # CASA needs u, v in metres: fail before the scan, with the option to set
+        raise ConfigError(f"{config['data']['path']}: compare needs the observing wavelength (CASA's Measurement "
+                          "Set stores u, v in metres) and the file does not state it: set [data] wavelength = "
+                          "<metres> in the configuration (e.g. 1.3e-3)")
     t0 = time.perf_counter()
     verdict, result, files = run_scan_config(config, progress=progress)
     timings["scan_s"] = time.perf_counter() - t0
-    vis = load_data(config["data"])
     axisym = AxisymmetricModel.load(out_dir / "axisymmetric.h5")
     r_out = c["r_out"] or 1.1 * axisym.R_eff(0.99)
     t1 = time.perf_counter()
