@@ -31,7 +31,7 @@ def test_compare_command_on_the_demo_observation(planet_templates, tmp_path, mon
     (tmp_path / "compare.toml").write_text(
         '[data]\npath = "demo.h5"\n[geometry]\ninc = 30.0\nPA = 60.0\ndistance = 140.0\n'
         "[templates]\nmass = [1.0]\ntau0 = [3.0]\nbeta = [10.0]\n"
-        "[grid]\nn_r_p = 13\nn_phi_p = 45\n[output]\ndir = \"out\"\n")
+        "[grid]\nn_r_p = 13\nn_phi_p = 46\n[output]\ndir = \"out\"\n")
     monkeypatch.chdir(tmp_path)
     assert main(["-q", "compare", "compare.toml"]) == 0
     out = tmp_path / "out"
