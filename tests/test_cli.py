@@ -164,5 +164,7 @@ def test_forecast_command(capsys):
     assert main(["-q", "forecast", "--preset", "taurus", "--mass", "1", "--tau0", "0.3", "--beta", "10",
                  "--r-au", "50", "--probability", "0.5"]) == 0
     out = capsys.readouterr().out
-    assert "P(ΔBIC > 10)" in out and "on-source time for P(Delta BIC > 10) = 50%" in out
-    assert main(["forecast", "--preset", "nowhere"]) == 2
+    assert "P(ΔBIC > 10)" in out and "50 % needs" in out and "90 %" not in out and " 0 min" not in out
+    with pytest.raises(SystemExit) as info:  # argparse lists the presets
+        main(["forecast", "--preset", "nowhere"])
+    assert info.value.code == 2 and "taurus" in capsys.readouterr().err
