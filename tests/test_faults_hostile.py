@@ -471,3 +471,14 @@ def test_compare_on_a_uvtable_without_wavelength_names_the_option_before_the_sca
     cfg = _config(tmp_path / "c.toml", setup, tmp_path / "out", data=f'path = "{table}"')
     with Unchanged(tmp_path), pytest.raises(ConfigError, match=r"set \[data\] wavelength = <metres>"):
         compare.run_compare_config(load_config(cfg), progress=False)
+
+
+def test_chi2_vs_rp_explains_chi2_sa_and_keeps_the_mirror_visible(setup):
+    from spiralbayes.plotting.scan import plot_chi2_vs_rp
+
+    ax = plot_chi2_vs_rp(setup.result).axes[0]
+    assert "spiral vs axisymmetric" in ax.get_ylabel()
+    styles = {line.get_label(): (line.get_linestyle(), line.get_linewidth()) for line in ax.get_lines()}
+    for meta in setup.result.templates:
+        ls, lw = styles[meta["name"]]
+        assert (ls, lw > 2) == (("--", False) if meta["hand"] == "L" else ("-", True))

@@ -131,16 +131,19 @@ def plot_chi2_vs_rp(result, templates=None, *, quantity: str = "chi2_SA", amplit
     ax = fig.subplots()
     for t in idx:
         name = result.templates[t]["name"]
+        # a template and its mirror have nearly the same chi2_SA: L dashed over a wider R stays visible
+        style = {"ls": "--", "lw": 1.2} if result.templates[t].get("hand") == "L" else {"ls": "-", "lw": 2.2}
         if quantity == "chi2_SA":
             power = result.power[t]
-            (line,) = ax.plot(r, power.mean(axis=1), label=name)
+            (line,) = ax.plot(r, power.mean(axis=1), label=name, **style)
             ax.fill_between(r, power.min(axis=1), power.max(axis=1), color=line.get_color(), alpha=0.15)
         else:
-            ax.plot(r, np.max(result.delta_chi2(amplitude)[t], axis=1), label=name)
+            ax.plot(r, np.max(result.delta_chi2(amplitude)[t], axis=1), label=name, **style)
     if quantity == "chi2_SA":
         ax.set_yscale("log")
         ax.axhline(bic_threshold(result.n_data), color="k", ls="--", lw=0.8, label="6 ln N")
-        ax.set_ylabel(r"$\chi^2_{SA}$")
+        ax.set_ylabel(r"$\chi^2_{SA} = \sum w\,|V_S - V_A|^2$ (spiral vs axisymmetric model;" "\n"
+                      r"the noise-free $\Delta\chi^2$ of such a planet)", fontsize=8)
     else:
         ax.axhline(0, color="0.5", lw=0.8)
         ax.set_ylabel(r"max over $\phi_p$ of $\Delta\chi^2$")
