@@ -372,7 +372,9 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
 
     The axisymmetric model is ``[frank] model``, else ``OUTPUT/axisymmetric.h5`` written by a scan
     of the same configuration, else a new frank fit; the scan (walker starts, template pruning) is
-    ``[sample] scan``, else ``OUTPUT/scan.h5`` when present. Writes, in ``[output] dir``:
+    ``[sample] scan``, else ``OUTPUT/scan.h5`` when present. Saved files are reused only when
+    made from these data, geometry and frank settings (:mod:`.reuse`); otherwise the run is refused
+    before any sampling, naming what differs. Writes, in ``[output] dir``:
     ``chains/<run_name>.h5`` (the chains), ``<run_name>_posterior.h5`` (the result),
     ``<run_name>_summary.json`` (with the verdict: P(planet | data), the Bayes factor),
     ``<run_name>_corner.png`` (r_p in au at ``[geometry] distance``), ``<run_name>_hypotheses.png``,
