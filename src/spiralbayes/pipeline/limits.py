@@ -11,7 +11,7 @@ import numpy as np
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..config import describe_config
 from ..geometry import DiscGeometry
-from ..inference.scan import ScanResult, scan
+from ..inference.scan import scan
 from ..simulate import DiscModel, simulate_observation
 from ..templates import make_template
 from .._hdf5 import require_file
