@@ -143,7 +143,8 @@ def run_survey(survey, *, scheduler: str | None = None, n_workers: int | None = 
     out = spec.out_dir
     t0 = time.perf_counter()
     engine = open_engine(settings["scheduler"], n_workers=settings["n_workers"],
-                         connect_timeout=settings["connect_timeout"], retries=settings["retries"])
+                         connect_timeout=settings["connect_timeout"], retries=settings["retries"],
+                         cluster_options=spec.cluster)
     t_engine = time.perf_counter() - t0
     try:
         out.mkdir(parents=True, exist_ok=True)

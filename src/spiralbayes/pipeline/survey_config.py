@@ -6,6 +6,8 @@ A survey file holds
 * optionally ``[bank]``: a template bank the survey builds once (both hands of every mass, tau0,
   beta and h_p listed, at ``wavelength``) into ``OUTPUT/bank.h5`` and uses for every disc;
 * any section of the single-disc schema (:data:`spiralbayes.config.SCHEMA`), shared by all discs;
+* optionally ``[cluster]``: dask-jobqueue options when ``scheduler = "slurm"`` or ``"pbs"``
+  (``jobs``, ``cores``, ``memory``, ``walltime``, ``queue``, ``account``, ...);
 * ``[[disc]]`` tables: ``name``, ``path`` (uvtable, .npz, .h5 or Measurement Set), ``distance``
   [pc], ``inc``, ``PA`` [deg], ``dRA``, ``dDec`` [arcsec], ``fit_geometry`` (fit the geometry
   with frank), optionally ``simulate`` (write a synthetic observation at ``path`` when it is
@@ -36,7 +38,8 @@ SURVEY_SCHEMA: dict[str, tuple[object, str]] = {
     "name": ("survey", "name of the survey (table captions, provenance)"),
     "output": ("spiralbayes-survey", "output folder: the survey table, figures, provenance and discs/<name>/"),
     "scheduler": ("", "empty: a dask.distributed LocalCluster sized to the machine; 'serial': no Dask, in "
-                      "this process; else the address of a running scheduler (tcp://host:8786)"),
+                      "this process; 'slurm' or 'pbs': a dask-jobqueue cluster from [cluster]; else the address "
+                      "of a running scheduler (tcp://host:8786)"),
     "n_workers": (0, "LocalCluster worker processes, one thread each (0: one per core)"),
     "connect_timeout": (10.0, "seconds to wait for a scheduler at the given address before giving up"),
     "posterior": ("candidates", "'candidates': the posterior for discs with a detection or a candidate; "
@@ -99,6 +102,7 @@ class SurveySpec:
     source: str = ""
     text_hash: str = ""
     shared: dict = field(default_factory=dict)
+    cluster: dict = field(default_factory=dict)
 
     @property
     def out_dir(self) -> Path:
@@ -195,6 +199,9 @@ def parse_survey(user: dict, root: Path = Path("."), *, source: str = "") -> Sur
         if error:
             raise ConfigError(f"survey.{key} = {settings[key]!r} {error}")
     bank = _merge_section(BANK_SCHEMA, user.pop("bank"), "bank") if "bank" in user else None
+    cluster = user.pop("cluster", {})
+    if not isinstance(cluster, dict):
+        raise ConfigError("[cluster] must be a table of dask-jobqueue options (cores, memory, walltime, jobs, ...)")
     discs = user.pop("disc", [])
     if isinstance(discs, dict):
         discs = [discs]
@@ -216,7 +223,7 @@ def parse_survey(user: dict, root: Path = Path("."), *, source: str = "") -> Sur
             raise ConfigError(f"discs {seen[job.slug]!r} and {job.name!r} share the folder name {job.slug!r}: "
                               "give them distinct names")
         seen[job.slug] = job.name
-    return SurveySpec(settings, jobs, bank, source, content_hash(user, settings, bank), shared)
+    return SurveySpec(settings, jobs, bank, source, content_hash(user, settings, bank), shared, cluster)
 
 
 def load_survey(path, **overrides) -> SurveySpec:

@@ -108,7 +108,7 @@ def taurus_survey_toml() -> str:
         lines += ["[[disc]]", f'name = "{name}"', f'path = "taurus-data/{slug}.h5"', f"distance = {dist}",
                   f"inc = {inc}", f"PA = {pa}", "fit_geometry = false",
                   f'simulate = {{ preset = "taurus", flux = {flux}, r_eff = {r_eff}, seed = {k + 1} }}']
-        if r_eff / 0.6 > 0.5:  # scan out to ~1.5 R_eff for the large discs, as the paper's ranges reach
+        if 1.5 * r_eff > 0.5:  # scan out to ~1.5 R_eff for the large discs, as the paper's ranges reach
             lines += ["[disc.grid]", f"r_p_max = {round(min(1.5 * r_eff, 1.0), 2)}"]
         lines.append("")
     return "\n".join(lines)

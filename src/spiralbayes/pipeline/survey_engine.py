@@ -24,7 +24,11 @@ from dataclasses import dataclass, field
 
 from ..exceptions import InputError
 
-__all__ = ["Engine", "Ref", "SchedulerUnreachableError", "Task", "connect", "open_engine"]
+__all__ = ["JOBQUEUE_KINDS", "Engine", "Ref", "SchedulerUnreachableError", "Task", "connect", "jobqueue_cluster",
+           "open_engine"]
+
+JOBQUEUE_KINDS = {"slurm": "SLURMCluster", "pbs": "PBSCluster"}
+"""``[survey] scheduler`` values that build a dask-jobqueue cluster from the survey file's ``[cluster]`` table."""
 
 log = logging.getLogger(__name__)
 
@@ -180,12 +184,45 @@ class Engine:
         return Outcome(values, errors, seconds)
 
 
+def jobqueue_cluster(kind: str, options: dict | None = None):
+    """A dask-jobqueue cluster (``kind`` "slurm" or "pbs") built from ``options`` (the ``[cluster]`` table).
+
+    ``options`` are the cluster class's keyword arguments (``cores``, ``memory``, ``walltime``,
+    ``queue``, ``account``, ``job_extra_directives``, ...); ``jobs`` (how many batch jobs to
+    start) is taken out and left to the caller (:func:`open_engine` calls ``cluster.scale(jobs=...)``).
+    Workers get one thread per process (``cores`` = ``processes``) unless ``processes`` is given.
+    Needs ``pip install "spiralbayes[cluster]"`` (dask-jobqueue).
+    """
+    from ..exceptions import MissingDependencyError
+
+    if kind not in JOBQUEUE_KINDS:
+        raise InputError(f"cluster kind {kind!r}: use one of {', '.join(JOBQUEUE_KINDS)}")
+    try:
+        import dask_jobqueue
+    except ImportError:
+        raise MissingDependencyError(f"scheduler = {kind!r} needs dask-jobqueue: pip install "
+                                     "'spiralbayes[cluster]'") from None
+    kwargs = {k: v for k, v in (options or {}).items() if k != "jobs"}
+    kwargs.setdefault("cores", 1)
+    kwargs.setdefault("processes", kwargs["cores"])
+    kwargs.setdefault("memory", "4GB")
+    kwargs.setdefault("scheduler_options", {"dashboard_address": ":0"})
+    return getattr(dask_jobqueue, JOBQUEUE_KINDS[kind])(**kwargs)
+
+
 def open_engine(scheduler: str = "", *, n_workers: int = 0, connect_timeout: float = 10.0,
-                retries: int = 1) -> Engine:
-    """The engine of a survey: ``"serial"``, a scheduler address, or (empty) a LocalCluster sized to the machine."""
+                retries: int = 1, cluster_options: dict | None = None) -> Engine:
+    """The engine of a survey: ``"serial"``, a scheduler address, ``"slurm"``/``"pbs"`` (dask-jobqueue,
+    from ``cluster_options``), or (empty) a LocalCluster sized to the machine."""
     if scheduler == "serial":
         return Engine(retries=retries)
-    if scheduler:
+    if scheduler in JOBQUEUE_KINDS:
+        from distributed import Client
+
+        cluster = jobqueue_cluster(scheduler, cluster_options)
+        cluster.scale(jobs=int((cluster_options or {}).get("jobs", 1)))
+        engine = Engine(Client(cluster), cluster, retries=retries, description=f"{JOBQUEUE_KINDS[scheduler]}")
+    elif scheduler:
         client = connect(scheduler, connect_timeout)
         engine = Engine(client, retries=retries, description=f"scheduler {scheduler}")
     else:
