@@ -250,3 +250,30 @@ def test_jobqueue_cluster_from_configuration():
         assert "#PBS -l walltime=01:00:00" in cluster.job_script()
     finally:
         cluster.close()
+
+
+def test_posterior_policy():
+    from spiralbayes.pipeline.survey_stages import wants_posterior
+
+    quiet, candidate, detected = {"detected": False, "candidate": None}, \
+        {"detected": False, "candidate": {"template": "t"}}, {"detected": True, "candidate": None}
+    assert [wants_posterior("candidates", v) for v in (quiet, candidate, detected)] == [False, True, True]
+    assert [wants_posterior("all", v) for v in (quiet, candidate, detected)] == [True, True, True]
+    assert not any(wants_posterior("none", v) for v in (quiet, candidate, detected))
+
+
+@pytest.mark.slow
+def test_posterior_all_runs_the_sample_stage(survey_dir, tmp_path):
+    """posterior = "all" on one disc: the sample stage's files appear and P(planet) is in the table."""
+    from spiralbayes.pipeline.survey import run_survey
+
+    text = SURVEY.split("[[disc]]")[0] + "[[disc]]" + SURVEY.split("[[disc]]")[1]
+    text = text.replace("[survey]\n", '[survey]\nposterior = "all"\nposterior_steps = 60\n', 1)
+    text += "[sample]\nn_walkers = 16\nevidence_draws = 200\nconvergence = \"ignore\"\n"
+    path = survey_dir / "posterior.toml"
+    path.write_text(text)
+    run = run_survey(path, output=str(tmp_path / "post"), progress=False)
+    row = run.rows[0]
+    assert row["status"] == "ok", row
+    assert 0.0 <= row["p_planet"] <= 1.0
+    assert (tmp_path / "post" / "discs" / "Disc_A" / "posterior_summary.json").exists()

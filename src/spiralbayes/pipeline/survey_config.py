@@ -82,14 +82,15 @@ class DiscJob:
     slug: str
     config: dict
     simulate: dict | None = None
+    bank_key: str = ""  # hash of the survey's [bank] (its templates are not in the config, only its path)
 
     @property
     def out_dir(self) -> Path:
         return Path(self.config["output"]["dir"])
 
-    def key(self, *sections: str, extra=None) -> str:
-        """Hash of the named configuration sections (and ``extra``): a stage's resume key."""
-        return content_hash({s: self.config[s] for s in sections}, extra)
+    def key(self, *sections: str, extra=None, bank: bool = True) -> str:
+        """Hash of the named configuration sections (and ``extra``, and the survey's bank): a stage's resume key."""
+        return content_hash({s: self.config[s] for s in sections}, extra, self.bank_key if bank else "")
 
 
 @dataclass
@@ -217,6 +218,9 @@ def parse_survey(user: dict, root: Path = Path("."), *, source: str = "") -> Sur
     if bank is not None:
         shared.setdefault("templates", {})["bank"] = str(Path(settings["output"]) / "bank.h5")
     jobs = [_disc_job(entry, shared, Path(settings["output"]), root, i) for i, entry in enumerate(discs)]
+    if bank is not None:
+        for job in jobs:
+            job.bank_key = content_hash(bank)
     seen = {}
     for job in jobs:
         if job.slug in seen:

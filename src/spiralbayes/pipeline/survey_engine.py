@@ -7,7 +7,9 @@ and move between them only where a task needs them (the ScanContext of a disc go
 worker that scans a chunk of it), and the client only gathers the small table rows. A failure
 propagates to the tasks that depend on it, never to other discs.
 
-The default cluster is a :class:`~distributed.LocalCluster` with one single-threaded worker
+The serial engine runs every task with one BLAS thread, as a Dask worker does, so that both
+give the same table to the last bit (frank's linear algebra differs in the last digit between
+thread counts). The default cluster is a :class:`~distributed.LocalCluster` with one single-threaded worker
 process per core; ``scheduler = "tcp://host:port"`` connects to a running one (dask-jobqueue,
 dask-mpi or ``dask scheduler``; docs/survey.md) and fails in one line naming the address when it
 cannot be reached within ``connect_timeout`` seconds, before any work is done.
@@ -127,6 +129,7 @@ class Engine:
         return self._run_dask(tasks, wanted, progress)
 
     def _run_serial(self, tasks, wanted, progress) -> Outcome:
+        from threadpoolctl import threadpool_limits
         from tqdm.auto import tqdm
 
         results, errors, seconds = {}, {}, {}
@@ -139,7 +142,8 @@ class Engine:
             t0 = time.perf_counter()
             for attempt in range(self.retries + 1):
                 try:
-                    results[task.key] = task.func(*args)
+                    with threadpool_limits(1):  # as a Dask worker: one BLAS thread, so the same bits
+                        results[task.key] = task.func(*args)
                     break
                 except Exception as exc:
                     if attempt == self.retries:

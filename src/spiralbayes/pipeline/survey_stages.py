@@ -154,7 +154,7 @@ def stage_frank(job, prep: Prepared):
     from .core import load_axisymmetric
 
     out = job.out_dir
-    key = job.key("data", "geometry", "frank", extra=prep.data_key)
+    key = job.key("data", "geometry", "frank", extra=prep.data_key, bank=False)
     if done(out, "frank", key, "axisymmetric.h5") is not None:
         return AxisymmetricModel.load(out / "axisymmetric.h5")
     axisym = load_axisymmetric(job.config, prep.vis, progress=False)
