@@ -165,7 +165,6 @@ def test_rerun_skips_finished_stages_and_gives_the_same_table(cluster_run, surve
     assert frank < 1.0
 
 
-@pytest.mark.slow  # a third run of the survey (~60 s on the loaded 2-core machine)
 def test_kill_client_then_rerun_gives_the_same_table(cluster_run, survey_dir):
     """kill -9 of a serial survey's process after its first disc's scan; the rerun's table equals the cluster run's."""
     out = survey_dir / "killed"
