@@ -43,6 +43,10 @@ def __getattr__(name):
         import importlib
 
         return importlib.import_module(".plotting", __name__)
+    if name == "run_survey":  # the survey runner imports dask.distributed: loaded on first use too
+        from .pipeline.survey import run_survey
+
+        return run_survey
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -76,6 +80,7 @@ __all__ = [
     "forecast",
     "load_visibilities",
     "make_template",
+    "run_survey",
     "sample_posterior",
     "save_visibilities",
     "rescan_at_fitted_geometry",

@@ -1,4 +1,4 @@
-"""The ``spiralbayes`` command: demo, simulate, axisym, scan, sample, limits, forecast, compare, templates.
+"""The ``spiralbayes`` command: demo, simulate, axisym, scan, sample, limits, survey, forecast, compare, templates.
 
 User errors (bad input files, configuration values, missing optional dependencies, a checkpoint
 for other inputs) are printed as one line, ``spiralbayes: error: ...``, with exit status 2;
@@ -20,7 +20,8 @@ log = logging.getLogger("spiralbayes")
 DESCRIPTION = """Search ALMA visibilities for planet-driven dust spirals (Stevenson et al. 2024) and
 turn the search into Bayesian inference. Commands: demo (an end-to-end example), simulate
 (synthetic ALMA data), axisym (frank fit), scan (grid scan of spiral templates, verdict and
-heatmaps), sample (emcee posterior), limits (exclusion limits and completeness), forecast
+heatmaps), sample (emcee posterior), limits (exclusion limits and completeness), survey (many
+discs on Dask, one table), forecast
 (time on source a planet needs), compare (image-space baselines with CASA), templates (the
 built-in template bank). Run
 'spiralbayes COMMAND -h' for a command's options; 'spiralbayes scan --print-config' writes a
@@ -172,6 +173,22 @@ def _cmd_limits(args) -> int:
     return 0
 
 
+def _cmd_survey(args) -> int:
+    from .pipeline.survey import run_survey, run_survey_demo
+
+    if args.demo:
+        run = run_survey_demo(args.out, scheduler=args.scheduler, n_workers=args.workers, progress=not args.quiet)
+    elif args.survey:
+        run = run_survey(args.survey, scheduler=args.scheduler, n_workers=args.workers, progress=not args.quiet)
+    else:
+        raise SystemExit("spiralbayes survey: give a SURVEY file or --demo (see examples/taurus_survey.toml)")
+    print(open(run.files[1]).read(), end="")
+    if run.failed:
+        print(f"{len(run.failed)} disc(s) failed: {', '.join(run.failed)} (their error is in the table)")
+    print("wrote:\n  " + "\n  ".join(str(f) for f in run.files))
+    return 0
+
+
 def _cmd_forecast(args) -> int:
     from .pipeline import run_forecast
     from .simulate import get_preset
@@ -311,6 +328,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--demo", action="store_true", help="Table 3 for a synthetic Taurus-comparison disc")
     p.add_argument("--out", default="spiralbayes-limits-demo", help="output folder of --demo")
     p.set_defaults(func=_cmd_limits)
+
+    p = sub.add_parser("survey", help="many discs in one command: search, verdict, limits, one table (Dask)",
+                       description="Run the scan, verdict (tests 1-3), limits and (for candidates) the posterior "
+                                   "over the discs of a survey file on dask.distributed; writes one table (ECSV, "
+                                   "Markdown), figures and provenance, and each disc's usual outputs. A rerun "
+                                   "skips finished stages.")
+    p.add_argument("survey", nargs="?", metavar="SURVEY", help="survey TOML file (see examples/taurus_survey.toml)")
+    p.add_argument("--demo", action="store_true", help="the six synthetic Taurus discs of examples/taurus_survey.toml")
+    p.add_argument("--out", default="spiralbayes-survey-demo", help="output folder of --demo")
+    p.add_argument("--scheduler", default=None,
+                   help="tcp://HOST:PORT of a running Dask scheduler, or 'serial' (default: [survey] scheduler, "
+                        "else a LocalCluster sized to the machine)")
+    p.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: one per core)")
+    p.set_defaults(func=_cmd_survey)
 
     p = sub.add_parser("forecast", help="expected Delta chi^2, detection probability and time needed for a planet")
     p.add_argument("--preset", nargs="+", default=["fiducial"], choices=_preset_names(), metavar="PRESET",

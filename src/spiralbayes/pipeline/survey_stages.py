@@ -1,0 +1,365 @@
+"""The stages of one survey disc, as functions a Dask worker runs: load, frank, scan (in chunks), test 3, detect, limits, posterior, table row.
+
+Each stage writes what the single-disc command writes, in the disc's ``[output] dir``, and a
+marker ``survey_stage_<stage>.json`` holding its resume key (a hash of the configuration sections
+it depends on and of the data). A stage whose marker matches is skipped on a rerun. The scan is
+split into template chunks: :func:`stage_scan_setup` builds the :class:`ScanContext` once (the
+uv grids; workers fetch it once from the worker that built it), resumes from
+``scan_checkpoint.h5`` and from the chunks already written to ``survey_parts/``, and every
+:func:`stage_scan_chunk` computes and saves its templates' terms. :func:`stage_detect` assembles
+them exactly as :func:`spiralbayes.inference.scan.scan` does, so a survey disc's ``scan.h5``
+equals the single-disc scan's. Every stage's failure is raised as :class:`StageError` naming the
+stage, in one line.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._provenance import content_hash, data_hash, to_json
+from ..config import describe_config
+from ..exceptions import SpiralbayesError
+
+__all__ = ["StageError", "stage_alternatives", "stage_bank", "stage_detect", "stage_frank", "stage_limits",
+           "stage_posterior", "stage_prepare", "stage_row", "stage_scan_chunk", "stage_scan_setup",
+           "stage_templates"]
+
+log = logging.getLogger(__name__)
+
+SCAN_SECTIONS = ("data", "geometry", "frank", "templates", "grid", "scan", "alternatives")
+
+
+class StageError(SpiralbayesError, RuntimeError):
+    """A survey stage failed; the message is one line: ``<stage>: <error type>: <what happened>``."""
+
+
+def _staged(name: str):
+    def wrap(func):
+        def run(*args, **kwargs):
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # DataWarnings go to the disc's log, not every worker's stderr
+                    return func(*args, **kwargs)
+            except StageError:
+                raise
+            except Exception as exc:  # every failure becomes one picklable line
+                text = " ".join(str(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc).split())
+                raise StageError(f"{name}: {type(exc).__name__}: {text or 'no message'}") from None
+        run.__name__ = run.__qualname__ = f"stage_{name}"
+        run.__doc__ = func.__doc__
+        run.__module__ = __name__
+        return run
+    return wrap
+
+
+# --- markers ---------------------------------------------------------------------------------------
+def _marker(out_dir: Path, stage: str) -> Path:
+    return Path(out_dir) / f"survey_stage_{stage}.json"
+
+
+def done(out_dir: Path, stage: str, key: str, *needed: str) -> dict | None:
+    """The marker's info when ``stage`` finished with ``key`` and its files are there, else None."""
+    path = _marker(out_dir, stage)
+    if not path.exists() or not all((Path(out_dir) / f).exists() for f in needed):
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return record.get("info", {}) if record.get("key") == key else None
+
+
+def mark(out_dir: Path, stage: str, key: str, info: dict | None = None) -> None:
+    from .core import _write_text
+
+    _write_text(_marker(out_dir, stage), to_json({"stage": stage, "key": key, "info": info or {}}, indent=1))
+
+
+@dataclass
+class Prepared:
+    """The disc's data on a worker, with its content hash and the stage keys that depend on it."""
+
+    vis: object
+    data_key: str
+    scan_key: str
+
+
+@dataclass
+class ScanSetup:
+    """The scan of one disc ready to be split: context, the result being filled, what is left."""
+
+    context: object
+    result: object
+    todo: list
+    finished: bool
+    key: str
+
+
+# --- stages ----------------------------------------------------------------------------------------
+@_staged("bank")
+def stage_bank(bank: dict, path: str) -> str:
+    """Build the survey's template bank (both hands of every listed template) at ``path``, once."""
+    from ..templates import TemplateBank, make_template
+
+    path = Path(path)
+    key = content_hash(bank)
+    if done(path.parent, "bank", key, path.name) is not None:
+        return str(path)
+    templates = []
+    for h_p in bank["h_p"]:
+        for tau0 in bank["tau0"]:
+            for beta in bank["beta"]:
+                for mass in bank["mass"]:
+                    right = make_template(mass, tau0, beta, "R", h_p=h_p, wavelength=bank["wavelength"])
+                    templates += [right, right.mirror()]
+    TemplateBank(templates, provenance={"survey_bank": bank}).save(path)
+    mark(path.parent, "bank", key)
+    return str(path)
+
+
+@_staged("templates")
+def stage_templates(templates_section: dict, bank_path: str | None = None) -> list:
+    """The templates of a ``[templates]`` section (``bank_path`` only orders this after the bank)."""
+    from .core import load_templates
+
+    return load_templates(templates_section)
+
+
+@_staged("load")
+def stage_prepare(job) -> Prepared:
+    """Simulate the disc's data if missing and asked for, then load it as ``spiralbayes scan`` does."""
+    from .core import load_data
+
+    path = Path(job.config["data"]["path"])
+    if not path.exists() and job.simulate is not None:
+        from .survey_demo import simulate_disc
+
+        simulate_disc(job, path)
+    vis = load_data(job.config["data"])
+    key = data_hash(vis.u, vis.v, vis.V, vis.weights)
+    return Prepared(vis, key, job.key(*SCAN_SECTIONS, extra=key))
+
+
+@_staged("frank")
+def stage_frank(job, prep: Prepared):
+    """The axisymmetric model: ``axisymmetric.h5`` when the frank stage finished, else a frank fit."""
+    from ..axisymmetric import AxisymmetricModel
+    from .core import load_axisymmetric
+
+    out = job.out_dir
+    key = job.key("data", "geometry", "frank", extra=prep.data_key, bank=False)
+    if done(out, "frank", key, "axisymmetric.h5") is not None:
+        return AxisymmetricModel.load(out / "axisymmetric.h5")
+    axisym = load_axisymmetric(job.config, prep.vis, progress=False)
+    axisym.save(out / "axisymmetric.h5")
+    mark(out, "frank", key)
+    return axisym
+
+
+def _grid(config: dict):
+    g = config["grid"]
+    return np.linspace(g["r_p_min"], g["r_p_max"], g["n_r_p"]), g["n_phi_p"]
+
+
+@_staged("scan")
+def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
+    """The scan's context and partly filled result (resumed from the checkpoint and saved chunks)."""
+    from ..inference.scan import ScanResult, _empty_result, _resume, _warn_beyond_rmax, resume_key
+    from ..inference.scan_accuracy import check_terms
+    from ..inference.scan_engine import ScanContext, ScanSettings
+
+    out = job.out_dir
+    if done(out, "scan", prep.scan_key, "scan.h5", "verdict.json") is not None:
+        return ScanSetup(None, ScanResult.load(out / "scan.h5"), [], True, prep.scan_key)
+    s = job.config["scan"]
+    r_p, n_phi_p = _grid(job.config)
+    settings = ScanSettings(rule=s["quadrature"], cell_factor=float(s["cell_factor"]), power_path=s["power_path"])
+    _warn_beyond_rmax(axisym, r_p)
+    x_max = max(float(np.max(t.x)) for t in templates)
+    context = ScanContext.build(prep.vis, axisym, axisym.geometry, r_p, n_phi_p, x_max=x_max, nthreads=s["nthreads"],
+                                settings=settings)
+    result = _empty_result(context, templates, prep.vis, job.config["geometry"]["distance"])
+    result.provenance["resume_key"] = rkey = resume_key(prep.vis, axisym, templates, context)
+    checkpoint = out / "scan_checkpoint.h5"
+    if s["checkpoint"] and checkpoint.exists():
+        result = _resume(checkpoint, result)
+    part_key = content_hash(rkey)
+    for i in range(len(templates)):
+        if not result.completed[i]:
+            terms = _load_part(out, i, part_key)
+            if terms is not None:
+                _store_terms(result, i, terms)
+    todo = [i for i in range(len(templates)) if not result.completed[i]]
+    if todo and settings.rule == "product":
+        context.algorithm_error = check_terms(context, templates[0])
+        result.provenance["power_check"] = context.algorithm_error
+    return ScanSetup(context, result, todo, False, part_key)
+
+
+def _part_path(out: Path, index: int) -> Path:
+    return Path(out) / "survey_parts" / f"scan_template_{index:03d}.npz"
+
+
+def _load_part(out: Path, index: int, key: str):
+    from ..inference.scan_engine import TemplateTerms
+
+    path = _part_path(out, index)
+    if not path.exists():
+        return None
+    try:
+        with np.load(path) as f:
+            if str(f["key"]) != key:
+                return None
+            return TemplateTerms(f["cross"], f["power"], f["cross_error"], f["power_error"])
+    except (OSError, ValueError, KeyError):
+        return None  # a damaged part is computed again
+
+
+def _store_terms(result, index: int, terms) -> None:
+    from ..inference.scan import _store
+
+    _store(result, index, terms, None)
+
+
+@_staged("scan")
+def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
+    """The terms of templates ``indices`` still to do; each saved to ``survey_parts/`` when computed."""
+    from .._provenance import atomic_path
+    from ..inference.scan_engine import scan_template
+
+    out = {}
+    for i in indices:
+        if setup.finished or i not in setup.todo:
+            continue
+        terms = scan_template(setup.context, templates[i])
+        path = _part_path(job.out_dir, i)
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, key=setup.key, cross=terms[0], power=terms[1],
+                         cross_error=np.asarray(getattr(terms, "cross_error", np.nan)),
+                         power_error=np.asarray(getattr(terms, "power_error", np.nan)))
+        out[i] = terms
+    return out
+
+
+def _alt_kwargs(config: dict) -> dict:
+    a, s = config["alternatives"], config["scan"]
+    return {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"], "progress": False}
+
+
+@_staged("alternatives")
+def stage_alternatives(job, prep: Prepared, axisym, setup: ScanSetup):
+    """Test 3's competing asymmetry models (None when switched off or the scan stage is done)."""
+    from ..inference.alternatives import fit_alternatives
+
+    if setup.finished or not job.config["alternatives"]["fit"]:
+        return None
+    return fit_alternatives(prep.vis, axisym, axisym.geometry, **_alt_kwargs(job.config))
+
+
+@_staged("detect")
+def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts, *chunks) -> dict:
+    """Assemble the scan, decide (tests 1-3), write the scan's outputs as ``spiralbayes scan`` does."""
+    if setup.finished:
+        return json.loads((job.out_dir / "verdict.json").read_text())
+    from ..inference.detection import detect
+    from ..inference.refit import rescan_at_fitted_geometry
+    from ..inference.scan_accuracy import warn_if_inaccurate
+    from .core import _geometry_error_significant, _write_text, write_scan_outputs
+
+    config, out = job.config, job.out_dir
+    result = setup.result
+    for chunk in chunks:
+        for i, terms in chunk.items():
+            _store_terms(result, i, terms)
+    if not np.all(result.completed):
+        raise RuntimeError(f"scan of {job.name} incomplete: templates {np.flatnonzero(~result.completed).tolist()}")
+    s, a = config["scan"], config["alternatives"]
+    if s["checkpoint"]:
+        result.save(out / "scan_checkpoint.h5")
+    warn_if_inaccurate(result)
+    amplitude = "free" if s["amplitude"] == "free" else None
+    detect_kwargs = {"alternative_threshold": a["threshold"]}
+    verdict = detect(result, amplitude, alternatives=alts, **detect_kwargs)
+    plots = config["output"]["plots"]
+    write_scan_outputs(result, verdict, out, plots, amplitude, alternatives=alts, vis=prep.vis, axisymmetric=axisym,
+                       templates=templates)
+    axisym.save(out / "axisymmetric.h5")
+    _write_text(out / "config_used.toml", describe_config(config))
+    info = {}
+    if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
+        follow = rescan_at_fitted_geometry(prep.vis, axisym, templates, alts, previous_scan=result,
+                                           amplitude=amplitude, nthreads=s["nthreads"], progress=False,
+                                           alternative_kwargs=_alt_kwargs(config), detect_kwargs=detect_kwargs,
+                                           client=None, cell_factor=s["cell_factor"])
+        sub = out / "refit_geometry"
+        write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
+                           vis=prep.vis, axisymmetric=follow.axisymmetric, templates=templates)
+        follow.axisymmetric.save(sub / "axisymmetric.h5")
+        info["refit_detected"] = bool(follow.verdict.detected)
+    mark(out, "scan", prep.scan_key, info)
+    shutil.rmtree(out / "survey_parts", ignore_errors=True)
+    return verdict.to_dict()
+
+
+@_staged("limits")
+def stage_limits(job, prep: Prepared, axisym, templates, verdict: dict) -> str:
+    """Exclusion limits and Table 3 of the disc, as ``spiralbayes limits`` writes them."""
+    from ..inference.scan import ScanResult
+    from .core import _write_text
+    from .limits import run_limits
+
+    config, out = job.config, job.out_dir
+    key = content_hash(prep.scan_key, config["limits"], config["output"])
+    if done(out, "limits", key, "limits.h5", "table3.md") is None:
+        result = ScanResult.load(out / "scan.h5")
+        _write_text(out / "config_used_limits.toml", describe_config(config))
+        run_limits(prep.vis, axisym, templates, result, out, limits_config=config["limits"],
+                   name=config["limits"]["name"], distance=config["geometry"]["distance"], progress=False,
+                   plots=config["output"]["plots"])
+        mark(out, "limits", key)
+    return str(out / "limits.h5")
+
+
+def wants_posterior(mode: str, verdict: dict) -> bool:
+    """Whether the survey's posterior policy asks for this disc's posterior."""
+    return mode == "all" or (mode == "candidates" and (verdict.get("detected") or verdict.get("candidate") is not None))
+
+
+@_staged("posterior")
+def stage_posterior(job, prep: Prepared, verdict: dict, mode: str, steps: int) -> dict | None:
+    """The posterior (``spiralbayes sample``) of a disc the policy selects, with the candidate's template."""
+    from .core import run_sample_config
+
+    if not wants_posterior(mode, verdict):
+        return None
+    config = {s: dict(v) for s, v in job.config.items()}
+    sample = config["sample"]
+    if not sample["n_steps"]:
+        sample["n_steps"] = int(steps)
+    best = verdict.get("candidate") or {"template": verdict.get("template")}
+    if not sample["mcmc_templates"] and best.get("template"):
+        sample["mcmc_templates"] = [best["template"]]
+    out = job.out_dir
+    key = content_hash(prep.scan_key, sample, config["priors"])
+    info = done(out, "posterior", key, f"{sample['run_name']}_summary.json")
+    if info is None:
+        post = run_sample_config(config, progress=False)
+        info = {"p_planet": float(post.p_planet), "verdict": str(post.verdict)}
+        mark(out, "posterior", key, info)
+    return info
+
+
+@_staged("row")
+def stage_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> dict:
+    """The disc's survey-table row, read back from its files (so a resumed run gives the same row)."""
+    from .survey_table import disc_row
+
+    return disc_row(job, json.loads((job.out_dir / "verdict.json").read_text()), limits_path, posterior)

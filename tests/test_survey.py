@@ -1,0 +1,278 @@
+"""Survey mode: a 3-disc survey on a 2-worker LocalCluster against the single-disc API, failures, resume, kill -9.
+
+The discs are tiny synthetic Taurus-preset observations (frank N = 60, 2 templates, 6 x 16
+planet positions, one alternative model, no plots) so that the whole module runs in about a
+minute on 2 cores. The reference is the single-disc API (:func:`run_scan` and
+:func:`run_limits_config`) on each disc's merged configuration, in its own folder.
+"""
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SURVEY = """
+[survey]
+name = "tiny"
+output = "out"
+scheduler = "serial"
+chunk_templates = 1
+connect_timeout = 2.0
+
+[bank]
+mass = [1.0]
+tau0 = [0.3]
+beta = [10.0]
+
+[frank]
+N = 60
+[grid]
+n_r_p = 6
+n_phi_p = 16
+r_p_max = 0.4
+[alternatives]
+models = ["lopsided"]
+n_starts = 1
+[limits]
+completeness = false
+[output]
+plots = false
+
+[[disc]]
+name = "Disc A"
+path = "data/A.h5"
+distance = 140.0
+inc = 30.0
+PA = 60.0
+simulate = { preset = "taurus", flux = 0.1, r_eff = 0.4, seed = 1 }
+
+[[disc]]
+name = "Disc B"
+path = "data/B.h5"
+distance = 130.0
+inc = 45.0
+PA = 10.0
+simulate = { preset = "taurus", flux = 0.05, r_eff = 0.3, seed = 2 }
+[disc.grid]
+r_p_max = 0.35
+
+[[disc]]
+name = "Disc C"
+path = "data/C.h5"
+distance = 160.0
+inc = 20.0
+PA = 100.0
+simulate = { preset = "taurus", flux = 0.08, r_eff = 0.35, seed = 3 }
+
+[[disc]]
+name = "Damaged"
+path = "data/damaged.h5"
+distance = 140.0
+inc = 30.0
+PA = 60.0
+"""
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def survey_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("survey")
+    (d / "survey.toml").write_text(SURVEY)
+    (d / "data").mkdir()
+    (d / "data" / "damaged.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00garbage" * 50)  # truncated HDF5
+    return d
+
+
+@pytest.fixture(scope="module")
+def cluster_run(survey_dir):
+    from spiralbayes.pipeline.survey import run_survey
+
+    return run_survey(survey_dir / "survey.toml", scheduler="", n_workers=2, progress=False)
+
+
+def _single_disc(job, out: Path):
+    """The disc run one by one with the single-disc API, in its own folder."""
+    from threadpoolctl import threadpool_limits
+
+    from spiralbayes.pipeline import run_limits_config, run_scan
+
+    config = {s: dict(v) for s, v in job.config.items()}
+    config["output"]["dir"] = str(out)
+    with threadpool_limits(1):  # Dask workers run one BLAS thread each
+        run = run_scan(config, progress=False)
+        limits = run_limits_config(config, progress=False)
+    return run, limits
+
+
+def test_survey_equals_single_disc_runs(cluster_run, tmp_path):
+    from spiralbayes.inference.limits import ExclusionLimits
+    from spiralbayes.inference.scan import ScanResult
+
+    assert cluster_run.engine.startswith("LocalCluster(2 workers")
+    rows = {r["disc"]: r for r in cluster_run.rows}
+    assert [r["status"] for r in cluster_run.rows] == ["ok", "ok", "ok", "failed"]
+    for job in cluster_run.spec.discs[:3]:
+        run, limits = _single_disc(job, tmp_path / job.slug)
+        survey_scan = ScanResult.load(job.out_dir / "scan.h5")
+        assert np.array_equal(survey_scan.delta_chi2(), run.scan.delta_chi2(), equal_nan=True), job.name
+        assert np.array_equal(survey_scan.r_p, run.scan.r_p)
+        survey_verdict = (job.out_dir / "verdict.json").read_text()
+        assert survey_verdict == (tmp_path / job.slug / "verdict.json").read_text(), job.name
+        survey_limits = ExclusionLimits.load(job.out_dir / "limits.h5")
+        assert np.array_equal(survey_limits.m_lim, limits.limits.m_lim, equal_nan=True)
+        assert np.array_equal(survey_limits.upper_limit, limits.limits.upper_limit, equal_nan=True)
+        assert (job.out_dir / "table3.md").read_text() == limits.table
+        row = rows[job.name]
+        assert row["delta_bic"] == run.verdict.delta_bic
+        assert row["verdict"] == ("detected" if run.verdict.detected else
+                                  "candidate" if run.verdict.candidate else "not detected")
+        fam = limits.limits.families[0]
+        expected = ", ".join(f"{lo * job.config['geometry']['distance']:.0f}-{hi * job.config['geometry']['distance']:.0f}"
+                             for lo, hi in limits.limits.excluded_ranges(fam, 1.0)) or "none"
+        assert row["excl_ge1Mth_au"] == expected
+    assert rows["Disc B"]["R_eff95_arcsec"] == pytest.approx(0.3, abs=0.02)  # the simulated 95 % radius
+
+
+def test_damaged_disc_is_reported_and_others_finish(cluster_run, survey_dir):
+    from astropy.table import Table
+
+    bad = cluster_run.rows[-1]
+    assert bad["status"] == "failed" and bad["disc"] == "Damaged"
+    assert bad["error"].startswith("load: ") and "damaged.h5" in bad["error"] and "\n" not in bad["error"]
+    table = Table.read(survey_dir / "out" / "survey_table.ecsv", format="ascii.ecsv")
+    assert list(table["status"]) == ["ok", "ok", "ok", "failed"]
+    assert "damaged.h5" in table["error"][3]
+    md = (survey_dir / "out" / "survey_table.md").read_text()
+    assert md.count("\n") == 2 + 4 and "| Damaged |" in md
+
+
+def test_rerun_skips_finished_stages_and_gives_the_same_table(cluster_run, survey_dir):
+    from spiralbayes.pipeline.survey import run_survey
+
+    before = (survey_dir / "out" / "survey_table.ecsv").read_bytes()
+    stamp = {p: p.stat().st_mtime_ns for p in (survey_dir / "out" / "discs").rglob("scan.h5")}
+    rerun = run_survey(survey_dir / "survey.toml", scheduler="serial", progress=False)
+    assert (survey_dir / "out" / "survey_table.ecsv").read_bytes() == before
+    assert {p: p.stat().st_mtime_ns for p in stamp} == stamp  # no scan was redone
+    frank = sum(v["stages_s"].get("frank", 0) for v in rerun.timings["discs"].values())
+    assert frank < 1.0
+
+
+def test_kill_client_then_rerun_gives_the_same_table(cluster_run, survey_dir):
+    """kill -9 of a serial survey's process after its first disc's scan; the rerun's table equals the cluster run's."""
+    out = survey_dir / "killed"
+    code = ("import sys; from spiralbayes.pipeline.survey import run_survey; "
+            f"run_survey({str(survey_dir / 'survey.toml')!r}, scheduler='serial', output={str(out)!r}, progress=False)")
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""),
+           "MPLBACKEND": "Agg"}
+    proc = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    marker = out / "discs" / "Disc_B" / "survey_stage_frank.json"
+    deadline = time.monotonic() + 120
+    while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert marker.exists() and not (out / "survey_table.ecsv").exists()
+    from spiralbayes.pipeline.survey import run_survey
+
+    run_survey(survey_dir / "survey.toml", scheduler="serial", output=str(out), progress=False)
+    got = (out / "survey_table.ecsv").read_bytes()
+    assert got == (survey_dir / "out" / "survey_table.ecsv").read_bytes().replace(
+        str(survey_dir / "out").encode(), str(out).encode())
+
+
+def test_unreachable_scheduler_fails_in_one_line_naming_it(survey_dir):
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    address = "tcp://127.0.0.1:9"
+    t0 = time.monotonic()
+    done = subprocess.run([sys.executable, "-m", "spiralbayes.cli", "survey", str(survey_dir / "survey.toml"),
+                           "--scheduler", address], env=env, capture_output=True, text=True, timeout=120)
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert done.returncode == 2
+    assert len(lines) == 1 and address in lines[0] and lines[0].startswith("spiralbayes: error: cannot reach"), lines
+    assert time.monotonic() - t0 < 60
+    assert not (survey_dir / "unreached").exists()
+
+
+def test_survey_file_errors_name_the_option(tmp_path):
+    from spiralbayes.exceptions import ConfigError
+    from spiralbayes.pipeline.survey_config import load_survey
+
+    path = tmp_path / "s.toml"
+    for text, words in (('[survey]\nposterior = "some"\n[[disc]]\nname="a"\npath="x.h5"\n', "survey.posterior"),
+                        ('[[disc]]\nname="a"\npath="x.h5"\ncolour=1\n', "colour"),
+                        ('[[disc]]\nname="a"\npath="x.h5"\n[disc.limits]\ncl=2.0\n', "limits.cl"),
+                        ('[grid]\nn_r_p=5\n', "no disc")):
+        path.write_text(text)
+        with pytest.raises(ConfigError, match=words):
+            load_survey(path)
+
+
+def test_example_survey_is_the_demo_and_parses():
+    from spiralbayes.pipeline.survey_config import load_survey
+    from spiralbayes.pipeline.survey_demo import TAURUS_DISCS, taurus_survey_toml
+
+    example = ROOT / "examples" / "taurus_survey.toml"
+    assert example.read_text() == taurus_survey_toml()
+    spec = load_survey(example)
+    assert [j.name for j in spec.discs] == list(TAURUS_DISCS)
+    uz = spec.discs[-1].config
+    assert (uz["geometry"]["inc"], uz["geometry"]["PA"], uz["geometry"]["distance"]) == (56.1, 90.4, 131.0)
+    assert uz["grid"]["r_p_max"] == 1.0 and spec.discs[0].config["grid"]["r_p_max"] == 0.5
+
+
+def test_jobqueue_cluster_from_configuration():
+    pytest.importorskip("dask_jobqueue")
+    import tomllib
+
+    from spiralbayes.pipeline.survey_engine import jobqueue_cluster
+
+    options = tomllib.loads('jobs = 4\ncores = 2\nmemory = "8GB"\nwalltime = "02:00:00"\n'
+                            'job_extra_directives = ["--account=disc-survey"]\n')
+    cluster = jobqueue_cluster("slurm", options)
+    try:
+        script = cluster.job_script()
+    finally:
+        cluster.close()
+    assert "#SBATCH -t 02:00:00" in script and "--account=disc-survey" in script
+    assert "--nthreads 1" in script and "--nworkers 2" in script  # one thread per worker process
+    cluster = jobqueue_cluster("pbs", {"cores": 1, "walltime": "01:00:00"})
+    try:
+        assert "#PBS -l walltime=01:00:00" in cluster.job_script()
+    finally:
+        cluster.close()
+
+
+def test_posterior_policy():
+    from spiralbayes.pipeline.survey_stages import wants_posterior
+
+    quiet, candidate, detected = {"detected": False, "candidate": None}, \
+        {"detected": False, "candidate": {"template": "t"}}, {"detected": True, "candidate": None}
+    assert [wants_posterior("candidates", v) for v in (quiet, candidate, detected)] == [False, True, True]
+    assert [wants_posterior("all", v) for v in (quiet, candidate, detected)] == [True, True, True]
+    assert not any(wants_posterior("none", v) for v in (quiet, candidate, detected))
+
+
+@pytest.mark.slow
+def test_posterior_all_runs_the_sample_stage(survey_dir, tmp_path):
+    """posterior = "all" on one disc: the sample stage's files appear and P(planet) is in the table."""
+    from spiralbayes.pipeline.survey import run_survey
+
+    text = SURVEY.split("[[disc]]")[0] + "[[disc]]" + SURVEY.split("[[disc]]")[1]
+    text = text.replace("[survey]\n", '[survey]\nposterior = "all"\nposterior_steps = 60\n', 1)
+    text += "[sample]\nn_walkers = 16\nevidence_draws = 200\nconvergence = \"ignore\"\n"
+    path = survey_dir / "posterior.toml"
+    path.write_text(text)
+    run = run_survey(path, output=str(tmp_path / "post"), progress=False)
+    row = run.rows[0]
+    assert row["status"] == "ok", row
+    assert 0.0 <= row["p_planet"] <= 1.0
+    assert (tmp_path / "post" / "discs" / "Disc_A" / "posterior_summary.json").exists()
