@@ -34,8 +34,8 @@ import numpy as np
 
 from spiralbayes import AxisymmetricModel, DiscGeometry, Visibilities
 from spiralbayes.fourier import ImageSampler
-from spiralbayes.inference.scan import scan
-from spiralbayes.inference.statistics import chi2
+from spiralbayes.inference.scan.run import scan
+from spiralbayes.inference.scan.statistics import chi2
 from spiralbayes.model import render_perturbation_image
 from spiralbayes.simulate import DiscModel, observe, uv_coverage
 from spiralbayes.templates import default_bank

@@ -33,7 +33,7 @@ def planet_observation(planet_templates):
 
 @pytest.fixture(scope="session")
 def planet_scan(planet_observation, planet_templates):
-    from spiralbayes.inference.scan import scan
+    from spiralbayes.inference.scan.run import scan
 
     vis, axisym = planet_observation
     return scan(vis, axisym, list(planet_templates), GEOMETRY, r_p=SCAN_RP, distance=DISTANCE, progress=False)
@@ -42,7 +42,7 @@ def planet_scan(planet_observation, planet_templates):
 @pytest.fixture(scope="session")
 def planet_alternatives(planet_observation):
     """The competing asymmetry models fitted to the planet observation (one start each)."""
-    from spiralbayes.inference.alternatives import fit_alternatives
+    from spiralbayes.inference.detection.alternatives import fit_alternatives
 
     vis, axisym = planet_observation
     return fit_alternatives(vis, axisym, n_starts=1)
@@ -56,7 +56,7 @@ def setup():
 
 @pytest.fixture(scope="session")
 def likelihood(setup):
-    from spiralbayes.inference.likelihood import SpiralLikelihood
+    from spiralbayes.inference.posterior.conditional import SpiralLikelihood
 
     return SpiralLikelihood(setup["vis"], setup["model"], setup["template"], posterior_setup.R_RANGE)
 

@@ -6,8 +6,8 @@
 import sys
 
 from spiralbayes.axisymmetric import AxisymmetricModel
-from spiralbayes.inference.priors import Priors
-from spiralbayes.inference.sampler import sample_posterior
+from spiralbayes.inference.posterior.priors import Priors
+from spiralbayes.inference.posterior.sampler import sample_posterior
 from tests.posterior_setup import TRUE_GEOMETRY, build_weak_observation, profile, weak_template
 
 N_STEPS = 60

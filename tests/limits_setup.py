@@ -54,7 +54,7 @@ def observation(sensitivity: float, seed: int = 0):
 
 def scanned(sensitivity: float, seed: int = 0, templates=None, n_phi: int = N_PHI, r_p=R_P):
     """(vis, model, templates, ScanResult) of a planet-free observation."""
-    from spiralbayes.inference.scan import scan
+    from spiralbayes.inference.scan.run import scan
 
     templates = list(templates or family())
     vis = observation(sensitivity, seed)

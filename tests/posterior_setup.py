@@ -10,7 +10,7 @@ import numpy as np
 
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.geometry import DiscGeometry
-from spiralbayes.inference.priors import Priors
+from spiralbayes.inference.posterior.priors import Priors
 from spiralbayes.model import perturbation_visibilities
 from spiralbayes.templates import make_template
 from spiralbayes.visibilities import Visibilities
@@ -60,7 +60,7 @@ def build_weak_observation(planet: bool = True, seed: int = 11) -> Visibilities:
 
     ``planet=False``: the same disc and noise level without the planet (a different noise seed).
     """
-    from spiralbayes.inference.statistics import bic_threshold
+    from spiralbayes.inference.scan.statistics import bic_threshold
 
     template = weak_template()
     truth = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=80)

@@ -124,7 +124,7 @@ def test_cli_sample_from_toml_config(setup, tmp_path):
 
 def test_limits_from_config_reuses_the_scan_and_writes_table3(tmp_path, capsys, limits_case):
     """`spiralbayes limits CONFIG` after `scan`: limits.h5, completeness, Table 3 (md, csv) and plots."""
-    from spiralbayes.inference.limits import ExclusionLimits
+    from spiralbayes.inference.limits.exclusion import ExclusionLimits
     from spiralbayes.io import save_visibilities
     from spiralbayes.templates import TemplateBank
     from tests import limits_setup

@@ -36,7 +36,7 @@ Models (``r`` and radii in arcsec, angles in rad, ``phi`` the disc azimuth of
 
 Each model gives ``field(theta)`` and its Jacobian ``d field / d theta`` in closed form
 (``tests/asymmetries/test_fields.py`` checks them against finite differences), so that the
-maximum-likelihood fits (:mod:`spiralbayes.inference.alternatives`) get exact gradients from one
+maximum-likelihood fits (:mod:`spiralbayes.inference.detection.alternatives`) get exact gradients from one
 adjoint transform.
 """
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import InputError
-from ..inference.likelihood import PARAMETER_NAMES
-from ..inference.results import SAMPLE_NAMES
+from ..inference.posterior.conditional import PARAMETER_NAMES
+from ..inference.posterior.results import SAMPLE_NAMES
 from ..units import TWO_PI
 
 __all__ = ["plot_corner", "plot_hypotheses", "plot_template_probabilities", "plot_trace"]
