@@ -43,6 +43,7 @@ from .scan import (  # not ``scan``: that name is the subpackage
     level_radii,
     perturbation_spectrum,
     power_all_phi,
+    profile_and_model_vis,
     resume_key,
     scan_template,
     theta_count,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from spiralbayes.geometry import DiscGeometry
-from spiralbayes.inference.posterior.results import _wrap_phi
+from spiralbayes.inference.posterior.results import wrap_phi
 from tests.posterior_setup import R_RANGE, TRUE_GEOMETRY, TRUTH
 
 
@@ -51,5 +51,5 @@ def test_likelihood_is_periodic_in_phi_and_wrapping(likelihood, setup):
     assert setup["priors"].log_prior(outside) == -np.inf
     samples = np.zeros((100, 6))
     samples[:, 1] = np.r_[np.full(50, 0.05), np.full(50, 2 * np.pi - 0.05)]
-    wrapped, mu = _wrap_phi(samples)
+    wrapped, mu = wrap_phi(samples)
     assert np.ptp(wrapped[:, 1]) == pytest.approx(0.1)

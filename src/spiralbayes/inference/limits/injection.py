@@ -247,10 +247,10 @@ def injected_visibilities(vis, axisymmetric, injection: Injection, geometry, *, 
     from dataclasses import replace
 
     from ...model import DEFAULT_CELL_FACTOR, make_quadrature
-    from ..scan.engine import _profile_and_model_vis
+    from ..scan.engine import profile_and_model_vis
 
     vis = vis.standardised()
-    profile, _ = _profile_and_model_vis(axisymmetric, vis, geometry)
+    profile, _ = profile_and_model_vis(axisymmetric, vis, geometry)
     quad = make_quadrature(injection.template, injection.r_p, float(np.max(np.hypot(vis.u, vis.v))),
                            cell_factor=cell_factor or DEFAULT_CELL_FACTOR, phi_multiple=phi_multiple)
     dv = perturbation_visibilities(vis.u, vis.v, geometry, profile, injection.template, injection.r_p,

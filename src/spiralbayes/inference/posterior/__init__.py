@@ -23,7 +23,7 @@ from .perturbation import FastPerturbation
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 from .moves import WrappedDEMove, default_moves
 from .diagnostics import TAU_FACTOR, arviz_diagnostics, convergence_diagnostics
-from .results import SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun
+from .results import SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun, wrap_phi
 from .chains import CHAIN_KIND, ChainState, ChainStore
 from .chain_runner import initial_walkers, make_pool, run_chain, streams
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
@@ -73,4 +73,5 @@ __all__ = [
     "sample_posterior",
     "savage_dickey_log_bayes",
     "streams",
+    "wrap_phi",
 ]

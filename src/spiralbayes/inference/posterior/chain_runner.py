@@ -25,7 +25,7 @@ from .diagnostics import convergence_diagnostics
 from .conditional import PARAMETER_NAMES
 from .moves import default_moves
 from .priors import N_DIM
-from .results import _wrap_phi
+from .results import wrap_phi
 
 __all__ = ["initial_walkers", "make_pool", "run_chain", "streams"]
 
@@ -217,7 +217,7 @@ class _ChainData:
     """arviz view of an in-memory chain (phi_p wrapped around its circular mean)."""
 
     def __init__(self, chain):
-        self.chain = _wrap_phi(chain)[0]
+        self.chain = wrap_phi(chain)[0]
 
     def inference_data(self):
         import warnings

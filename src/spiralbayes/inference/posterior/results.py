@@ -33,14 +33,14 @@ from .diagnostics import _ChainView, _import_arviz
 from .conditional import PARAMETER_NAMES
 from .priors import GEOMETRY_NAMES, Priors
 
-__all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun"]
+__all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
 
 RESULT_KIND = "spiralbayes.PosteriorResult"
 SAMPLE_NAMES = ("r_p", "phi_p", "A", "inc", "PA", "dRA", "dDec")
 """Columns of :attr:`TemplateRun.samples`."""
 
 
-def _wrap_phi(samples: np.ndarray, column: int = 1) -> tuple[np.ndarray, float]:
+def wrap_phi(samples: np.ndarray, column: int = 1) -> tuple[np.ndarray, float]:
     """Wrap phi_p into ``[mu - pi, mu + pi)`` around its circular mean ``mu`` (in [0, 2 pi))."""
     phi = samples[..., column]
     mu = float(np.angle(np.mean(np.exp(1j * phi))) % TWO_PI)
@@ -119,7 +119,7 @@ class TemplateRun:
         backend = emcee.backends.HDFBackend(self.chain_path, name=self.group, read_only=True)
         d = self.diagnostics
         chain = backend.get_chain(discard=d.get("burn_in", 0), thin=d.get("thin", 1))
-        chain, _ = _wrap_phi(chain)
+        chain, _ = wrap_phi(chain)
         lp = backend.get_log_prob(discard=d.get("burn_in", 0), thin=d.get("thin", 1))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "more chains than draws" on short runs

@@ -84,7 +84,7 @@ from .likelihood import MarginalSpiralLikelihood, ProfileMarginal, draw_amplitud
 from .optimise import find_map, fit_null_geometry
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
-from .results import NullRun, PosteriorResult, TemplateRun, _wrap_phi
+from .results import NullRun, PosteriorResult, TemplateRun, wrap_phi
 
 __all__ = ["LogPosterior", "NullLogPosterior", "refit_axisymmetric", "sample_posterior"]
 
@@ -223,7 +223,7 @@ def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.nda
     else:
         A = draw_amplitude(c1, c2, priors.amplitude_max, rng)
     out = np.column_stack([samples6[:, :2], A, samples6[:, 2:]])
-    return _wrap_phi(out)[0]
+    return wrap_phi(out)[0]
 
 
 def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_range, partners, settings):
@@ -272,7 +272,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         flat = chain[sl].reshape(-1, N_DIM)
         fb = blobs[sl].reshape(-1, 2)
         samples = _with_amplitude(flat, fb[:, 0], fb[:, 1], priors, rng_amp)
-        centred, mu = _wrap_phi(flat)
+        centred, mu = wrap_phi(flat)
         chain_t = StudentT(centred.mean(axis=0), np.cov(centred, rowvar=False) * 1.2 ** 2, _scales(priors, null)[1],
                            periodic=(1,))
         plateau = GaussianGeometry(null.geometry_map, null.covariance * 1.5 ** 2, priors.geometry_widths, priors.r_p)

@@ -23,6 +23,7 @@ from .engine import (
     cross_template,
     direct_delta_chi2,
     perturbation_spectrum,
+    profile_and_model_vis,
     scan_template,
     with_residual,
 )
@@ -53,6 +54,7 @@ __all__ = [
     "level_radii",
     "perturbation_spectrum",
     "power_all_phi",
+    "profile_and_model_vis",
     "resume_key",
     "scan",
     "scan_template",

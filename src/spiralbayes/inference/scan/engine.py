@@ -83,7 +83,7 @@ from .uv_levels import (
 )
 
 __all__ = ["ScanContext", "ScanSettings", "TemplateTerms", "cross_template", "direct_delta_chi2", "perturbation_spectrum",
-           "scan_template", "with_residual"]
+           "profile_and_model_vis", "scan_template", "with_residual"]
 
 
 POWER_EPSILON = 1e-7
@@ -164,7 +164,7 @@ class TemplateTerms(tuple):
         return (TemplateTerms, (self[0], self[1], self.cross_error, self.power_error))
 
 
-def _profile_and_model_vis(axisymmetric, vis, geometry):
+def profile_and_model_vis(axisymmetric, vis, geometry):
     """The brightness callable and the model visibilities of ``axisymmetric`` at the data."""
     if callable(getattr(axisymmetric, "brightness", None)):
         profile = axisymmetric.brightness
@@ -225,7 +225,7 @@ class ScanContext:
         settings = settings or ScanSettings(rule=rule or DEFAULT_RULE, cell_factor=float(cell_factor),
                                             power_path=power_path or "auto")
         vis = vis.standardised()
-        profile, V_A = _profile_and_model_vis(axisymmetric, vis, geometry)
+        profile, V_A = profile_and_model_vis(axisymmetric, vis, geometry)
         support = profile_support(profile) if settings.rule == "product" else None
         r_p = np.atleast_1d(np.asarray(r_p, dtype=float))
         residual = geometry.phase_shift(vis.u, vis.v, vis.V - V_A, inverse=True)
@@ -524,7 +524,7 @@ def direct_delta_chi2(vis, axisymmetric, geometry: DiscGeometry, template, r_p: 
                       *, cell_factor: float = DEFAULT_CELL_FACTOR, amplitude=None, rule: str = DEFAULT_RULE) -> float:
     """Δχ² of one instance by building ΔV at every baseline and summing χ² (the reference)."""
     vis = vis.standardised()
-    profile, V_A = _profile_and_model_vis(axisymmetric, vis, geometry)
+    profile, V_A = profile_and_model_vis(axisymmetric, vis, geometry)
     dV = perturbation_visibilities(vis.u, vis.v, geometry, profile, template, r_p, phi_p, cell_factor=cell_factor,
                                    rule=rule)
     R = vis.V - V_A

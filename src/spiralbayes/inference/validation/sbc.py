@@ -31,7 +31,7 @@ from ...axisymmetric import fit_axisymmetric
 from ...geometry import DiscGeometry
 from ...units import TWO_PI
 from ..posterior.priors import Priors
-from ..posterior.results import SAMPLE_NAMES, _wrap_phi
+from ..posterior.results import SAMPLE_NAMES, wrap_phi
 from ..posterior.sampler import sample_posterior
 
 __all__ = ["CalibrationSetup", "draw_truth", "run_dataset", "summarise"]
@@ -93,7 +93,7 @@ def _simulate(setup: CalibrationSetup, truth: dict, template, coverage, seed: in
 
 def ranks(samples: np.ndarray, truth: dict) -> dict:
     """Fraction of posterior samples below the truth, per parameter (``phi_p`` on the circle)."""
-    wrapped, mu = _wrap_phi(samples)
+    wrapped, mu = wrap_phi(samples)
     out = {}
     for j, name in enumerate(SAMPLE_NAMES):
         t = truth.get(name)
