@@ -6,8 +6,8 @@ import warnings
 import pytest
 
 from spiralbayes.simulate import DiscModel, simulate_observation
-from tests import axisymmetric_setup, posterior_setup
-from tests.helpers import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
+from tests._support import axisymmetric_setup, posterior_setup
+from tests._support.helpers import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
 
 
 @pytest.fixture(scope="session")
@@ -50,7 +50,7 @@ def planet_alternatives(planet_observation):
 
 @pytest.fixture(scope="session")
 def setup():
-    """The posterior tests' observation (:mod:`tests.posterior_setup`)."""
+    """The posterior tests' observation (:mod:`tests._support.posterior_setup`)."""
     return posterior_setup.build_setup()
 
 
@@ -82,8 +82,8 @@ def fixed_fit(synthetic):
 @pytest.fixture(scope="session")
 def limits_case():
     """A planet-free C-4 observation at 120 uJy/beam scanned with the tau0 = 0.3, beta = 10 family
-    (:mod:`tests.limits_setup`): limits lie between the bank's masses."""
-    from tests import limits_setup
+    (:mod:`tests._support.limits_setup`): limits lie between the bank's masses."""
+    from tests._support import limits_setup
 
     return limits_setup.scanned(120e-6)
 
@@ -91,6 +91,6 @@ def limits_case():
 @pytest.fixture(scope="session")
 def bright_case():
     """The same disc at 35 uJy/beam: 1 and 3 M_th planets are detectable, 0.3 M_th are not."""
-    from tests import limits_setup
+    from tests._support import limits_setup
 
     return limits_setup.scanned(35e-6, seed=5)

@@ -10,7 +10,7 @@ from spiralbayes.baselines import CleanImage, CleanResiduals, gap_depth, residua
 from spiralbayes.fourier import image_axes  # noqa: E402
 from spiralbayes.inference.detection.verdict import detect  # noqa: E402
 from spiralbayes.plotting.compare import plot_comparison  # noqa: E402
-from tests.helpers import DISTANCE, GEOMETRY  # noqa: E402
+from tests._support.helpers import DISTANCE, GEOMETRY  # noqa: E402
 
 CELL, N = 0.02, 160
 

@@ -19,7 +19,7 @@ from spiralbayes.inference.detection.refit import rescan_at_fitted_geometry
 from spiralbayes.inference.scan.run import scan
 from spiralbayes.simulate import DiscModel, simulate_observation
 from spiralbayes.simulate.asymmetric import ExactAxisymmetric, eccentric_ring, lopsided_disc, vortex_arc
-from tests.helpers import DISTANCE, GEOMETRY, R_P_TRUE
+from tests._support.helpers import DISTANCE, GEOMETRY, R_P_TRUE
 
 WAVELENGTH = 0.87e-3  # the fiducial preset's
 DISC = DiscModel(distance=DISTANCE, tau_ref=3.0)

@@ -7,7 +7,7 @@ import pytest
 
 from spiralbayes.inference.detection.verdict import detect, one_sidedness
 from spiralbayes.inference.scan.run import scan
-from tests.helpers import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
+from tests._support.helpers import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
 
 
 def test_injected_planet_is_recovered(planet_scan):

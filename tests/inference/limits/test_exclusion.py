@@ -8,7 +8,7 @@ from spiralbayes.inference.limits.exclusion import ExclusionLimits, amplitude_up
 from spiralbayes.inference.limits.table import limits_table, table_csv, table_markdown
 from spiralbayes.inference.scan.run import ScanResult
 from spiralbayes.units import mth_to_mjup
-from tests import limits_setup
+from tests._support import limits_setup
 
 
 def fake_scan(cross, power, masses=(0.3, 1.0, 3.0), r_p=(0.1, 0.2, 0.3), distance=140.0):

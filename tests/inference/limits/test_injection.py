@@ -11,7 +11,7 @@ from spiralbayes.inference.limits.injection import (
 )
 from spiralbayes.inference.scan.engine import ScanContext, cross_template, with_residual
 from spiralbayes.model import perturbation_visibilities
-from tests import limits_setup
+from tests._support import limits_setup
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ from spiralbayes.inference.limits.recovery import (
     completeness_brute_force,
     injection_plan,
 )
-from tests import limits_setup
+from tests._support import limits_setup
 
 SMALL_GRID = dict(masses=[0.3, 1.0], radii=[0.25, 0.45], n_azimuths=3)
 

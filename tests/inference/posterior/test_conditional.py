@@ -12,7 +12,7 @@ import pytest
 
 from spiralbayes.geometry import DiscGeometry
 from spiralbayes.inference.posterior.results import wrap_phi
-from tests.posterior_setup import R_RANGE, TRUE_GEOMETRY, TRUTH
+from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, TRUTH
 
 
 # ------------------------------------------------------------------------------------------------

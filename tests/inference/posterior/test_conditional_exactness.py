@@ -3,7 +3,7 @@
 The posterior tests' observation (3000 baselines, an inclined disc with an offset phase centre, a
 3 M_th planet) at points spread over the planet's r_p window and over the geometry (inclination,
 PA and offsets away from the likelihood's reference geometry). The reference ln L uses the exact
-(Hankel) axisymmetric visibilities and ΔV from :mod:`tests.quadrature_reference`, converged by
+(Hankel) axisymmetric visibilities and ΔV from :mod:`tests._support.quadrature_reference`, converged by
 raising its orders. The likelihood's exact path must match it to 1e-6 in ln L and stay within
 its own reported ``quadrature_error``; the fast path (tables, issue 15's) is held to the bound its
 table refinement states — ``sqrt(sum w |dV|^2) <= rp_tolerance`` at node midpoints, so by
@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from spiralbayes.inference.posterior.conditional import SpiralLikelihood, geometry_from_theta
-from tests.posterior_setup import R_RANGE, TRUTH
-from tests.quadrature_reference import reference_visibilities
+from tests._support.posterior_setup import R_RANGE, TRUTH
+from tests._support.quadrature_reference import reference_visibilities
 
 ORDERS = ((5, 4), (7, 6))
 RP_TOLERANCE = inspect.signature(SpiralLikelihood).parameters["rp_tolerance"].default  # the fixture's

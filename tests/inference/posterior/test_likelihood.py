@@ -22,7 +22,7 @@ from spiralbayes.inference.posterior.likelihood import (
 from spiralbayes.inference.posterior.perturbation import FastPerturbation
 from spiralbayes.model import make_quadrature, perturbation_visibilities
 from spiralbayes.units import ARCSEC
-from tests.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
+from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
 
 N_FB = 40
 

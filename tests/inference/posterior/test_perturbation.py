@@ -7,7 +7,7 @@ import numpy as np
 from spiralbayes.inference.posterior.perturbation import FastPerturbation, _lattice
 from spiralbayes.inference.posterior.tables import _Cells, _TableBuilder
 from spiralbayes.units import ARCSEC, TWO_PI
-from tests.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
+from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
 
 
 def test_node_grids_hold_the_rules_exact_transform(setup):

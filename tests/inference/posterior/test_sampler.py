@@ -23,7 +23,7 @@ from spiralbayes.inference.posterior.priors import Priors
 from spiralbayes.inference.posterior.results import SAMPLE_NAMES
 from spiralbayes.inference.posterior.chain_runner import initial_walkers
 from spiralbayes.inference.posterior.sampler import sample_posterior
-from tests.posterior_setup import (
+from tests._support.posterior_setup import (
     R_RANGE,
     TRUE_GEOMETRY,
     WEAK_START,

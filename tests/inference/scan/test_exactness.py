@@ -2,7 +2,7 @@
 converged reference, for a thin-tau0 template, a 0.1 M_th template and a 1 M_th one, on an inclined
 disc with a phase-centre offset.
 
-The reference (:mod:`tests.quadrature_reference`) integrates the continuous model with Gauss-Legendre
+The reference (:mod:`tests._support.quadrature_reference`) integrates the continuous model with Gauss-Legendre
 nodes inside every template cell and sends them to every baseline with a 1e-12 NUFFT; it is shown
 converged by raising its orders on a subset of instances. The scan must match it within
 ``0.05 + 1e-4 |Δχ²|`` everywhere, ``power`` and ``cross`` within 1e-6 (``cross`` relative to
@@ -25,7 +25,7 @@ from spiralbayes.exceptions import AccuracyWarning
 from spiralbayes.inference.scan.run import scan
 from spiralbayes.model import perturbation_visibilities
 from spiralbayes.visibilities import Visibilities
-from tests.quadrature_reference import reference_terms
+from tests._support.quadrature_reference import reference_terms
 
 GEOMETRY = DiscGeometry(35.0, 70.0, 0.006, -0.004)  # inclined, offset phase centre
 FINE_ORDERS = ((4, 3), (6, 4))  # reference orders (radial, azimuthal Gauss nodes per cell), and the check's

@@ -9,7 +9,7 @@ from spiralbayes.inference.scan.run import ScanResult, scan
 from spiralbayes.inference.scan.engine import direct_delta_chi2
 from spiralbayes.inference.scan.statistics import chi2
 from spiralbayes.model import render_perturbation_image
-from tests.helpers import DISTANCE, GEOMETRY, SCAN_RP
+from tests._support.helpers import DISTANCE, GEOMETRY, SCAN_RP
 
 
 def image_delta_chi2(vis, axisym, template, r_p, phi_p, pixel):

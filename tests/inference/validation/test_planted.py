@@ -20,7 +20,7 @@ from spiralbayes.inference.limits.exclusion import compute_limits
 from spiralbayes.inference.scan.engine import ScanContext, cross_template, scan_template, with_residual
 from spiralbayes.model import perturbation_visibilities
 from spiralbayes.templates import SpiralTemplate, make_template
-from tests import limits_setup
+from tests._support import limits_setup
 
 CL = 0.95
 REFERENCES = Path(os.environ.get("SPIRALBAYES_REFERENCES", Path(__file__).parents[2] / "data" / "references"))

@@ -1,6 +1,6 @@
 """The small posterior run that tests/test_faults_sampling.py kills and resumes (also run in-process).
 
-    python -m tests.faults_sampling_job OUT_DIR
+    python -m tests._support.faults_sampling_job OUT_DIR
 """
 
 import sys
@@ -8,7 +8,7 @@ import sys
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.inference.posterior.priors import Priors
 from spiralbayes.inference.posterior.sampler import sample_posterior
-from tests.posterior_setup import TRUE_GEOMETRY, build_weak_observation, profile, weak_template
+from tests._support.posterior_setup import TRUE_GEOMETRY, build_weak_observation, profile, weak_template
 
 N_STEPS = 60
 FLUSH = 10

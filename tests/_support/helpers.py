@@ -10,5 +10,5 @@ GEOMETRY = DiscGeometry(30.0, 60.0)
 DISTANCE = 140.0
 R_P_TRUE = 50.0 / DISTANCE  # 50 au at 140 pc
 SCAN_RP = np.linspace(0.02, 0.5, 25)  # the paper's 25 radii
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 """Small real data files (AS 209 sample; see data/README.md)."""
