@@ -72,7 +72,7 @@ class FastPerturbation:
             self.quadrature_error = mirror_of.quadrature_error
             self.build_time_s = time.perf_counter() - t0
             return
-        # the product rule (issue 11) built once for the largest table node (_lattice: up to
+        # the product rule built once for the largest table node (_lattice: up to
         # r_max + (order / 2 + 1) h for the first, largest step h) serves every smaller r_p
         h0 = float(rp_step) if rp_step is not None else (r_hi - r_lo) / 8.0
         r_cells = r_hi + (int(rp_order) // 2 + 1) * h0

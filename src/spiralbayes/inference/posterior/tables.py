@@ -9,7 +9,7 @@ In the scaled baseline ``sigma = r_p R(-phi_p) q`` (``r_p`` in radians, dimensio
 where ``x_c`` are the nodes of the product-integration rule in units of ``r_p``
 (:mod:`spiralbayes.quadrature`; one set of nodes serves every ``r_p`` up to the largest table node)
 and ``delta_c a_c I_A(r_p x_c)`` stands for their weights, the exact integrals of template and
-profile against the rule's basis (issue 11). So moving the planet in azimuth is a rotation and changing ``r_p`` a
+profile against the rule's basis. So moving the planet in azimuth is a rotation and changing ``r_p`` a
 scaling of the *points*, and ``T`` depends on ``r_p`` only through the profile in those
 integrals — smooth, so ``T`` is tabulated at a few ``r_p`` nodes and interpolated (Lagrange, 6
 nodes by default) between them. ``T`` is only needed for ``|sigma| <= sigma_max = r_p,max u_max``, where

@@ -1,4 +1,4 @@
-"""The scan's accuracy: its self-check against exact sums and the tolerance rule (issue 11).
+"""The scan's accuracy: its self-check against exact sums and the tolerance rule.
 
 Every template's ``cross`` and ``power`` carry error estimates (:mod:`.scan_engine`): the
 quadrature's bound, plus the power path's own error, which :func:`check_terms` measures once per

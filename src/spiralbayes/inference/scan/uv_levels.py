@@ -20,8 +20,8 @@ Levels: a perturbation of radius ``r`` needs ``d_rho ‚àù 1 / r`` and ``n_theta ‚
 uses the smallest of a ladder of grids (``r_out`` halving from the largest radius down) that holds
 it: small radii cost a quarter, a sixteenth, ... of the largest one's grid.
 
-Accuracy (issue 11): the earlier settings (cubic Lagrange at 4x, single precision ``epsilon =
-1e-5``) erred by up to 1.8e-5 of the power, dominated by the cubic interpolation in ``rho``;
+Accuracy: cubic Lagrange at 4x oversampling in single precision (``epsilon = 1e-5``)
+erred by up to 1.8e-5 of the power, dominated by the cubic interpolation in ``rho``;
 16 points at 3x oversampling in double precision gave <= 3e-8 in every case measured. The
 interpolation error is not bounded a priori (it depends on how much of ``G``'s ``rho`` bandwidth the
 perturbation uses), so the scan measures it against exact sums for its first template
