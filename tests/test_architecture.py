@@ -238,3 +238,13 @@ def test_subpackages_re_export_their_modules_public_names():
             if public != "scan":
                 assert getattr(inference, public) is getattr(getattr(inference, name), public), public
     assert not hasattr(inference, "validation") or "validation" not in inference.__all__
+
+
+def test_angles_are_wrapped_by_the_one_helper():
+    """``units.wrap_angle`` is the only wrap of radians: no ``% TWO_PI``, ``% (2 * np.pi)`` or ``angle(exp(1j x))``."""
+    import re
+
+    pattern = re.compile(r"%=?\s*\(?\s*(TWO_PI|2(\.0)?\s*\*\s*(np|math)\.pi)|np\.angle\(np\.exp\(")
+    found = [f"{name}:{i}: {line.strip()}" for name, path in modules().items() if name != "spiralbayes.units"
+             for i, line in enumerate(path.read_text().split("\n"), 1) if pattern.search(line)]
+    assert not found, "hand-written angle wraps (use spiralbayes.units.wrap_angle):\n" + "\n".join(found)

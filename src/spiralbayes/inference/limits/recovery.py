@@ -31,6 +31,7 @@ import numpy as np
 from ..._hdf5 import open_file, write_file
 from ..._provenance import json_default, provenance_record
 from ...exceptions import InputError
+from ...units import wrap_angle
 from ..detection.verdict import detect
 from .families import Family, select_family, template_families
 from .injection import Injection, InjectionEngine, brute_force_injection
@@ -177,7 +178,7 @@ def _recovered(verdict, best, meta_inj, i_r, phi, criteria) -> bool:
         return False
     if best["template_meta"].get("hand") != meta_inj.get("hand"):
         return False
-    dphi = np.degrees(abs(np.angle(np.exp(1j * (best["phi_p"] - phi)))))
+    dphi = np.degrees(abs(wrap_angle(best["phi_p"] - phi)))
     return abs(best["i_rp"] - i_r) <= criteria["max_rp_steps"] and dphi <= criteria["max_phi_deg"]
 
 

@@ -19,7 +19,7 @@ import zlib
 import numpy as np
 
 from ...exceptions import InputError
-from ...units import TWO_PI
+from ...units import wrap_angle
 from .chains import ChainState
 from .diagnostics import convergence_diagnostics
 from .conditional import PARAMETER_NAMES
@@ -120,14 +120,14 @@ def initial_walkers(logpost, theta_map, cov, priors, n_walkers, rng, initial=Non
             raise InputError(f"initial walkers have shape {p0.shape}, expected ({n_walkers}, {N_DIM})")
     else:
         p0 = rng.multivariate_normal(theta_map, cov * 0.25, size=n_walkers)
-    p0[:, 1] %= TWO_PI
+    p0[:, 1] = wrap_angle(p0[:, 1], 0.0)
     lp = np.array([_value(logpost(p)) for p in p0])
     for _ in range(50 if initial is None else 0):
         bad = ~np.isfinite(lp)
         if not bad.any():
             break
         p0[bad] = rng.multivariate_normal(theta_map, cov * 0.05, size=int(bad.sum()))
-        p0[:, 1] %= TWO_PI
+        p0[:, 1] = wrap_angle(p0[:, 1], 0.0)
         lp[bad] = [_value(logpost(p)) for p in p0[bad]]
     bad = np.flatnonzero(~np.isfinite(lp))
     if bad.size:

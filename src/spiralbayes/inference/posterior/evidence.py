@@ -31,7 +31,7 @@ import logging
 
 import numpy as np
 
-from ...units import TWO_PI
+from ...units import TWO_PI, wrap_angle
 from .likelihood import log_amplitude_integral
 
 __all__ = ["GaussianGeometry", "importance_evidence", "laplace_evidence", "savage_dickey_log_bayes"]
@@ -140,7 +140,7 @@ class StudentT:
     def draw(self, n: int, rng) -> np.ndarray:
         x = np.asarray(self.dist.rvs(size=n, random_state=rng), dtype=float).reshape(n, self.mean.size)
         for k in self.periodic:
-            x[:, k] %= TWO_PI
+            x[:, k] = wrap_angle(x[:, k], 0.0)
         return x
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from emcee.moves.red_blue import RedBlueMove
 
-from ...units import TWO_PI
+from ...units import wrap_angle
 
 __all__ = ["WrappedDEMove", "default_moves"]
 
@@ -50,10 +50,10 @@ class WrappedDEMove(RedBlueMove):
         b = (a + 1 + random.randint(nc - 1, size=ns)) % nc  # a different walker, uniformly
         diffs = others[a] - others[b]
         p = self.periodic
-        diffs[:, p] = (diffs[:, p] + np.pi) % TWO_PI - np.pi
+        diffs[:, p] = wrap_angle(diffs[:, p])
         gamma = self.g0 * (1.0 + self.sigma * random.randn(ns, 1))
         q = s + gamma * diffs
-        q[:, p] %= TWO_PI
+        q[:, p] = wrap_angle(q[:, p], 0.0)
         return q, np.zeros(ns)
 
 

@@ -18,7 +18,7 @@ import logging
 
 import numpy as np
 
-from ...units import TWO_PI
+from ...units import TWO_PI, wrap_angle
 from .evidence import hessian_cov
 from .priors import Priors
 
@@ -96,7 +96,7 @@ def _start_points(priors: Priors, scan, template_name: str, geometry: np.ndarray
             for flat in order:
                 i, j = np.unravel_index(flat, dchi2.shape)
                 if lo <= scan.r_p[i] <= hi:
-                    cands.append((float(scan.r_p[i]), float(scan.phi_p[j]) % TWO_PI))
+                    cands.append((float(scan.r_p[i]), float(wrap_angle(scan.phi_p[j], 0.0))))
                 if len(cands) >= n_scan:
                     break
     lo, hi = priors.r_p
@@ -125,7 +125,7 @@ def find_map(logpost, priors: Priors, scan, name: str, geometry: np.ndarray, geo
     chosen: list = []
     for i in order:
         s = starts[i]
-        if all(abs(s[0] - c[0]) > 0.05 * span or abs(np.angle(np.exp(1j * (s[1] - c[1])))) > 0.3 for c in chosen):
+        if all(abs(s[0] - c[0]) > 0.05 * span or abs(wrap_angle(s[1] - c[1])) > 0.3 for c in chosen):
             chosen.append(s)
         if len(chosen) >= n_starts:
             break
@@ -140,5 +140,5 @@ def find_map(logpost, priors: Priors, scan, name: str, geometry: np.ndarray, geo
     best = int(np.argmax(lps))
     log.info("%s: optima from %d starts, ln p = %s", name, len(optima), np.round(lps, 2).tolist())
     out = optima[best].copy()
-    out[1] %= TWO_PI
+    out[1] = wrap_angle(out[1], 0.0)
     return out

@@ -28,7 +28,7 @@ import numpy as np
 from ..._hdf5 import open_file, write_file
 from ..._provenance import json_default
 from ...exceptions import InputError
-from ...units import TWO_PI
+from ...units import wrap_angle
 from .diagnostics import _ChainView, _import_arviz
 from .conditional import PARAMETER_NAMES
 from .priors import GEOMETRY_NAMES, Priors
@@ -43,9 +43,9 @@ SAMPLE_NAMES = ("r_p", "phi_p", "A", "inc", "PA", "dRA", "dDec")
 def wrap_phi(samples: np.ndarray, column: int = 1) -> tuple[np.ndarray, float]:
     """Wrap phi_p into ``[mu - pi, mu + pi)`` around its circular mean ``mu`` (in [0, 2 pi))."""
     phi = samples[..., column]
-    mu = float(np.angle(np.mean(np.exp(1j * phi))) % TWO_PI)
+    mu = float(wrap_angle(np.angle(np.mean(np.exp(1j * phi))), 0.0))
     out = samples.copy()
-    out[..., column] = mu + (phi - mu + np.pi) % TWO_PI - np.pi
+    out[..., column] = wrap_angle(phi, mu - np.pi)
     return out, mu
 
 
@@ -270,7 +270,7 @@ class PosteriorResult:
         return (f"planet preferred: P(planet | data) = {p:.4g}, ln B = {lnb:.2f}; most probable template "
                 f"{self.best.name} (P = {self.template_probabilities[self.best.name]:.3g} given a planet): "
                 f"r_p = {s['r_p']['median']:.4f} (+{s['r_p']['hi'] - s['r_p']['median']:.4f} "
-                f"-{s['r_p']['median'] - s['r_p']['lo']:.4f}) arcsec, phi_p = {np.degrees(s['phi_p']['median']) % 360:.1f} "
+                f"-{s['r_p']['median'] - s['r_p']['lo']:.4f}) arcsec, phi_p = {wrap_angle(np.degrees(s['phi_p']['median']), 0.0, 360.0):.1f} "
                 f"+- {np.degrees(s['phi_p']['std']):.1f} deg, A = {s['A']['median']:.2f} "
                 f"(+{s['A']['hi'] - s['A']['median']:.2f} -{s['A']['median'] - s['A']['lo']:.2f})")
 

@@ -67,7 +67,7 @@ from ...axisymmetric.gp import ProfilePrior
 from ...exceptions import InputError
 from ...geometry import DiscGeometry
 from ...templates.template import template_metadata
-from ...units import TWO_PI
+from ...units import wrap_angle
 from .chain_runner import _blas_single_thread, _ChainData, _set_mpi_rank, _writes_files, run_chain
 from .chain_runner import streams as chain_streams
 from .chains import ChainState, ChainStore
@@ -251,7 +251,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     _, _, rng_evidence, rng_amp = streams
     if mode == "laplace":
         draws = rng_evidence.multivariate_normal(theta_map, cov, size=400)
-        draws[:, 1] %= TWO_PI
+        draws[:, 1] = wrap_angle(draws[:, 1], 0.0)
         draws = draws[[np.isfinite(logpost(d)[0]) for d in draws]]
         terms = np.array([likelihood.amplitude_terms(d) for d in draws]).reshape(-1, 3)
         samples = _with_amplitude(draws, terms[:, 1], terms[:, 2], priors, rng_amp)

@@ -29,7 +29,7 @@ import numpy as np
 
 from ...axisymmetric import fit_axisymmetric
 from ...geometry import DiscGeometry
-from ...units import TWO_PI
+from ...units import TWO_PI, wrap_angle
 from ..posterior.priors import Priors
 from ..posterior.results import SAMPLE_NAMES, wrap_phi
 from ..posterior.sampler import sample_posterior
@@ -100,7 +100,7 @@ def ranks(samples: np.ndarray, truth: dict) -> dict:
         if t is None:
             continue
         if name == "phi_p":
-            t = mu + (t - mu + np.pi) % TWO_PI - np.pi
+            t = wrap_angle(t, mu - np.pi)
         out[name] = float(np.mean(wrapped[:, j] < t))
     return out
 
