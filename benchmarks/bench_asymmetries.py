@@ -5,7 +5,7 @@ the same run a 16-template scan (tau0 = 3: four masses, two cooling times, both 
 phi_p, 2 threads) and ``fit_alternatives`` with all five models (default two starts each, 2
 threads), and prints their ratio (the target is <= 1) with each model's time and evaluations.
 
-Outcomes (``--table``): simulates each case of ``tests/inference/test_detection_scenarios.py``
+Outcomes (``--table``): simulates each case of ``tests/inference/detection/test_scenarios.py``
 (planet-free vortex arc, lopsided disc, eccentric ring, 5 and 10 mas phase-centre errors; a planet;
 a planet behind a 10 mas error, then the geometry follow-up), fits frank at the nominal geometry,
 scans the 1 M_th tau0 = 3 beta = 10 pair (25 x 90), fits the alternatives and prints a Markdown
@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 
 from spiralbayes import DiscGeometry, detect, fit_alternatives, fit_axisymmetric, scan
-from spiralbayes.inference.refit import rescan_at_fitted_geometry
+from spiralbayes.inference.detection.refit import rescan_at_fitted_geometry
 from spiralbayes.simulate import DiscModel, eccentric_ring, lopsided_disc, simulate_observation, vortex_arc
 from spiralbayes.templates import default_bank, make_template
 

@@ -33,9 +33,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from bench_scan import GEOMETRY, N_PHI, R_P, observation  # noqa: E402
 
-from spiralbayes.inference.completeness import completeness, completeness_brute_force  # noqa: E402
-from spiralbayes.inference.limits import compute_limits  # noqa: E402
-from spiralbayes.inference.scan import scan  # noqa: E402
+from spiralbayes.inference.limits.recovery import completeness, completeness_brute_force  # noqa: E402
+from spiralbayes.inference.limits.exclusion import compute_limits  # noqa: E402
+from spiralbayes.inference.scan.run import scan  # noqa: E402
 from spiralbayes.templates import default_bank  # noqa: E402
 
 

@@ -11,7 +11,7 @@ with their ln L differences from the exact path. Then the likelihood tables for 
 r_p prior** (``Priors.default``: R_eff / 25 to R_eff) — on the synthetic 1e5-visibility disc and on
 a simulated fiducial observation with its frank fit — with their build time and node count, and
 the build of the mirror template (shared table). ``--converge`` runs
-:func:`spiralbayes.inference.sampler.sample_posterior` on the fiducial observation (frank fitted 3 deg
+:func:`spiralbayes.inference.posterior.sampler.sample_posterior` on the fiducial observation (frank fitted 3 deg
 off in inclination) with the default settings — until every parameter's chain is longer than
 50 tau and its ESS >= 400 — and reports the wall time.
 
@@ -37,10 +37,10 @@ import numpy as np  # noqa: E402
 
 from spiralbayes.axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from spiralbayes.geometry import DiscGeometry  # noqa: E402
-from spiralbayes.inference.likelihood import SpiralLikelihood  # noqa: E402
-from spiralbayes.inference.marginal import MarginalSpiralLikelihood, ProfileMarginal  # noqa: E402
-from spiralbayes.inference.perturbation import FastPerturbation  # noqa: E402
-from spiralbayes.inference.priors import Priors  # noqa: E402
+from spiralbayes.inference.posterior.conditional import SpiralLikelihood  # noqa: E402
+from spiralbayes.inference.posterior.likelihood import MarginalSpiralLikelihood, ProfileMarginal  # noqa: E402
+from spiralbayes.inference.posterior.perturbation import FastPerturbation  # noqa: E402
+from spiralbayes.inference.posterior.priors import Priors  # noqa: E402
 from spiralbayes.model import perturbation_visibilities  # noqa: E402
 from spiralbayes.templates import make_template  # noqa: E402
 from spiralbayes.visibilities import Visibilities  # noqa: E402
@@ -162,7 +162,7 @@ def bench_default_build(args) -> dict:
 
 
 def bench_converge(args) -> dict:
-    from spiralbayes.inference.sampler import sample_posterior
+    from spiralbayes.inference.posterior.sampler import sample_posterior
 
     vis, model, template = fiducial(Path(args.out))
     priors = Priors.default(model, widths={"dRA": 0.02, "dDec": 0.02})

@@ -9,7 +9,7 @@ geometry), samples, and reports per parameter the coverage of the 68 % and 95 % 
 the binomial error expected at the nominal rate) and the rank histogram; then P(planet | data)
 on >= 5 planet-free datasets. Each dataset's record is appended to ``OUT/records.jsonl`` as soon
 as it is done, so the benchmark resumes where it stopped. See
-:mod:`spiralbayes.inference.sbc`.
+:mod:`spiralbayes.inference.validation.sbc`.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from spiralbayes.inference.sbc import CalibrationSetup, run_dataset, setup_dict, summarise  # noqa: E402
+from spiralbayes.inference.validation.sbc import CalibrationSetup, run_dataset, setup_dict, summarise  # noqa: E402
 from spiralbayes.simulate import preset_coverage  # noqa: E402
 
 
@@ -70,7 +70,7 @@ def main(argv=None):
     parser.add_argument("--report", action="store_true", help="only print the table of the records so far")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
-    for noisy in ("arviz", "spiralbayes.inference.perturbation", "spiralbayes.inference.optimise"):
+    for noisy in ("arviz", "spiralbayes.inference.posterior.perturbation", "spiralbayes.inference.posterior.optimise"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

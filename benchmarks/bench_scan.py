@@ -10,7 +10,7 @@
 ``million``   ~1e6 visibilities (the high-sensitivity preset twice, two noise draws): set-up, the
               first template (one-off work), later templates, peak memory.
 ``accuracy``  the scan's error estimate against an independent, converged reference
-              (tests/quadrature_reference.py) on a subset (3 templates x 3 r_p x 9 phi_p) of the
+              (tests/_support/quadrature_reference.py) on a subset (3 templates x 3 r_p x 9 phi_p) of the
               fiducial observation (inclined, offset phase centre), and the earlier midpoint rule's
               error on the same subset.
 
@@ -34,8 +34,8 @@ import numpy as np
 
 from spiralbayes import AxisymmetricModel, DiscGeometry, Visibilities
 from spiralbayes.fourier import ImageSampler
-from spiralbayes.inference.scan import scan
-from spiralbayes.inference.statistics import chi2
+from spiralbayes.inference.scan.run import scan
+from spiralbayes.inference.scan.statistics import chi2
 from spiralbayes.model import render_perturbation_image
 from spiralbayes.simulate import DiscModel, observe, uv_coverage
 from spiralbayes.templates import default_bank
@@ -164,7 +164,7 @@ def case_accuracy(args) -> dict:
     from spiralbayes.axisymmetric import fit_axisymmetric
     from spiralbayes.simulate import simulate_observation
     from spiralbayes.templates import make_template
-    from tests.quadrature_reference import reference_terms
+    from tests._support.quadrature_reference import reference_terms
 
     geometry = DiscGeometry(30.0, 60.0, 0.004, -0.003)
     templates = [make_template(1.0, 3.0, 10.0, "R"), make_template(1.0, 0.1, 0.0, "R"),

@@ -57,7 +57,7 @@ def run_example(out: Path, scheduler: str, workers: int) -> dict:
 
 def scaling(presets=("taurus", "fiducial")) -> list[dict]:
     from spiralbayes import DiscGeometry, DiscModel, fit_axisymmetric, make_template, simulate_observation
-    from spiralbayes.inference.alternatives import fit_alternatives
+    from spiralbayes.inference.detection.alternatives import fit_alternatives
     from spiralbayes.inference.limits import compute_limits
     from spiralbayes.inference.scan import scan
 

@@ -15,7 +15,7 @@ their ratio.
 import numpy as np
 
 import spiralbayes as sb
-from spiralbayes.inference.forecast import compare_setups, detectable_mass
+from spiralbayes.inference.limits import compare_setups, detectable_mass
 
 R_P = 50.0 / 140.0
 SETUPS = ("fiducial", "high_sensitivity")

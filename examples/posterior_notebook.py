@@ -19,8 +19,8 @@ import numpy as np
 
 from spiralbayes.axisymmetric import fit_axisymmetric
 from spiralbayes.geometry import DiscGeometry
-from spiralbayes.inference.priors import Priors
-from spiralbayes.inference.sampler import sample_posterior
+from spiralbayes.inference.posterior import Priors
+from spiralbayes.inference.posterior import sample_posterior
 from spiralbayes.inference.scan import scan
 from spiralbayes.simulate import DiscModel, simulate_observation
 from spiralbayes.templates import make_template
@@ -66,7 +66,7 @@ plot_template_probabilities(post).savefig(OUT / "posterior_templates.png", dpi=9
 # %% The frank profile is integrated out at every sampled geometry, so a fit made at a slightly wrong
 # geometry does not bias the posterior. To look at frank's own fit (with its power-spectrum
 # iterations) at the posterior geometry:
-#     from spiralbayes.inference.sampler import refit_axisymmetric
+#     from spiralbayes.inference.posterior import refit_axisymmetric
 #     refit = refit_axisymmetric(vis, axisym, post)
 
 # %% arviz: R-hat and ESS (walkers as chains — emcee walkers are not independent, read with care)

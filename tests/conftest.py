@@ -6,8 +6,8 @@ import warnings
 import pytest
 
 from spiralbayes.simulate import DiscModel, simulate_observation
-from tests import axisymmetric_setup, posterior_setup
-from tests.helpers import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
+from tests._support import axisymmetric_setup, posterior_setup
+from tests._support.helpers import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
 
 
 @pytest.fixture(scope="session")
@@ -33,7 +33,7 @@ def planet_observation(planet_templates):
 
 @pytest.fixture(scope="session")
 def planet_scan(planet_observation, planet_templates):
-    from spiralbayes.inference.scan import scan
+    from spiralbayes.inference.scan.run import scan
 
     vis, axisym = planet_observation
     return scan(vis, axisym, list(planet_templates), GEOMETRY, r_p=SCAN_RP, distance=DISTANCE, progress=False)
@@ -42,7 +42,7 @@ def planet_scan(planet_observation, planet_templates):
 @pytest.fixture(scope="session")
 def planet_alternatives(planet_observation):
     """The competing asymmetry models fitted to the planet observation (one start each)."""
-    from spiralbayes.inference.alternatives import fit_alternatives
+    from spiralbayes.inference.detection.alternatives import fit_alternatives
 
     vis, axisym = planet_observation
     return fit_alternatives(vis, axisym, n_starts=1)
@@ -50,13 +50,13 @@ def planet_alternatives(planet_observation):
 
 @pytest.fixture(scope="session")
 def setup():
-    """The posterior tests' observation (:mod:`tests.posterior_setup`)."""
+    """The posterior tests' observation (:mod:`tests._support.posterior_setup`)."""
     return posterior_setup.build_setup()
 
 
 @pytest.fixture(scope="session")
 def likelihood(setup):
-    from spiralbayes.inference.likelihood import SpiralLikelihood
+    from spiralbayes.inference.posterior.conditional import SpiralLikelihood
 
     return SpiralLikelihood(setup["vis"], setup["model"], setup["template"], posterior_setup.R_RANGE)
 
@@ -82,8 +82,8 @@ def fixed_fit(synthetic):
 @pytest.fixture(scope="session")
 def limits_case():
     """A planet-free C-4 observation at 120 uJy/beam scanned with the tau0 = 0.3, beta = 10 family
-    (:mod:`tests.limits_setup`): limits lie between the bank's masses."""
-    from tests import limits_setup
+    (:mod:`tests._support.limits_setup`): limits lie between the bank's masses."""
+    from tests._support import limits_setup
 
     return limits_setup.scanned(120e-6)
 
@@ -91,6 +91,6 @@ def limits_case():
 @pytest.fixture(scope="session")
 def bright_case():
     """The same disc at 35 uJy/beam: 1 and 3 M_th planets are detectable, 0.3 M_th are not."""
-    from tests import limits_setup
+    from tests._support import limits_setup
 
     return limits_setup.scanned(35e-6, seed=5)

@@ -11,6 +11,12 @@ import its own layer and the ones below it, never one above:
 4. inference: ``inference``
 5. outputs: ``plotting``, ``baselines``
 6. runners: ``pipeline``, ``config``, ``cli`` and the package's ``__init__``
+
+Inside ``inference`` the modules live in stage subpackages, each a layer of its own (lowest first:
+``scan``; ``detection`` and ``posterior``; ``limits``; ``validation``), with no module loose beside
+them. ``validation`` holds calibration harnesses and reference paths that only tests and
+benchmarks import. A private name (``_x``) is never imported from another subpackage: a helper
+shared that widely is public.
 """
 
 import ast
@@ -28,6 +34,9 @@ LAYERS = {
     "plotting": 5, "baselines": 5,
     "pipeline": 6, "config": 6, "cli": 6, "": 6,
 }
+INFERENCE = PACKAGE / "inference"
+STAGES = {"scan": 0, "detection": 1, "posterior": 1, "limits": 2, "validation": 3}
+VALIDATION = "spiralbayes.inference.validation"
 MAX_LINES = 500
 LONG_MODULE_MARKER = "Why this module is long:"
 
@@ -109,7 +118,7 @@ def package_parents(name: str) -> set[str]:
 
 def test_the_graph_sees_lazy_and_relative_imports():
     graph = import_graph()
-    assert "spiralbayes.inference.scan_engine" in graph["spiralbayes.inference.scan"]
+    assert "spiralbayes.inference.scan.engine" in graph["spiralbayes.inference.scan.run"]
     assert "spiralbayes.io.measurement_set" in graph["spiralbayes.io"]
     assert "spiralbayes.pipeline" in graph["spiralbayes.cli"]  # imported inside functions
 
@@ -145,3 +154,97 @@ def test_public_api_is_importable_and_complete():
         assert hasattr(spiralbayes, name), name
     for name in ("scan", "detect", "sample_posterior", "fit_axisymmetric", "load_visibilities", "simulate_observation"):
         assert callable(getattr(spiralbayes, name))
+
+
+def stage(name: str) -> str | None:
+    parts = name.split(".")
+    return parts[2] if len(parts) > 2 and parts[1] == "inference" else None
+
+
+def test_inference_is_split_by_stage():
+    loose = sorted(p.name for p in INFERENCE.glob("*.py") if p.name != "__init__.py")
+    assert not loose, f"modules loose in inference/ (move each into one of {sorted(STAGES)}): {loose}"
+    folders = sorted(p.name for p in INFERENCE.iterdir() if p.is_dir() and p.name != "__pycache__")
+    assert folders == sorted(STAGES), f"inference/ holds {folders}; expected the stages {sorted(STAGES)}"
+    for name in STAGES:
+        assert (INFERENCE / name / "__init__.py").exists(), f"inference/{name}/ has no __init__.py"
+
+
+def test_stages_import_only_down():
+    graph = import_graph()
+    bad = [f"{m} imports {d}" for m, deps in graph.items() if stage(m) for d in deps
+           if stage(d) and stage(d) != stage(m) and STAGES[stage(d)] >= STAGES[stage(m)]]
+    assert not bad, "inference stages importing sideways or up:\n" + "\n".join(bad)
+
+
+def test_runtime_code_never_imports_validation():
+    graph = import_graph()
+    bad = [f"{m} imports {d}" for m, deps in graph.items() if not m.startswith(VALIDATION)
+           for d in deps if d.startswith(VALIDATION)]
+    assert not bad, "runtime code importing inference.validation:\n" + "\n".join(bad)
+
+
+def private_imports() -> list[str]:
+    """``importer: name from module`` for every private name imported from another package's module."""
+    mods = modules()
+    known = set(mods)
+    out = []
+    for name, path in mods.items():
+        is_package = path.name == "__init__.py"
+        here = name.split(".") if is_package else name.split(".")[:-1]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                target = ".".join(here[: len(here) - node.level + 1] + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target not in known:
+                continue
+            target_package = target if mods[target].name == "__init__.py" else target.rsplit(".", 1)[0]
+            for alias in node.names:
+                private = alias.name.startswith("_") and not alias.name.startswith("__")
+                if private and target_package != ".".join(here):
+                    out.append(f"{name}: {alias.name} from {target}")
+    return out
+
+
+def test_no_private_name_is_imported_across_subpackages():
+    bad = private_imports()
+    assert not bad, "private names imported from another subpackage (make them public):\n" + "\n".join(bad)
+
+
+def test_subpackages_re_export_their_modules_public_names():
+    import importlib
+    import types
+
+    for name in STAGES:
+        package = importlib.import_module(f"spiralbayes.inference.{name}")
+        expected = set()
+        for path in sorted((INFERENCE / name).glob("*.py")):
+            if path.name == "__init__.py":
+                continue
+            module = importlib.import_module(f"spiralbayes.inference.{name}.{path.stem}")
+            expected |= set(module.__all__)
+            # a re-exported function must not hide a submodule of the same name
+            assert getattr(package, path.stem) is module, f"spiralbayes.inference.{name}.{path.stem} is not the module"
+        assert set(package.__all__) == expected, f"inference/{name}/__init__ re-exports {set(package.__all__) ^ expected} wrongly"
+        for public in package.__all__:
+            assert getattr(package, public) is not None
+    inference = importlib.import_module("spiralbayes.inference")
+    for name in ("scan", "detection", "limits", "posterior"):
+        assert isinstance(getattr(inference, name), types.ModuleType), f"spiralbayes.inference.{name} is not the subpackage"
+        for public in getattr(inference, name).__all__:
+            if public != "scan":
+                assert getattr(inference, public) is getattr(getattr(inference, name), public), public
+    assert not hasattr(inference, "validation") or "validation" not in inference.__all__
+
+
+def test_angles_are_wrapped_by_the_one_helper():
+    """``units.wrap_angle`` is the only wrap of radians: no ``% TWO_PI``, ``% (2 * np.pi)`` or ``angle(exp(1j x))``."""
+    import re
+
+    pattern = re.compile(r"%=?\s*\(?\s*(TWO_PI|2(\.0)?\s*\*\s*(np|math)\.pi)|np\.angle\(np\.exp\(")
+    found = [f"{name}:{i}: {line.strip()}" for name, path in modules().items() if name != "spiralbayes.units"
+             for i, line in enumerate(path.read_text().split("\n"), 1) if pattern.search(line)]
+    assert not found, "hand-written angle wraps (use spiralbayes.units.wrap_angle):\n" + "\n".join(found)

@@ -140,7 +140,7 @@ def _prime_factors(n):
 # ----------------------------------------------------------------------------- with CASA
 @pytest.fixture(scope="module")
 def casa():
-    from tests.casa_support import require_casa
+    from tests._support.casa_support import require_casa
 
     return require_casa()
 

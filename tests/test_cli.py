@@ -9,7 +9,7 @@ import pytest
 
 from spiralbayes.cli import main
 from spiralbayes.templates import make_template
-from tests.helpers import DATA
+from tests._support.helpers import DATA
 
 
 def test_print_config_is_loadable(capsys, tmp_path):
@@ -97,7 +97,7 @@ def test_cli_sample_from_toml_config(setup, tmp_path):
     from spiralbayes.templates import TemplateBank
 
     from spiralbayes.axisymmetric import AxisymmetricModel
-    from tests.posterior_setup import profile
+    from tests._support.posterior_setup import profile
 
     save_visibilities(setup["vis"], tmp_path / "obs.h5")
     AxisymmetricModel.from_profile(profile, setup["model"].geometry, N=80).save(tmp_path / "axisym.h5")
@@ -124,10 +124,10 @@ def test_cli_sample_from_toml_config(setup, tmp_path):
 
 def test_limits_from_config_reuses_the_scan_and_writes_table3(tmp_path, capsys, limits_case):
     """`spiralbayes limits CONFIG` after `scan`: limits.h5, completeness, Table 3 (md, csv) and plots."""
-    from spiralbayes.inference.limits import ExclusionLimits
+    from spiralbayes.inference.limits.exclusion import ExclusionLimits
     from spiralbayes.io import save_visibilities
     from spiralbayes.templates import TemplateBank
-    from tests import limits_setup
+    from tests._support import limits_setup
 
     vis, model, templates, result = limits_case
     save_visibilities(vis, tmp_path / "obs.h5")

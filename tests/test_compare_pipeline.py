@@ -15,8 +15,8 @@ import pytest
 
 from spiralbayes.io import save_visibilities
 from spiralbayes.simulate import DiscModel, simulate_observation
-from tests.casa_support import require_casa
-from tests.helpers import DISTANCE, GEOMETRY, R_P_TRUE
+from tests._support.casa_support import require_casa
+from tests._support.helpers import DISTANCE, GEOMETRY, R_P_TRUE
 
 pytestmark = pytest.mark.casa
 

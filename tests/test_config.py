@@ -73,3 +73,19 @@ def test_bad_alternatives_options_are_refused(user, match):
     with pytest.raises(ValueError, match=match):
         merge_config(user)
     assert merge_config({"alternatives": {"models": ["geometry", "arc"], "n_starts": 3}})["alternatives"]["n_starts"] == 3
+
+
+def test_without_tomllib_the_config_is_read_with_tomli(tmp_path):
+    """Python 3.10 has no tomllib: the reader falls back to tomli (stood in for here by tomllib itself)."""
+    import subprocess
+    import sys
+
+    config = tmp_path / "run.toml"
+    config.write_text("[grid]\nn_phi_p = 46\n")
+    code = ("import sys, tomllib, types\n"
+            "tomli = types.ModuleType('tomli'); tomli.loads = tomllib.loads; tomli.TOMLDecodeError = tomllib.TOMLDecodeError\n"
+            "sys.modules['tomli'] = tomli; sys.modules['tomllib'] = None\n"
+            "from spiralbayes.config import load_config, tomllib as used\n"
+            f"assert used is tomli, used\nprint(load_config({str(config)!r})['grid']['n_phi_p'])\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split()[-1] == "46"

@@ -37,8 +37,8 @@ from spiralbayes.exceptions import (
     MissingDependencyError,
     ResumeMismatchError,
 )
-from spiralbayes.inference.detection import detect, mirror_index
-from spiralbayes.inference.scan import ScanResult, scan
+from spiralbayes.inference.detection.verdict import detect, mirror_index
+from spiralbayes.inference.scan.run import ScanResult, scan
 from spiralbayes.io import load_visibilities, save_visibilities
 from spiralbayes.model import perturbation_visibilities
 from spiralbayes.templates import TemplateBank, make_template
@@ -103,7 +103,7 @@ def _config(path: Path, setup, out: Path, **sections) -> Path:
 # --- kill -9 and resume ---------------------------------------------------------------------------
 DRIVER = """
 import sys, time
-import spiralbayes.inference.scan as scan_module
+import spiralbayes.inference.scan.run as scan_module
 real = scan_module.scan_template
 
 def slow(context, template):  # leaves time to kill the process between two checkpoints
@@ -117,7 +117,7 @@ sys.exit(main(["-q", "scan", sys.argv[1]]))
 
 
 def test_scan_killed_with_sigkill_resumes_bitwise(setup, tmp_path, monkeypatch):
-    import spiralbayes.inference.scan as scan_module
+    import spiralbayes.inference.scan.run as scan_module
     from spiralbayes.cli import main
 
     killed_cfg = _config(tmp_path / "killed.toml", setup, tmp_path / "killed")
@@ -243,7 +243,7 @@ def test_changed_settings_on_resume_are_refused(setup, tmp_path, change, expecte
 
 
 def test_force_resume_keeps_the_completed_templates(setup, tmp_path, monkeypatch):
-    import spiralbayes.inference.scan as scan_module
+    import spiralbayes.inference.scan.run as scan_module
 
     checkpoint = tmp_path / "checkpoint.h5"
     checkpoint.write_bytes(setup.checkpoint.read_bytes())
@@ -260,7 +260,7 @@ def test_force_resume_keeps_the_completed_templates(setup, tmp_path, monkeypatch
 
 def test_cli_refuses_a_stale_checkpoint_and_force_resume_overrides(setup, tmp_path, capsys, monkeypatch):
     """Issue 12, item 1: new frank settings used to resume the old model's terms silently."""
-    import spiralbayes.inference.scan as scan_module
+    import spiralbayes.inference.scan.run as scan_module
     from spiralbayes.cli import main
 
     out = tmp_path / "out"

@@ -25,7 +25,7 @@ import pytest
 from spiralbayes._provenance import data_hash
 from spiralbayes.exceptions import ConfigError, DataWarning, InputError, ResumeMismatchError
 from spiralbayes.inference.detection import detect
-from spiralbayes.inference.results import PosteriorResult
+from spiralbayes.inference.posterior.results import PosteriorResult
 from spiralbayes.inference.scan import ScanResult
 from spiralbayes.io import load_visibilities
 from spiralbayes.io.data_checks import MIN_SEARCH_VISIBILITIES
@@ -75,7 +75,7 @@ def test_run_names_that_leave_the_output_folder_are_refused(tmp_path, name):
 
 
 def test_sample_api_refuses_a_run_name_outside_the_chains_folder(setup, tmp_path):
-    from spiralbayes.inference.sampler import sample_posterior
+    from spiralbayes.inference.posterior.sampler import sample_posterior
 
     out = tmp_path / "out"
     setup.result.save(out / "scan.h5")
@@ -85,7 +85,7 @@ def test_sample_api_refuses_a_run_name_outside_the_chains_folder(setup, tmp_path
 
 
 def test_no_writer_overwrites_a_result_of_another_kind(setup, tmp_path):
-    from spiralbayes.inference.chains import ChainStore
+    from spiralbayes.inference.posterior.chains import ChainStore
 
     scan_file = setup.result.save(tmp_path / "scan.h5")
     with Unchanged(tmp_path), pytest.raises(InputError, match=r"holds another kind of result \(spiralbayes.ScanResult\), refusing to overwrite it with a spiralbayes.PosteriorRun"):
@@ -326,7 +326,7 @@ def test_posterior_outside_the_band_with_p_above_half_prefers_the_planet():
 
 
 def test_scan_verdict_names_an_alternative_only_when_it_beats_the_disc():
-    from tests.inference.test_detection import N_DATA, compact_peak, fake_alternatives, fake_scan
+    from tests.inference.detection.test_verdict import N_DATA, compact_peak, fake_alternatives, fake_scan
 
     shape = (13, 90)
     weak = fake_scan(compact_peak(shape, 6, 10, 30.0), compact_peak(shape, 6, 80, 5.0))  # spiral Delta BIC -35.6
@@ -397,7 +397,7 @@ def test_probability_outside_zero_one_is_refused_before_anything_is_printed(caps
 def test_forecast_text_uses_the_asked_probability_and_never_says_zero_minutes():
     from types import SimpleNamespace
 
-    from spiralbayes.inference.forecast import Forecast, format_minutes
+    from spiralbayes.inference.limits.forecasting import Forecast, format_minutes
 
     times = {0.5: 0.3, 0.9: 95.0}
     stub = SimpleNamespace(r_p=0.357, distance=140.0, expected=np.array([2.0, 4.0]), template={"name": "t"},

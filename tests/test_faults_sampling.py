@@ -1,6 +1,6 @@
 """``spiralbayes sample`` killed with SIGKILL mid-chain and started again equals an uninterrupted run.
 
-A subprocess runs :mod:`tests.faults_sampling_job` (the no-planet hypothesis, then a template with a
+A subprocess runs :mod:`tests._support.faults_sampling_job` (the no-planet hypothesis, then a template with a
 chain, then its mirror with a Laplace evidence) and is killed once the chain file shows the first
 template part-way through its chain. The resumed run must reproduce the uninterrupted one exactly:
 the chain (the interrupted template continues from its last flushed batch with its stored random
@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tests import faults_sampling_job as job
+from tests._support import faults_sampling_job as job
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -35,8 +35,9 @@ def test_killed_sample_run_resumes_to_the_uninterrupted_result(tmp_path):
     reference = job.run(tmp_path / "reference")
     name = reference.runs[0].name
     chains = tmp_path / "killed" / "job.h5"
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-m", "tests.faults_sampling_job", str(chains.parent)], cwd=ROOT, env=env,
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1",
+           "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    proc = subprocess.Popen([sys.executable, "-m", "tests._support.faults_sampling_job", str(chains.parent)], cwd=ROOT, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 900

@@ -60,3 +60,23 @@ def test_roundtrip_and_units():
 def test_bad_inputs(call):
     with pytest.raises(ValueError):
         call()
+
+
+def test_wrap_angle_lands_in_range_by_whole_periods():
+    from spiralbayes.units import wrap_angle
+
+    rng = np.random.default_rng(3)
+    a = rng.uniform(-50.0, 50.0, 1000)
+    d = wrap_angle(a)
+    # independent reference: the principal argument of exp(i a), (-pi, pi]
+    assert np.allclose(np.exp(1j * d), np.exp(1j * a), atol=1e-12)
+    assert d.min() >= -np.pi and d.max() < np.pi
+    turns = (a - d) / (2 * np.pi)
+    assert np.allclose(turns, np.round(turns), atol=1e-12)
+    z = wrap_angle(a, 0.0)
+    assert z.min() >= 0.0 and z.max() < 2 * np.pi and np.allclose(np.exp(1j * z), np.exp(1j * a), atol=1e-12)
+    mu = 5.9
+    c = wrap_angle(a, mu - np.pi)
+    assert np.all(np.abs(c - mu) <= np.pi) and np.allclose(np.cos(c), np.cos(a), atol=1e-12)
+    assert wrap_angle(370.0, 0.0, 360.0) == 10.0 and wrap_angle(-190.0, period=360.0) == 170.0
+    assert wrap_angle(np.pi) == -np.pi  # the range is half-open

@@ -18,17 +18,17 @@ from . import exceptions  # noqa: E402
 from ._version import __version__  # noqa: E402
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
-from .inference.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
-from .inference.completeness import CompletenessResult, completeness  # noqa: E402
-from .inference.detection import Verdict, detect  # noqa: E402
-from .inference.forecast import Forecast, forecast  # noqa: E402
-from .inference.limits import ExclusionLimits, compute_limits  # noqa: E402
-from .inference.likelihood import SpiralLikelihood  # noqa: E402
-from .inference.priors import Priors  # noqa: E402
-from .inference.refit import rescan_at_fitted_geometry  # noqa: E402
-from .inference.results import PosteriorResult  # noqa: E402
-from .inference.sampler import sample_posterior  # noqa: E402
-from .inference.scan import ScanResult, scan  # noqa: E402
+from .inference.detection.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
+from .inference.detection.refit import rescan_at_fitted_geometry  # noqa: E402
+from .inference.detection.verdict import Verdict, detect  # noqa: E402
+from .inference.limits.exclusion import ExclusionLimits, compute_limits  # noqa: E402
+from .inference.limits.forecasting import Forecast, forecast  # noqa: E402
+from .inference.limits.recovery import CompletenessResult, completeness  # noqa: E402
+from .inference.posterior.conditional import SpiralLikelihood  # noqa: E402
+from .inference.posterior.priors import Priors  # noqa: E402
+from .inference.posterior.results import PosteriorResult  # noqa: E402
+from .inference.posterior.sampler import sample_posterior  # noqa: E402
+from .inference.scan.run import ScanResult, scan  # noqa: E402
 from .io import load_visibilities, save_visibilities  # noqa: E402
 from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage  # noqa: E402
 from .templates import SpiralTemplate, TemplateBank, default_bank, make_template  # noqa: E402

@@ -22,7 +22,10 @@ import copy
 import math
 from pathlib import Path
 
-import tomllib
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: the same parser, packaged as tomli
+    import tomli as tomllib
 
 from .asymmetries import ALTERNATIVE_MODELS
 from .exceptions import ConfigError, MissingFileError

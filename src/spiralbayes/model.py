@@ -19,7 +19,7 @@ only the Fourier kernel; its error is below ~1e-11 of the perturbation's L1 norm
 up to ``uv_max``, and it reports a bound (:meth:`ProductQuadrature.error_bound`).
 ``rule="midpoint"`` keeps the earlier polar cells, log-spaced in ``x = r / r_p`` over the
 template's range and uniform in ``phi``, no larger than ``1 / (cell_factor u_max)``: second order,
-with Σ w |ΔV|^2 low by 3-9e-4 at the default ``cell_factor`` 20 (issue 11); it is kept as the
+with Σ w |ΔV|^2 low by 3-9e-4 at the default ``cell_factor`` 20; it is kept as the
 reference of that behaviour.
 """
 

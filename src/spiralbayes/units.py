@@ -27,6 +27,7 @@ from .exceptions import InputError
 __all__ = [
     "ARCSEC",
     "TWO_PI",
+    "wrap_angle",
     "C_LIGHT",
     "H_PLANCK",
     "K_BOLTZMANN",
@@ -194,3 +195,29 @@ def mth_to_mjup(mass_mth, r_p, mstar: float, **disc):
 def mth_to_mnep(mass_mth, r_p, mstar: float, **disc):
     """Planet mass [M_Nep] of ``mass_mth`` thermal masses at ``r_p`` (see :func:`mth_to_mass`)."""
     return mth_to_mass(mass_mth, r_p, mstar, unit="Mnep", **disc)
+
+
+def wrap_angle(angle, low=None, period: float = TWO_PI):
+    """Angles shifted by whole periods into ``[low, low + period)``.
+
+    The one angle wrap of the package: ``wrap_angle(d)`` is a difference in ``[-pi, pi)``,
+    ``wrap_angle(phi, 0.0)`` an azimuth in ``[0, 2 pi)``, ``wrap_angle(phi, mu - np.pi)`` samples
+    around their circular mean ``mu``; ``wrap_angle(a, 0.0, 360.0)`` degrees in ``[0, 360)``.
+
+    Parameters
+    ----------
+    angle : float or array_like
+        Angles [rad; or the unit of ``period``].
+    low : float or array_like, optional
+        Lower end of the output range [same unit], broadcast against ``angle``; default
+        ``-period / 2``.
+    period : float, optional
+        The period [same unit]: ``2 pi`` for radians, ``360`` for degrees.
+
+    Returns
+    -------
+    numpy.ndarray or numpy.float64
+        ``low + (angle - low) mod period``.
+    """
+    low = -0.5 * period if low is None else low
+    return low + np.mod(np.asarray(angle, dtype=float) - low, period)

@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 from spiralbayes.axisymmetric import AxisymmetricModel, fit_axisymmetric
 from spiralbayes.geometry import ARCSEC, DiscGeometry  # noqa: E402
 from spiralbayes.visibilities import Visibilities  # noqa: E402
-from tests.axisymmetric_setup import (
+from tests._support.axisymmetric_setup import (
     PEAK,
     TRUE_GEOMETRY,
     random_baselines,

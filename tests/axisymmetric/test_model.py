@@ -17,8 +17,8 @@ from frank.geometry import FixedGeometry  # noqa: E402
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.fourier import sample_image  # noqa: E402
 from spiralbayes.geometry import ARCSEC, DiscGeometry  # noqa: E402
-from tests.axisymmetric_setup import PEAK, random_baselines
-from tests.helpers import DATA
+from tests._support.axisymmetric_setup import PEAK, random_baselines
+from tests._support.helpers import DATA
 
 SHARED_AS209 = Path("/work/shared/data/as209")
 AS209_UVTABLE = "AS209_DSHARP_subsample_uvtable.txt"

@@ -12,7 +12,7 @@ from spiralbayes.fourier import dirty_image
 from spiralbayes.io import write_ms
 from spiralbayes.simulate import observe, uv_coverage
 from spiralbayes.units import ARCSEC
-from tests.casa_support import read_casa_image, require_casa
+from tests._support.casa_support import read_casa_image, require_casa
 
 pytestmark = pytest.mark.casa
 

@@ -18,7 +18,7 @@ from spiralbayes.io import (
 from spiralbayes.visibilities import (
     Visibilities,
 )
-from tests.helpers import DATA
+from tests._support.helpers import DATA
 
 AS209 = DATA / "AS209_DSHARP_subsample_uvtable.txt"
 

@@ -8,7 +8,7 @@ import matplotlib
 import pytest
 
 matplotlib.use("Agg")
-from tests.axisymmetric_setup import ring_and_core
+from tests._support.axisymmetric_setup import ring_and_core
 
 
 # --- plots and the CLI function ----------------------------------------------------------------------

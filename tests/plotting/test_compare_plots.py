@@ -8,9 +8,9 @@ import pytest  # noqa: E402
 
 from spiralbayes.baselines import CleanImage, CleanResiduals, gap_depth, residual_detection  # noqa: E402
 from spiralbayes.fourier import image_axes  # noqa: E402
-from spiralbayes.inference.detection import detect  # noqa: E402
+from spiralbayes.inference.detection.verdict import detect  # noqa: E402
 from spiralbayes.plotting.compare import plot_comparison  # noqa: E402
-from tests.helpers import DISTANCE, GEOMETRY  # noqa: E402
+from tests._support.helpers import DISTANCE, GEOMETRY  # noqa: E402
 
 CELL, N = 0.02, 160
 

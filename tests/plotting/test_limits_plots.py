@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from spiralbayes.inference.completeness import completeness
-from spiralbayes.inference.limits import compute_limits
+from spiralbayes.inference.limits.recovery import completeness
+from spiralbayes.inference.limits.exclusion import compute_limits
 from spiralbayes.plotting.limits import plot_completeness, plot_excluded_fraction, plot_mass_radius
 
 

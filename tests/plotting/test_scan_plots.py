@@ -12,7 +12,7 @@ from spiralbayes.plotting.scan import (  # noqa: E402
     plot_heatmap_pair,
     plot_template_grid_heatmaps,
 )
-from tests.helpers import DISTANCE  # noqa: E402
+from tests._support.helpers import DISTANCE  # noqa: E402
 
 
 def test_heatmap_pair_shares_a_zero_centred_colour_scale(planet_scan):

@@ -6,7 +6,7 @@ import pytest
 from spiralbayes import DiscGeometry
 from spiralbayes.model import perturbation_visibilities
 from spiralbayes.quadrature import TemplateSpectrum, make_product_quadrature
-from tests.quadrature_reference import reference_visibilities
+from tests._support.quadrature_reference import reference_visibilities
 
 GEOMETRY = DiscGeometry(35.0, 60.0, 0.004, -0.003)
 UV_MAX = 4e6

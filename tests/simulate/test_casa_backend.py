@@ -19,8 +19,8 @@ import pytest
 
 from spiralbayes.simulate import DiscModel, disc_visibilities, get_preset, simulate_observation
 from spiralbayes.templates import make_template
-from tests.casa_support import require_casa
-from tests.helpers import DISTANCE, GEOMETRY, R_P_TRUE
+from tests._support.casa_support import require_casa
+from tests._support.helpers import DISTANCE, GEOMETRY, R_P_TRUE
 
 pytestmark = pytest.mark.casa
 

@@ -11,7 +11,7 @@ compared with the built-in generator's template at the same (M_p, H/r, τ0), β 
 * observation level (the issue's criteria): the reference spiral is injected into the fiducial
   synthetic observation (planet at 50 au, 140 pc) face-on or at 30° inclination (no noise and
   the true axisymmetric disc by default: expectation values; see :func:`observe_and_scan`), and
-  :func:`spiralbayes.inference.scan.scan` scans the reference template and the generator's templates of every bank mass near the truth (5 radii one paper grid step apart,
+  :func:`spiralbayes.inference.scan.run.scan` scans the reference template and the generator's templates of every bank mass near the truth (5 radii one paper grid step apart,
   the full 90 azimuths). Recovery = generator's Δχ² at the truth / reference's Δχ² at the truth;
   position error of the true-mass template's best fit; best mass = the bank mass with the
   highest peak Δχ².
@@ -170,7 +170,7 @@ def observe_and_scan(ref, templates, tau0: float, inc: float, phi_p_deg: float, 
     """
     from spiralbayes import DiscGeometry
     from spiralbayes.axisymmetric import fit_axisymmetric
-    from spiralbayes.inference.scan import scan
+    from spiralbayes.inference.scan.run import scan
     from spiralbayes.simulate import DiscModel, simulate_observation
 
     geometry = DiscGeometry(inc, 60.0)

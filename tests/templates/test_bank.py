@@ -128,7 +128,7 @@ def test_corrupt_cache_is_rebuilt(tmp_path):
 
 
 def test_aspect_ratio_is_carried_by_names_metadata_and_mirror_matching(tmp_path):
-    from spiralbayes.inference.detection import mirror_index
+    from spiralbayes.inference.detection.verdict import mirror_index
     from spiralbayes.templates.template import template_metadata
 
     ts = [make_template(1.0, 3.0, 10.0, hand, h_p=h, store_brightness=False, **TINY)

@@ -1,6 +1,6 @@
 """Competing non-spiral asymmetry models: what else could improve on the axisymmetric fit.
 
-The models of test 3 (:func:`spiralbayes.inference.detection.detect`), each a few parameters on
+The models of test 3 (:func:`spiralbayes.inference.detection.verdict.detect`), each a few parameters on
 top of the same axisymmetric profile and with exact visibilities:
 
 * ``geometry`` — the profile under another inclination, PA and phase centre
@@ -8,7 +8,7 @@ top of the same axisymmetric profile and with exact visibilities:
 * ``arc``, ``lopsided``, ``eccentric_ring``, ``m2`` — brightness perturbations on a polar
   grid of the disc plane (:mod:`.fields`, transformed by :mod:`.grid`).
 
-Their maximum-likelihood fits live in :mod:`spiralbayes.inference.alternatives`.
+Their maximum-likelihood fits live in :mod:`spiralbayes.inference.detection.alternatives`.
 """
 
 from __future__ import annotations

@@ -36,7 +36,7 @@ Models (``r`` and radii in arcsec, angles in rad, ``phi`` the disc azimuth of
 
 Each model gives ``field(theta)`` and its Jacobian ``d field / d theta`` in closed form
 (``tests/asymmetries/test_fields.py`` checks them against finite differences), so that the
-maximum-likelihood fits (:mod:`spiralbayes.inference.alternatives`) get exact gradients from one
+maximum-likelihood fits (:mod:`spiralbayes.inference.detection.alternatives`) get exact gradients from one
 adjoint transform.
 """
 
@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InputError
+from ..units import wrap_angle
 from .grid import DiscGrid, remove_ring_mean
 
 __all__ = ["ArcModel", "EccentricRingModel", "FIELD_MODELS", "FieldModel", "LopsidedModel", "M2Model",
@@ -177,7 +178,7 @@ class ArcModel(FieldModel):
 
     def canonical(self, theta):
         t = np.asarray(theta, dtype=float).copy()
-        t[2] %= 2 * np.pi
+        t[2] = wrap_angle(t[2], 0.0)
         return t
 
     def describe(self, theta):
@@ -224,7 +225,7 @@ class LopsidedModel(_CosSinModel):
 
     def describe(self, theta):
         a_c, a_s, r_c, s_r = theta
-        return {"amplitude": float(np.hypot(a_c, a_s)), "phi_0_deg": float(np.degrees(np.arctan2(a_s, a_c)) % 360),
+        return {"amplitude": float(np.hypot(a_c, a_s)), "phi_0_deg": float(wrap_angle(np.degrees(np.arctan2(a_s, a_c)), 0.0, 360.0)),
                 "r_c": float(r_c), "sigma_r": float(s_r)}
 
 
@@ -286,7 +287,7 @@ class EccentricRingModel(FieldModel):
 
     def describe(self, theta):
         e_c, e_s, r_c, s_r = theta
-        return {"e": float(np.hypot(e_c, e_s)), "omega_deg": float(np.degrees(np.arctan2(e_s, e_c)) % 360),
+        return {"e": float(np.hypot(e_c, e_s)), "omega_deg": float(wrap_angle(np.degrees(np.arctan2(e_s, e_c)), 0.0, 360.0)),
                 "r_c": float(r_c), "sigma_r": float(s_r)}
 
 

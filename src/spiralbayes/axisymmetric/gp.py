@@ -17,7 +17,7 @@ with weights ``w`` the posterior of ``I`` is Gaussian with precision ``K = M + S
 
 are frank's "design matrix" and "information source" (``VisibilityMapping.map_visibilities``),
 and ``I`` integrates out of the likelihood analytically (frank's ``log_likelihood()`` without
-an argument). :mod:`spiralbayes.inference.marginal` uses these pieces at every sampled
+an argument). :mod:`spiralbayes.inference.posterior.likelihood` uses these pieces at every sampled
 geometry.
 
 :class:`ProfilePrior` holds ``p`` and ``S^-1``. The power spectrum is the one frank found

@@ -1,13 +1,56 @@
-"""Inference: χ² and BIC, the grid scan and its verdict, the spiral likelihood and its posterior.
+"""Inference, by stage: the grid scan, its verdict, what the data rule out, and the posterior.
 
-* :mod:`.statistics` — χ², the Gaussian likelihood, ΔBIC;
-* :mod:`.scan_engine`, :mod:`.scan` — Δχ² of every template at every planet position;
-* :mod:`.detection` — the paper's tests 1 and 2 on a scan (:func:`detect`);
-* :mod:`.limits`, :mod:`.families`, :mod:`.limits_table`, :mod:`.calibration` — exclusion limits,
-  the limiting mass per template family, the paper's Table 3, planted-planet calibration;
-* :mod:`.injection`, :mod:`.completeness` — injection–recovery without re-scanning, M_det;
-* :mod:`.forecast` — expected Δχ², detection probability and time on source for a set-up;
-* :mod:`.tables`, :mod:`.likelihood` — the fast spiral likelihood for MCMC;
-* :mod:`.priors`, :mod:`.evidence`, :mod:`.sampler`, :mod:`.diagnostics`, :mod:`.results` — the
-  emcee posterior with templates as a discrete choice.
+* :mod:`.scan` — Δχ² of every template at every planet position (:func:`~.scan.run.scan`), χ² and BIC;
+* :mod:`.detection` — the paper's tests 1–3 on a scan (:func:`detect`), the competing asymmetries'
+  fits and the geometry follow-up;
+* :mod:`.limits` — exclusion limits, template families, the paper's Table 3, injection–recovery
+  completeness and observation forecasts;
+* :mod:`.posterior` — the emcee posterior with templates as a discrete choice: priors, the sampled
+  (marginal) likelihood, the fixed-profile reference likelihood, evidences, chains, results;
+* :mod:`.validation` — calibration harnesses (SBC, planted planets); tests and benchmarks import
+  it, runtime code does not, so it is not imported here.
+
+Every public name of the four runtime stages is re-exported here (``from spiralbayes.inference
+import detect``), except ``scan``, which names the subpackage; the function is
+``spiralbayes.scan`` or ``spiralbayes.inference.scan.scan``.
 """
+
+from . import detection, limits, posterior, scan
+from .detection import *  # noqa: F403
+from .limits import *  # noqa: F403
+from .posterior import *  # noqa: F403
+from .scan import (  # not ``scan``: that name is the subpackage
+    CHECK_AZIMUTHS,
+    EXACT_EPSILON,
+    N_SPIRAL_PARAMETERS,
+    ScanContext,
+    ScanResult,
+    ScanSettings,
+    TOLERANCE,
+    TemplateTerms,
+    UVLevel,
+    bic_threshold,
+    build_level,
+    check_terms,
+    chi2,
+    cross_template,
+    default_rp_grid,
+    delta_bic,
+    delta_chi2_from_terms,
+    direct_delta_chi2,
+    exact_terms,
+    gaussian_log_likelihood,
+    level_radii,
+    perturbation_spectrum,
+    power_all_phi,
+    profile_and_model_vis,
+    resume_key,
+    scan_template,
+    theta_count,
+    uv_weight_coefficients,
+    warn_if_inaccurate,
+    with_residual,
+)
+
+__all__ = ["detection", "limits", "posterior", "scan", *detection.__all__, *limits.__all__,
+           *posterior.__all__, *(n for n in scan.__all__ if n != "scan")]

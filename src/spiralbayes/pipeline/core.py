@@ -21,13 +21,13 @@ from ..axisymmetric.provenance import check_fitted_to
 from ..config import describe_config, geometry_given
 from ..exceptions import ConfigError, InputError
 from ..geometry import DiscGeometry
-from ..inference.alternatives import fit_alternatives
-from ..inference.detection import DELTA_BIC_THRESHOLD, detect, mirror_index
-from ..inference.priors import DEFAULT_WIDTHS, Priors
-from ..inference.refit import GeometryFollowUp, rescan_at_fitted_geometry
-from ..inference.results import PosteriorResult
-from ..inference.sampler import sample_posterior
-from ..inference.scan import ScanResult, scan
+from ..inference.detection.alternatives import fit_alternatives
+from ..inference.detection.refit import GeometryFollowUp, rescan_at_fitted_geometry
+from ..inference.detection.verdict import DELTA_BIC_THRESHOLD, detect, mirror_index
+from ..inference.posterior.priors import DEFAULT_WIDTHS, Priors
+from ..inference.posterior.results import PosteriorResult
+from ..inference.posterior.sampler import sample_posterior
+from ..inference.scan.run import ScanResult, scan
 from ..io import load_visibilities
 from ..plotting.alternatives import plot_residual_comparison
 from ..plotting.axisymmetric import plot_binned_visibilities, plot_profile
@@ -270,11 +270,11 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
 
     A checkpoint left in ``[output] dir`` is checked for integrity before anything slow runs,
     and resumed only if it was written for the same inputs (``force_resume`` overrides; see
-    :func:`~spiralbayes.inference.scan.scan`). Writes the scan's outputs to ``[output] dir``
+    :func:`~spiralbayes.inference.scan.run.scan`). Writes the scan's outputs to ``[output] dir``
     (:func:`write_scan_outputs`). With ``[alternatives] refit_geometry`` on, no detection and the
     geometry alternative significant (ΔBIC > 10), frank is refitted at the fitted geometry and the
     scan, alternatives and verdict are repeated there
-    (:func:`~spiralbayes.inference.refit.rescan_at_fitted_geometry`), with their outputs and
+    (:func:`~spiralbayes.inference.detection.refit.rescan_at_fitted_geometry`), with their outputs and
     ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
     """
     out_dir = Path(config["output"]["dir"])
@@ -368,7 +368,7 @@ def _priors(config: dict, axisym: AxisymmetricModel) -> Priors:
 
 
 def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult:
-    """Run :func:`~spiralbayes.inference.sampler.sample_posterior` from a merged configuration.
+    """Run :func:`~spiralbayes.inference.posterior.sampler.sample_posterior` from a merged configuration.
 
     The axisymmetric model is ``[frank] model``, else ``OUTPUT/axisymmetric.h5`` written by a scan
     of the same configuration, else a new frank fit; the scan (walker starts, template pruning) is

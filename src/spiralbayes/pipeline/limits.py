@@ -11,7 +11,7 @@ import numpy as np
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..config import describe_config
 from ..geometry import DiscGeometry
-from ..inference.scan import scan
+from ..inference.scan.run import scan
 from ..simulate import DiscModel, simulate_observation
 from ..templates import make_template
 from .._hdf5 import require_file
@@ -41,9 +41,9 @@ def _slug(text: str) -> str:
 def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict | None = None, name: str = "disc",
                distance: float | None = None, progress: bool = True, plots: bool = True) -> LimitsRun:
     """Exclusion limits, completeness (optional), Table 3 (Markdown, CSV), HDF5 and plots in ``out_dir``."""
-    from ..inference.completeness import completeness, injection_engine
-    from ..inference.limits import compute_limits
-    from ..inference.limits_table import table_csv, table_markdown
+    from ..inference.limits.recovery import completeness, injection_engine
+    from ..inference.limits.exclusion import compute_limits
+    from ..inference.limits.table import table_csv, table_markdown
     from ..plotting.limits import plot_completeness, plot_excluded_fraction, plot_mass_radius
 
     lc = {**default_limits_config(), **(limits_config or {})}
@@ -160,7 +160,7 @@ def run_limits_demo(out_dir="spiralbayes-limits-demo", *, seed: int = 3, progres
 
 def run_forecast(args: dict) -> list:
     """Forecasts for the command line: ``args`` holds preset(s), template parameters and r_p [au]."""
-    from ..inference.forecast import forecast
+    from ..inference.limits.forecasting import forecast
 
     template = make_template(args["mass"], args["tau0"], args["beta"], args["hand"], wavelength=args["wavelength"])
     disc = DiscModel(distance=args["distance"], tau_ref=args["disc_tau"] or args["tau0"])

@@ -6,7 +6,7 @@ weights), the geometry the configuration asks for (unless it is fitted), frank's
 templates' content hashes and the planet grid. Anything else is refused with the one-line fix
 (:class:`~spiralbayes.exceptions.ResumeMismatchError` naming what differs) — never used silently.
 Checkpoints and chain files carry their own resume keys (:func:`spiralbayes.inference.scan.resume_key`,
-:class:`spiralbayes.inference.chains.ChainStore`).
+:class:`spiralbayes.inference.posterior.chains.ChainStore`).
 """
 
 from __future__ import annotations

@@ -171,9 +171,9 @@ def _grid(config: dict):
 @_staged("scan")
 def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     """The scan's context and partly filled result (resumed from the checkpoint and saved chunks)."""
-    from ..inference.scan import ScanResult, _empty_result, _resume, _warn_beyond_rmax, resume_key
-    from ..inference.scan_accuracy import check_terms
-    from ..inference.scan_engine import ScanContext, ScanSettings
+    from ..inference.scan.run import ScanResult, empty_result, resume_from_checkpoint, warn_beyond_rmax, resume_key
+    from ..inference.scan.accuracy import check_terms
+    from ..inference.scan.engine import ScanContext, ScanSettings
 
     out = job.out_dir
     if done(out, "scan", prep.scan_key, "scan.h5", "verdict.json") is not None:
@@ -181,15 +181,15 @@ def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     s = job.config["scan"]
     r_p, n_phi_p = _grid(job.config)
     settings = ScanSettings(rule=s["quadrature"], cell_factor=float(s["cell_factor"]), power_path=s["power_path"])
-    _warn_beyond_rmax(axisym, r_p)
+    warn_beyond_rmax(axisym, r_p)
     x_max = max(float(np.max(t.x)) for t in templates)
     context = ScanContext.build(prep.vis, axisym, axisym.geometry, r_p, n_phi_p, x_max=x_max, nthreads=s["nthreads"],
                                 settings=settings)
-    result = _empty_result(context, templates, prep.vis, job.config["geometry"]["distance"])
+    result = empty_result(context, templates, prep.vis, job.config["geometry"]["distance"])
     result.provenance["resume_key"] = rkey = resume_key(prep.vis, axisym, templates, context)
     checkpoint = out / "scan_checkpoint.h5"
     if s["checkpoint"] and checkpoint.exists():
-        result = _resume(checkpoint, result)
+        result = resume_from_checkpoint(checkpoint, result)
     part_key = content_hash(rkey)
     for i in range(len(templates)):
         if not result.completed[i]:
@@ -208,7 +208,7 @@ def _part_path(out: Path, index: int) -> Path:
 
 
 def _load_part(out: Path, index: int, key: str):
-    from ..inference.scan_engine import TemplateTerms
+    from ..inference.scan.engine import TemplateTerms
 
     path = _part_path(out, index)
     if not path.exists():
@@ -223,16 +223,16 @@ def _load_part(out: Path, index: int, key: str):
 
 
 def _store_terms(result, index: int, terms) -> None:
-    from ..inference.scan import _store
+    from ..inference.scan.run import store_template_terms
 
-    _store(result, index, terms, None)
+    store_template_terms(result, index, terms, None)
 
 
 @_staged("scan")
 def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
     """The terms of templates ``indices`` still to do; each saved to ``survey_parts/`` when computed."""
     from .._provenance import atomic_path
-    from ..inference.scan_engine import scan_template
+    from ..inference.scan.engine import scan_template
 
     out = {}
     for i in indices:
@@ -257,7 +257,7 @@ def _alt_kwargs(config: dict) -> dict:
 @_staged("alternatives")
 def stage_alternatives(job, prep: Prepared, axisym, setup: ScanSetup):
     """Test 3's competing asymmetry models (None when switched off or the scan stage is done)."""
-    from ..inference.alternatives import fit_alternatives
+    from ..inference.detection.alternatives import fit_alternatives
 
     if setup.finished or not job.config["alternatives"]["fit"]:
         return None
@@ -270,8 +270,8 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
     if setup.finished:
         return json.loads((job.out_dir / "verdict.json").read_text())
     from ..inference.detection import detect
-    from ..inference.refit import rescan_at_fitted_geometry
-    from ..inference.scan_accuracy import warn_if_inaccurate
+    from ..inference.detection.refit import rescan_at_fitted_geometry
+    from ..inference.scan.accuracy import warn_if_inaccurate
     from .core import _geometry_error_significant, _write_text, write_scan_outputs
 
     config, out = job.config, job.out_dir

@@ -55,7 +55,7 @@ def plot_comparison(residuals, gap, scan_result, verdict, geometry, *, distance:
     gap : spiralbayes.baselines.GapDepth
     scan_result : ScanResult
     verdict : Verdict
-        Of the scan (:func:`spiralbayes.inference.detection.detect`).
+        Of the scan (:func:`spiralbayes.inference.detection.verdict.detect`).
     geometry : DiscGeometry
         Used to mark the scan's best planet position on the images.
     distance : float, optional

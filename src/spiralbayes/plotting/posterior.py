@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import InputError
-from ..inference.likelihood import PARAMETER_NAMES
-from ..inference.results import SAMPLE_NAMES
-from ..units import TWO_PI
+from ..inference.posterior.conditional import PARAMETER_NAMES
+from ..inference.posterior.results import SAMPLE_NAMES
+from ..units import wrap_angle
 
 __all__ = ["plot_corner", "plot_hypotheses", "plot_template_probabilities", "plot_trace"]
 
@@ -56,7 +56,7 @@ def _truth_vector(truths, samples: np.ndarray, distance: float | None):
             raise InputError(f"truths needs {len(SAMPLE_NAMES)} values ({SAMPLE_NAMES}) or {len(PARAMETER_NAMES)}")
     if vec[1] is not None:
         mu = float(np.angle(np.mean(np.exp(1j * samples[:, 1]))))
-        vec[1] = mu + (float(vec[1]) - mu + np.pi) % TWO_PI - np.pi
+        vec[1] = float(wrap_angle(vec[1], mu - np.pi))
     factors = [c[2] for c in _columns(distance)]
     return [None if v is None else float(v) * f for v, f in zip(vec, factors)]
 

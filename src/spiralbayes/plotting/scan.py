@@ -11,7 +11,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..exceptions import InputError
-from ..inference.statistics import bic_threshold
+from ..inference.scan.statistics import bic_threshold
 
 __all__ = ["plot_chi2_vs_rp", "plot_heatmap", "plot_heatmap_pair", "plot_template_grid_heatmaps"]
 

@@ -36,8 +36,8 @@ by the data's longest baseline ``u_max``, and integrates everything else exactly
   same sums two orders lower estimate their error.
 
 The node fluxes are ``(2 pi / n_phi_a) r_p^2 sum_t C[a, t] delta~_t(phi_j)`` [Jy], a set of point
-sources that a type-3 NUFFT sends to any baseline. Why this rule (the alternatives measured in
-issue 11 on the fiducial observation, 27 radius/azimuth/template cases against a converged
+sources that a type-3 NUFFT sends to any baseline. Why this rule (the alternatives measured
+on the fiducial observation, 27 radius/azimuth/template cases against a converged
 reference): midpoint cells of 1 / (20 u_max) gave |δ power| / power up to 8.8e-4 and Δχ² off by up
 to 3.6; halving cells with Richardson extrapolation reached 5e-7 but needed 5x the cells;
 Gauss-Legendre per template interval with exact phi reached 8e-11 with 4 nodes per interval but

@@ -23,13 +23,10 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..geometry import DiscGeometry
+from ..units import wrap_angle
 from .discs import DiscModel, hankel_visibilities
 
 __all__ = ["ExactAxisymmetric", "eccentric_ring", "lopsided_disc", "vortex_arc"]
-
-
-def _wrap(x):
-    return np.angle(np.exp(1j * np.asarray(x)))
 
 
 def vortex_arc(profile, r_c: float, phi_c: float, width_r: float, width_phi: float, contrast: float):
@@ -51,7 +48,7 @@ def vortex_arc(profile, r_c: float, phi_c: float, width_r: float, width_phi: flo
         raise InputError(f"vortex_arc: the disc has no brightness at r_c = {r_c} arcsec to scale the arc by")
 
     def delta(r, phi):
-        added = peak * np.exp(-0.5 * ((r - r_c) / width_r) ** 2 - 0.5 * (_wrap(phi - phi_c) / width_phi) ** 2)
+        added = peak * np.exp(-0.5 * ((r - r_c) / width_r) ** 2 - 0.5 * (wrap_angle(phi - phi_c) / width_phi) ** 2)
         I = np.asarray(profile(r), dtype=float)
         return np.where(I > 0, added / np.where(I > 0, I, 1.0), 0.0)
 

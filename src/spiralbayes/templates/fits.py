@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError, MissingFileError
-from ..units import TWO_PI
+from ..units import TWO_PI, wrap_angle
 from .template import SpiralTemplate, template_name, validate_hand
 
 __all__ = ["read_fits_template", "write_fits_template"]
@@ -147,7 +147,7 @@ def read_fits_template(
     x = r / r_planet
     # resample onto uniform azimuths from the planet
     n = phi_c.size
-    phi_src = np.mod(phi_c + phi_offset, TWO_PI)
+    phi_src = wrap_angle(phi_c + phi_offset, 0.0)
     srt = np.argsort(phi_src)
     phi_src, delta = phi_src[srt], delta[:, srt]
     phi = TWO_PI * np.arange(n) / n

@@ -90,7 +90,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InputError
-from ..units import TWO_PI
+from ..units import TWO_PI, wrap_angle
 from .burgers import solve_burgers
 from .template import check_mass_beta, validate_hand
 
@@ -414,11 +414,6 @@ def _periodic_interp(table: np.ndarray, rows: np.ndarray, pos: np.ndarray) -> np
     return (1.0 - w) * table[r, j0] + w * table[r, j1]
 
 
-def _wrap(a):
-    """Wrap angles to [−π, π)."""
-    return (a + np.pi) % TWO_PI - np.pi
-
-
 @functools.lru_cache(maxsize=16)
 def _cached_perturbation(mass: float, beta: float, st: WakeSettings):
     x, phi = st.grid()
@@ -468,7 +463,7 @@ def _primary_and_secondary(x, phi, mass, beta, st: WakeSettings) -> np.ndarray:
     rows = np.arange(x.size)
 
     def primary(phis, sel=slice(None)):
-        d = _wrap(phis[None, :] - phi_w[sel, None])
+        d = wrap_angle(phis[None, :] - phi_w[sel, None])
         pos = (side[sel, None] * (1.5 / h) * d + 0.5 * L) / d_eta
         return scale[sel, None] * _periodic_interp(chi, rows[sel], pos)
 

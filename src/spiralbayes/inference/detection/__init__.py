@@ -1,0 +1,46 @@
+"""The verdict on a scan: tests 1 and 2, the competing asymmetries (test 3) and the geometry follow-up.
+
+* :mod:`.verdict` — :func:`detect` and its :class:`Verdict`;
+* :mod:`.alternatives` — maximum-likelihood fits of the non-spiral asymmetries, scored by ΔBIC;
+* :mod:`.starts` — their starting points, read off the residual dirty image;
+* :mod:`.refit` — refit frank at the fitted geometry, scan again, decide again.
+"""
+
+from .verdict import (
+    Verdict,
+    best_handed_candidate,
+    detect,
+    handedness_ratio,
+    localisation,
+    mirror_index,
+    one_sidedness,
+)
+from .starts import candidate_starts, linear_amplitudes
+from .alternatives import (
+    ALTERNATIVES_KIND,
+    AlternativeFit,
+    AlternativesResult,
+    delta_chi2_direct,
+    fit_alternatives,
+)
+from .refit import GeometryFollowUp, frank_settings, rescan_at_fitted_geometry
+
+__all__ = [
+    "ALTERNATIVES_KIND",
+    "AlternativeFit",
+    "AlternativesResult",
+    "GeometryFollowUp",
+    "Verdict",
+    "best_handed_candidate",
+    "candidate_starts",
+    "delta_chi2_direct",
+    "detect",
+    "fit_alternatives",
+    "frank_settings",
+    "handedness_ratio",
+    "linear_amplitudes",
+    "localisation",
+    "mirror_index",
+    "one_sidedness",
+    "rescan_at_fitted_geometry",
+]

@@ -1,0 +1,339 @@
+"""Detection verdict from a scan: ΔBIC (test 1) and the spatial / handedness test (test 2).
+
+Stevenson et al. (2024, sec. 3-4): a spiral is claimed when the best template's ΔBIC exceeds 10
+(very strong evidence) *and* its Δχ² heatmap shows a compact peak whose mirror-image template
+(the other hand, same mass, tau0 and beta) fits clearly worse near the same place. Arcs, vortices
+and geometry errors (their Appendix A) raise Δχ² for both hands alike and in extended,
+one-sided clusters.
+
+Quantities used here (spiralbayes' definitions; thresholds are parameters):
+
+* ``handedness_ratio``: the mirror template's largest Δχ² at radii within ``neighbourhood`` grid
+  steps of the best instance (any azimuth: a geometry error places the mirror template's best fit
+  at the reflected azimuth), divided by the best Δχ². Test passes when below
+  ``max_handedness_ratio``.
+* ``localisation``: fraction of the scanned disc area (weights ``r dr dphi``) where the best
+  template's Δχ² exceeds half its peak. Test passes when below ``max_localisation``.
+
+Test 3 (spiralbayes' addition, ``docs/verdict.md``): the paper's test 2 asks that the Δχ² structure
+show the improvement is "caused by a spiral, not some other asymmetry". Given the maximum-likelihood
+fits of the competing models (:func:`~spiralbayes.inference.alternatives.fit_alternatives`: geometry
+error, arc/vortex, lopsided disc, eccentric ring, m = 2 pattern), the spiral must beat the best of
+them by ``ΔBIC_spiral − ΔBIC_alt > alternative_threshold`` (default 10, "very strong" on the scale
+of Kass & Raftery 1995, the threshold test 1 uses against the axisymmetric model). Both ΔBIC are
+against the same axisymmetric model and data, so their difference is ``BIC_alt − BIC_spiral``.
+When it fails the verdict names the alternative.
+
+When the global peak fails test 2, :func:`detect` also looks for the best *handed, compact*
+candidate — the highest local maximum of any template that passes test 1 and whose mirror ratio
+and local peak area pass test 2 — so that a planet behind a false peak (e.g. from a phase-centre
+error) is not hidden.
+Its ``localisation`` is the area of its own connected region above half its Δχ² (for the global
+peak of a map with one peak this equals the paper's measure above).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..._provenance import json_safe
+from ...exceptions import InputError
+
+__all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "localisation", "mirror_index",
+           "one_sidedness"]
+
+DELTA_BIC_THRESHOLD = 10.0
+ALTERNATIVE_THRESHOLD = 10.0
+"""Test 3: the spiral's BIC must be lower than the best alternative's by more than this."""
+CANDIDATES_PER_TEMPLATE = 5
+
+
+def mirror_index(result, template: int) -> int | None:
+    """Index of the template with the other hand and the same other parameters, if scanned."""
+    meta = result.templates[template]
+    hand = meta.get("hand")
+    if hand not in ("R", "L"):
+        return None
+    other = {"R": "L", "L": "R"}[hand]
+    keys = [k for k in ("mass", "tau0", "beta", "h_p", "flaring", "wavelength") if k in meta]
+    for j, m in enumerate(result.templates):
+        if m.get("hand") == other and all(_same(m.get(k), meta[k]) for k in keys):
+            return j
+    return None
+
+
+def _same(a, b) -> bool:
+    """Equal metadata values; unknown ones (None or NaN, e.g. a FARGO3D run's beta) match each other."""
+    unknown = [x is None or (isinstance(x, float) and np.isnan(x)) for x in (a, b)]
+    return all(unknown) if any(unknown) else bool(a == b)
+
+
+def handedness_ratio(result, template: int, i_rp: int, i_phi: int, neighbourhood: int = 2,
+                     amplitude=None) -> float:
+    """Mirror template's best Δχ² at radii near ``i_rp`` over this template's Δχ² at ``(i_rp, i_phi)``."""
+    j = mirror_index(result, template)
+    if j is None:
+        return float("nan")
+    dchi2 = result.delta_chi2(amplitude)
+    peak = dchi2[template, i_rp, i_phi]
+    rows = slice(max(i_rp - neighbourhood, 0), i_rp + neighbourhood + 1)
+    return float(np.max(dchi2[j, rows]) / peak) if peak > 0 else float("nan")
+
+
+def one_sidedness(result, template: int, amplitude=None) -> float:
+    """Resultant length (0-1) of the azimuths where Δχ² > 0, weighted by Δχ² and area.
+
+    Near 1 when the improvement clusters on one side of the disc, as for a planet or for the
+    false fits of a phase-centre error (Stevenson et al. 2024, App. A); near 0 for rings.
+    """
+    dchi2 = result.delta_chi2(amplitude)[template]
+    w = np.clip(dchi2, 0, None) * result.r_p[:, None]
+    total = w.sum()
+    if total <= 0:
+        return 0.0
+    return float(np.abs(np.sum(w * np.exp(1j * result.phi_p[None, :]))) / total)
+
+
+def localisation(result, template: int, amplitude=None) -> float:
+    """Area fraction of the scanned disc with Δχ² above half the template's peak."""
+    dchi2 = result.delta_chi2(amplitude)[template]
+    peak = np.max(dchi2)
+    if peak <= 0:
+        return 1.0
+    area = np.broadcast_to(result.r_p[:, None], dchi2.shape)
+    return float(area[dchi2 >= 0.5 * peak].sum() / area.sum())
+
+
+
+def peak_region_fraction(values: np.ndarray, r_p: np.ndarray, i_rp: int, i_phi: int) -> float:
+    """Area fraction of the connected region around ``(i_rp, i_phi)`` where ``values`` >= half its value.
+
+    Neighbours are the four adjacent grid cells, periodic in phi; areas weigh by ``r_p``.
+    """
+    level = 0.5 * values[i_rp, i_phi]
+    if not level > 0:
+        return 1.0
+    n_r, n_phi = values.shape
+    seen = np.zeros(values.shape, dtype=bool)
+    seen[i_rp, i_phi] = True
+    todo = deque([(i_rp, i_phi)])
+    while todo:
+        i, j = todo.popleft()
+        for a, b in ((i - 1, j), (i + 1, j), (i, (j - 1) % n_phi), (i, (j + 1) % n_phi)):
+            if 0 <= a < n_r and not seen[a, b] and values[a, b] >= level:
+                seen[a, b] = True
+                todo.append((a, b))
+    area = np.broadcast_to(r_p[:, None], values.shape)
+    return float(area[seen].sum() / area.sum())
+
+
+def _local_maxima(values: np.ndarray, top: int) -> list[tuple[int, int]]:
+    """Indices of the ``top`` highest positive local maxima (8 neighbours, periodic in phi)."""
+    padded = np.pad(values, ((1, 1), (0, 0)), constant_values=-np.inf)
+    is_max = values > 0
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di or dj:
+                shifted = np.roll(padded, -dj, axis=1)[1 + di:1 + di + values.shape[0]]
+                is_max &= values >= shifted
+    idx = np.argwhere(is_max)
+    order = np.argsort(values[is_max])[::-1][:top]
+    return [tuple(int(k) for k in idx[o]) for o in order]
+
+
+def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max_handedness_ratio: float = 0.5,
+                          max_localisation: float = 0.1, min_delta_bic: float = -np.inf) -> dict | None:
+    """The highest local Δχ² maximum of any template that passes test 2 on its own, or None.
+
+    For each template with a mirror image, its ``CANDIDATES_PER_TEMPLATE`` highest local maxima
+    with ΔBIC above ``min_delta_bic`` are tried: a candidate passes when the mirror template's best
+    Δχ² at nearby radii is below ``max_handedness_ratio`` times its Δχ² and its own peak region
+    (:func:`peak_region_fraction`) is smaller than ``max_localisation`` of the scanned area.
+    """
+    dchi2 = result.delta_chi2(amplitude)
+    threshold = result.best(amplitude=amplitude)
+    offset = threshold["delta_chi2"] - threshold["delta_bic"]
+    best = None
+    for t in range(len(result.templates)):
+        if mirror_index(result, t) is None or not np.all(np.isfinite(dchi2[t])):
+            continue
+        for i, j in _local_maxima(dchi2[t], CANDIDATES_PER_TEMPLATE):
+            value = float(dchi2[t, i, j])
+            if (best is not None and value <= best["delta_chi2"]) or value - offset <= min_delta_bic:
+                break
+            ratio = handedness_ratio(result, t, i, j, neighbourhood, amplitude)
+            area = peak_region_fraction(dchi2[t], result.r_p, i, j)
+            if np.isfinite(ratio) and ratio < max_handedness_ratio and area < max_localisation:
+                best = {"template": result.templates[t]["name"], "template_index": t, "r_p": float(result.r_p[i]),
+                        "phi_p_deg": float(np.degrees(result.phi_p[j])), "delta_chi2": value,
+                        "delta_bic": value - offset, "handedness_ratio": ratio, "localisation": area}
+                break
+    return best
+
+
+def _alternatives_summary(alternatives, spiral_delta_bic: float) -> dict:
+    """Each alternative's Δχ², ΔBIC against the axisymmetric model and against the best spiral."""
+    n = alternatives.n_data
+    return {name: {"label": f.label, "delta_chi2": float(f.delta_chi2), "delta_bic": float(f.delta_bic(n)),
+                   "spiral_delta_bic_minus_this": float(spiral_delta_bic - f.delta_bic(n)),
+                   "n_params": int(f.n_params), "params": dict(f.params)}
+            for name, f in alternatives.fits.items()}
+
+
+@dataclass
+class Verdict:
+    """Outcome of :func:`detect`: tests 1 and 2 of the paper and test 3 (competing models).
+
+    ``test3_passed`` is None when no alternatives were given; ``delta_bic_vs_alternative`` is
+    ``ΔBIC_spiral − ΔBIC_alternative`` (positive favours the spiral); ``alternatives`` holds each
+    alternative's Δχ², ΔBIC against the axisymmetric model and the spiral's ΔBIC minus it,
+    parameter count and fitted parameters; ``candidate`` the best
+    handed, compact candidate when the global peak fails test 2 (:func:`best_handed_candidate`).
+    """
+
+    detected: bool
+    delta_bic: float
+    test1_passed: bool
+    handedness_ratio: float
+    localisation: float
+    test2_passed: bool
+    template: str
+    r_p: float
+    phi_p_deg: float
+    delta_chi2: float
+    threshold_6lnN: float
+    distance: float | None = None
+    test3_passed: bool | None = None
+    best_alternative: str | None = None
+    best_alternative_label: str | None = None
+    alternative_delta_bic: float | None = None
+    delta_bic_vs_alternative: float | None = None
+    alternative_threshold: float = ALTERNATIVE_THRESHOLD
+    alternatives: dict | None = None
+    candidate: dict | None = None
+
+    @property
+    def r_p_au(self) -> float | None:
+        return None if self.distance is None else self.r_p * self.distance
+
+    def to_dict(self) -> dict:
+        """The fields as strict-JSON values (NaN, e.g. no mirror template scanned, becomes None)."""
+        return json_safe(asdict(self))
+
+    def _where(self, r_p: float, phi_deg: float) -> str:
+        where = f"r_p = {r_p:.3f} arcsec" + (f" ({r_p * self.distance:.0f} au)" if self.distance else "")
+        return where + f", phi_p = {phi_deg:.0f} deg"
+
+    def summary(self) -> str:
+        """A few sentences a user could paste into a paper."""
+        text = (f"The best-fitting spiral template ({self.template}) at {self._where(self.r_p, self.phi_p_deg)} "
+                f"improves chi^2 by {self.delta_chi2:.1f} over the axisymmetric model (Delta BIC = "
+                f"{self.delta_bic:.1f}; Delta chi^2 (Delta BIC = 0) = 6 ln N = {self.threshold_6lnN:.1f}).")
+        if not self.test1_passed:
+            text += " This is not significant evidence for a planet-driven spiral (Delta BIC <= 10)."
+        else:
+            hand = (f"the mirror-image template's best Delta chi^2 at that radius is {self.handedness_ratio:.2f} "
+                    f"times the peak, and the peak covers {100 * self.localisation:.1f} % of the scanned area")
+            text += (f" The peak is compact and handed ({hand})." if self.test2_passed else
+                     f" However {hand}, so the improvement is not attributed to a planet-driven spiral "
+                     "(e.g. an arc or a geometry error).")
+        text += self._test3_sentence()
+        if self.candidate is not None:
+            text += self._candidate_sentence()
+        return text + (" A planet-driven spiral is detected." if self.detected
+                       else " No planet-driven spiral is claimed.")
+
+    def _test3_sentence(self) -> str:
+        if self.test3_passed is None:
+            return " Test 3 (competing asymmetry models, sb.fit_alternatives) was not run."
+        label, margin, thr = self.best_alternative_label, self.delta_bic_vs_alternative, self.alternative_threshold
+        own = f"Delta BIC = {self.alternative_delta_bic:.1f} against the axisymmetric model"
+        if self.test3_passed:
+            return (f" Test 3: the spiral is preferred over the best competing asymmetry model ({label}, {own}) "
+                    f"by Delta BIC = {margin:.1f} (> {thr:g}).")
+        alternative_significant = (self.alternative_delta_bic is not None
+                                   and self.alternative_delta_bic > DELTA_BIC_THRESHOLD)
+        if margin < 0 and alternative_significant:
+            text = (f" Test 3: the {label} model explains the data better than any spiral template "
+                    f"(by Delta BIC = {-margin:.1f}; {own}).")
+        elif margin < 0:  # the best alternative is itself no better than the axisymmetric disc
+            text = (f" Test 3: no competing asymmetry model explains the data either: the best, {label}, is not "
+                    f"significant against the axisymmetric disc ({own}, <= {DELTA_BIC_THRESHOLD:g}), though it "
+                    f"scores Delta BIC = {-margin:.1f} above the best spiral template.")
+        else:
+            text = (f" Test 3: the spiral is not clearly preferred over the {label} model "
+                    f"(Delta BIC = {margin:.1f} <= {thr:g}; {own}).")
+        if self.best_alternative == "geometry" and alternative_significant:
+            text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
+        return text
+
+    def _candidate_sentence(self) -> str:
+        c = self.candidate
+        return (f" The best handed, compact candidate is {c['template']} at {self._where(c['r_p'], c['phi_p_deg'])} "
+                f"(Delta chi^2 = {c['delta_chi2']:.1f}, Delta BIC = {c['delta_bic']:.1f}, mirror ratio "
+                f"{c['handedness_ratio']:.2f}, {100 * c['localisation']:.1f} % of the area); follow it up with the "
+                "posterior over planet position and free geometry (sb.sample_posterior).")
+
+
+def _check_same_data(result, alternatives) -> None:
+    same_n = alternatives.n_data == result.n_data
+    if not same_n or not np.isclose(alternatives.chi2_AO, result.chi2_AO, rtol=1e-6, atol=1e-6):
+        raise InputError(
+            "the alternatives were fitted to other data or another axisymmetric model than the scan "
+            f"(N = {alternatives.n_data} vs {result.n_data}, chi2_AO = {alternatives.chi2_AO:.6g} vs "
+            f"{result.chi2_AO:.6g}): fit them with the scan's visibilities and axisymmetric model")
+
+
+def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
+           max_handedness_ratio: float = 0.5, max_localisation: float = 0.1,
+           bic_threshold_value: float = DELTA_BIC_THRESHOLD,
+           alternative_threshold: float = ALTERNATIVE_THRESHOLD) -> Verdict:
+    """Decide whether a scan detects a planet-driven spiral.
+
+    Tests 1 and 2 are the paper's (module docstring). With ``alternatives`` (an
+    :class:`~spiralbayes.inference.alternatives.AlternativesResult` fitted to the same data and
+    axisymmetric model) test 3 is applied too, and a detection needs all three.
+
+    Parameters
+    ----------
+    result : ScanResult
+    amplitude : None or "free"
+        The spiral amplitude convention of the scan's Δχ² (fixed A = 1, or a free amplitude with
+        one more BIC parameter).
+    alternatives : AlternativesResult, optional
+        Competing asymmetry models (:func:`~spiralbayes.inference.alternatives.fit_alternatives`).
+    neighbourhood, max_handedness_ratio, max_localisation, bic_threshold_value
+        Tests 1 and 2.
+    alternative_threshold : float
+        Test 3: smallest ``ΔBIC_spiral − ΔBIC_best alternative`` that prefers the spiral.
+    """
+    best = result.best(amplitude=amplitude)
+    t = best["template_index"]
+    ratio = handedness_ratio(result, t, best["i_rp"], best["i_phi"], neighbourhood, amplitude)
+    loc = localisation(result, t, amplitude)
+    test1 = bool(best["delta_bic"] > bic_threshold_value)
+    test2 = bool(np.isfinite(ratio) and ratio < max_handedness_ratio and loc < max_localisation)
+    extra = {"alternative_threshold": float(alternative_threshold)}
+    if alternatives is not None:
+        _check_same_data(result, alternatives)
+        alt = alternatives.best()
+        alt_bic = float(alt.delta_bic(alternatives.n_data))
+        margin = float(best["delta_bic"]) - alt_bic
+        extra.update(test3_passed=bool(margin > alternative_threshold), best_alternative=alt.name,
+                     best_alternative_label=alt.label, alternative_delta_bic=alt_bic,
+                     delta_bic_vs_alternative=margin,
+                     alternatives=_alternatives_summary(alternatives, float(best["delta_bic"])))
+    if not test2:
+        extra["candidate"] = best_handed_candidate(result, amplitude, neighbourhood=neighbourhood,
+                                                   max_handedness_ratio=max_handedness_ratio,
+                                                   max_localisation=max_localisation,
+                                                   min_delta_bic=bic_threshold_value)
+    detected = test1 and test2 and extra.get("test3_passed") is not False
+    return Verdict(
+        detected=bool(detected), delta_bic=best["delta_bic"], test1_passed=test1,
+        handedness_ratio=ratio, localisation=loc, test2_passed=test2, template=best["template"],
+        r_p=best["r_p"], phi_p_deg=float(np.degrees(best["phi_p"])), delta_chi2=best["delta_chi2"],
+        threshold_6lnN=best["delta_chi2"] - best["delta_bic"], distance=result.distance, **extra)

@@ -1,0 +1,61 @@
+"""What the data rule out and what they could detect: exclusion limits, completeness, forecasts.
+
+* :mod:`.exclusion` — :func:`compute_limits`, the limiting mass M_lim(r_p);
+* :mod:`.families` — templates grouped by everything but mass and hand;
+* :mod:`.table` — the paper's Table 3 from computed limits;
+* :mod:`.injection` — injected planets' Δχ² without re-scanning;
+* :mod:`.recovery` — detection completeness by injection–recovery, M_det;
+* :mod:`.forecasting` — expected Δχ², detection probability and time on source for a set-up.
+"""
+
+from .families import Family, select_family, template_families
+from .table import describe_family_limits, limits_table, runs, table_csv, table_markdown
+from .exclusion import (
+    ExclusionLimits,
+    amplitude_upper_limit,
+    compute_limits,
+    data_resolution,
+    bright_extent,
+    z_score,
+)
+from .injection import Injection, InjectionEngine, brute_force_injection, injected_cross_reference
+from .recovery import (
+    CompletenessResult,
+    completeness,
+    completeness_brute_force,
+    injection_engine,
+    injection_plan,
+)
+from .forecasting import Forecast, compare_setups, detectable_mass, forecast, format_minutes, setup_for_time
+
+__all__ = [
+    "CompletenessResult",
+    "ExclusionLimits",
+    "Family",
+    "Forecast",
+    "Injection",
+    "InjectionEngine",
+    "amplitude_upper_limit",
+    "bright_extent",
+    "brute_force_injection",
+    "compare_setups",
+    "completeness",
+    "completeness_brute_force",
+    "compute_limits",
+    "data_resolution",
+    "describe_family_limits",
+    "detectable_mass",
+    "forecast",
+    "format_minutes",
+    "injected_cross_reference",
+    "injection_engine",
+    "injection_plan",
+    "limits_table",
+    "runs",
+    "select_family",
+    "setup_for_time",
+    "table_csv",
+    "table_markdown",
+    "template_families",
+    "z_score",
+]

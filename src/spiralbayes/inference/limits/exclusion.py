@@ -1,0 +1,405 @@
+"""Exclusion limits from a scan: which planets the data rule out, and the limiting mass M_lim(r_p).
+
+Stevenson et al. (2024, sec. 4.3, Table 3, Fig. 14) read exclusion regions off Δχ² heatmaps by
+eye; here they follow from the scan's two terms (``docs/limits.md`` has the derivations).
+
+**Amplitude test.** Give the template at ``(r_p, phi_p)`` a free linear amplitude ``A`` (the
+scan's model is ``A = 1``): ``Δχ²(A) = 2 A cross - A² power``, so ``A_hat = cross / power`` with
+error ``sigma_A = 1 / sqrt(power)`` (Gaussian noise: ``cross = power (A_true + noise)``). The
+one-sided upper limit at confidence ``CL`` is ``A_up = A_hat + z_CL sigma_A``
+(``z_CL = Phi^-1(CL)``, 1.645 at 95 %); the planet is **excluded** there when ``A_up < 1``. For
+a planet planted exactly as the template, ``P(excluded) = 1 - CL``.
+
+**Azimuths.** (a) ``excluded_fraction``: the fraction of the scanned ``phi_p`` where a template
+is excluded. (b) A planet is excluded at ``r_p`` (``method="all_phi"``, the paper's conservative
+reading) when it is excluded at every ``phi_p``: ``A_up(r_p) = max_phi A_up < 1``. With
+``method="marginal"`` ``phi_p`` is marginalised with a uniform prior: the posterior of ``A``
+(flat prior) is the mixture ``sum_phi w_phi N(A_hat_phi, sigma_phi²)`` with
+``w_phi ∝ sigma_phi exp(A_hat_phi² / 2 sigma_phi²)``, and ``A_up`` solves
+``P(A > A_up | data) = 1 - CL``. Both hands must be excluded (the hand is not known), unless
+``hand="R"`` or ``"L"`` says which one the disc's rotation allows.
+
+**Limiting mass.** Per template family (fixed tau0, beta, h_p): ``M_lim(r_p)`` is the smallest
+mass above which every bank mass is excluded. Between the last allowed bank mass ``m_k``
+(``A_up >= 1``) and the next, excluded one, ``ln A_up`` is interpolated linearly in ``ln M`` to
+``ln A_up = 0`` (for a noise-dominated limit ``A_up ∝ 1 / amplitude(M)``, a power of M). When
+every bank mass is excluded ``M_lim`` is the smallest one (status ``"below_bank"``: lighter
+planets are not tested); when the heaviest is allowed there is no limit (``"none"``). Masses
+above the bank's largest are not tested either. In Jupiter masses, ``M = M_lim M_th(r_p)`` with
+``M_th = h(r_p)^3 M_*`` and ``h = h_ref (r / r_ref)^flaring`` (:func:`spiralbayes.units.mth_to_mjup`).
+
+**Flags.** Radii where the template is not constrained by the data's information are flagged,
+not excluded: ``"unresolved"`` when ``r_p < resolution_factor x resolution`` (the spiral and
+the planet lie within about one beam of the star: the scan cannot tell a spiral from an
+axisymmetric or compact residual, the paper's small-r_p caveat), and ``"beyond_bright_extent"``
+when ``r_p`` exceeds the radius holding ``extent_fraction`` (95 %) of the disc's flux (half of
+the template, the outer arm, would lie where ``I_A ≈ 0`` and the model ``I_A (1 + delta)`` says
+nothing about a planet there: the large-r_p caveat).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..._hdf5 import open_file, write_file
+from ..._provenance import json_default, provenance_record
+from ...exceptions import InputError
+from ...units import mth_to_mjup
+from .families import Family, select_family, template_families
+from .table import describe_family_limits, runs
+
+__all__ = ["ExclusionLimits", "amplitude_upper_limit", "compute_limits", "data_resolution", "bright_extent",
+           "z_score"]
+
+LIMITS_KIND = "spiralbayes.ExclusionLimits"
+FLAG_UNRESOLVED = "unresolved"
+FLAG_EXTENT = "beyond_bright_extent"
+METHODS = ("all_phi", "marginal")
+
+log = logging.getLogger(__name__)
+
+
+def z_score(cl: float) -> float:
+    """One-sided ``z_CL = Phi^-1(CL)``; ``cl`` must lie in (0.5, 1)."""
+    from scipy.stats import norm
+
+    try:
+        cl = float(cl)
+    except (TypeError, ValueError):
+        raise InputError(f"cl must be a confidence level in (0.5, 1), e.g. 0.95, got {cl!r}") from None
+    if not 0.5 < cl < 1.0:
+        raise InputError(f"cl = {cl!r} is not a confidence level in (0.5, 1): use e.g. 0.95 (one-sided 95 %)")
+    return float(norm.ppf(cl))
+
+
+def _amplitude(cross, power):
+    cross = np.asarray(cross, dtype=float)
+    power = np.asarray(power, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a_hat = np.where(power > 0, cross / np.where(power > 0, power, 1.0), 0.0)
+        sigma = np.where(power > 0, 1.0 / np.sqrt(np.where(power > 0, power, 1.0)), np.inf)
+    return a_hat, sigma
+
+
+def amplitude_upper_limit(cross, power, cl: float = 0.95, method: str = "instance") -> np.ndarray:
+    """Upper limit on the template amplitude ``A`` at confidence ``cl``.
+
+    ``method="instance"``: per instance, ``A_hat + z sigma_A`` (same shape as the inputs).
+    ``"all_phi"``: the largest over the last axis (phi_p). ``"marginal"``: phi_p marginalised
+    over the last axis (see the module docstring).
+    """
+    z = z_score(cl)
+    a_hat, sigma = _amplitude(cross, power)
+    if method == "instance":
+        return a_hat + z * sigma
+    if method == "all_phi":
+        return np.max(a_hat + z * sigma, axis=-1)
+    if method == "marginal":
+        return _marginal_upper_limit(a_hat, sigma, 1.0 - float(cl))
+    raise InputError(f"method must be 'instance', 'all_phi' or 'marginal', got {method!r}")
+
+
+def _marginal_upper_limit(a_hat, sigma, tail: float, iterations: int = 80) -> np.ndarray:
+    """``A_up`` with ``sum_phi w_phi Q((A_up - a_hat_phi) / sigma_phi) = tail`` (vectorised bisection)."""
+    from scipy.special import logsumexp
+    from scipy.stats import norm
+
+    finite = np.isfinite(sigma)
+    s = np.where(finite, sigma, 1.0)
+    log_w = np.where(finite, np.log(s) + 0.5 * (a_hat / s) ** 2, -np.inf)
+    log_w = log_w - logsumexp(log_w, axis=-1, keepdims=True)
+    w = np.exp(log_w)
+    lo = np.min(np.where(finite, a_hat - 12 * s, np.inf), axis=-1)
+    hi = np.max(np.where(finite, a_hat + 12 * s, -np.inf), axis=-1)
+    none = ~np.isfinite(lo)  # no power at any azimuth: nothing is constrained
+    lo, hi = np.where(none, 0.0, lo), np.where(none, 1.0, hi)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        tail_mid = np.sum(w * norm.sf((mid[..., None] - a_hat) / s), axis=-1)
+        above = tail_mid > tail
+        lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
+    return np.where(none, np.inf, 0.5 * (lo + hi))
+
+
+def data_resolution(vis) -> float:
+    """FWHM [arcsec] of the natural-weighted beam, ``sqrt(bmaj bmin)`` (:func:`simulate.fit_beam`)."""
+    from ...simulate.noise import fit_beam
+
+    bmaj, bmin, _ = fit_beam(vis.u, vis.v, vis.weights)
+    return float(np.sqrt(bmaj * bmin))
+
+
+def bright_extent(axisymmetric, fraction: float = 0.95) -> float:
+    """Radius [arcsec] holding ``fraction`` of the axisymmetric model's face-on flux."""
+    return float(axisymmetric.R_eff(fraction))
+
+
+@dataclass
+class ExclusionLimits:
+    """Exclusion limits of one scan (see the module docstring for the definitions).
+
+    Attributes
+    ----------
+    templates : list of dict
+        The scan's template metadata.
+    r_p, phi_p : ndarray
+        Planet radii [arcsec] and azimuths [rad] of the scan.
+    cl : float
+        Confidence level (one-sided).
+    method : {'all_phi', 'marginal'}
+    hand : {'both', 'R', 'L'}
+        Hands that must be excluded.
+    upper_limit : ndarray (n_templates, n_rp)
+        ``A_up`` of each template at each radius (over phi_p by ``method``).
+    excluded_fraction : ndarray (n_templates, n_rp)
+        Fraction of the azimuths where the template is excluded.
+    flags : ndarray of str (n_rp,)
+        ``""``, ``"unresolved"`` or ``"beyond_bright_extent"``.
+    families : list of Family
+    m_lim : ndarray (n_families, n_rp)
+        Limiting mass [M_th]; NaN where there is none or the radius is flagged.
+    m_lim_status : ndarray of str (n_families, n_rp)
+        ``"limit"``, ``"below_bank"``, ``"none"`` or ``"flagged"``.
+    distance : float or None
+        [pc], for au and M_Jup.
+    disc : dict
+        ``mstar`` [M_sun], ``h_ref``, ``r_ref`` [au], ``flaring``: the thermal-mass conversion.
+    resolution, bright_radius, resolution_factor : float
+        The flag criteria used [arcsec].
+    provenance : dict
+    """
+
+    templates: list
+    r_p: np.ndarray
+    phi_p: np.ndarray
+    cl: float
+    method: str
+    hand: str
+    upper_limit: np.ndarray
+    excluded_fraction: np.ndarray
+    flags: np.ndarray
+    families: list
+    m_lim: np.ndarray
+    m_lim_status: np.ndarray
+    distance: float | None = None
+    disc: dict = field(default_factory=dict)
+    resolution: float = 0.0
+    bright_radius: float = np.inf
+    resolution_factor: float = 1.0
+    provenance: dict = field(default_factory=dict)
+
+    # -- queries ---------------------------------------------------------------------------------
+    def family(self, family=None) -> Family:
+        return select_family(self.families, family)
+
+    def family_index(self, family=None) -> int:
+        return self.families.index(self.family(family))
+
+    def excluded(self, family=None, mass: float | None = None) -> np.ndarray:
+        """Whether planets of ``mass`` [M_th] (default: every bank mass) are excluded at each r_p.
+
+        Shape (n_rp,) for one mass, else (n_masses, n_rp).
+        """
+        fam = self.family(family)
+        masses = fam.masses if mass is None else [mass]
+        rows = []
+        for m in masses:
+            idx = [fam.index(m, h) for h in self._hands(fam)]
+            if any(i is None for i in idx):
+                raise InputError(f"mass {m} is not in the family {fam.label} (masses {fam.masses}) for every hand")
+            rows.append(np.all(self.upper_limit[idx] < 1.0, axis=0) & (self.flags == ""))
+        out = np.array(rows)
+        return out[0] if mass is not None else out
+
+    def _hands(self, fam: Family) -> list:
+        return fam.hands if self.hand == "both" else [self.hand]
+
+    def m_lim_mjup(self, family=None) -> np.ndarray:
+        """``M_lim(r_p)`` [M_Jup] (needs a distance)."""
+        fi = self.family_index(family)
+        return self.to_mjup(self.m_lim[fi])
+
+    def to_mjup(self, mass_mth, r_p=None) -> np.ndarray:
+        """Convert masses [M_th] at the scan's radii (or ``r_p`` [arcsec]) to M_Jup."""
+        if self.distance is None:
+            raise InputError("Jupiter masses need the distance: give distance= to the scan or to compute_limits")
+        r_p = self.r_p if r_p is None else np.asarray(r_p, dtype=float)
+        mass = np.asarray(mass_mth, dtype=float)
+        out = np.full(np.broadcast(mass, r_p).shape, np.nan)
+        ok = np.isfinite(mass) & np.broadcast_to(np.isfinite(r_p), out.shape)
+        if ok.any():
+            full_m, full_r = np.broadcast_to(mass, out.shape), np.broadcast_to(r_p, out.shape)
+            out[ok] = mth_to_mjup(full_m[ok], full_r[ok], self.disc["mstar"], h_ref=self.disc["h_ref"],
+                                  r_ref=self.disc["r_ref"], flaring=self.disc["flaring"], distance=self.distance)
+        return out
+
+    def excluded_ranges(self, family=None, mass: float = 3.0) -> list[tuple[float, float]]:
+        """Contiguous r_p ranges [arcsec] (grid points) where planets of ``mass`` [M_th] and above are excluded."""
+        fi = self.family_index(family)
+        ok = (self.m_lim_status[fi] == "limit") | (self.m_lim_status[fi] == "below_bank")
+        ok &= np.nan_to_num(self.m_lim[fi], nan=np.inf) <= mass * (1 + 1e-9)
+        return runs(self.r_p, ok)
+
+    def summary(self, family=None) -> str:
+        """A sentence per mass threshold (the paper's Table 3 wording)."""
+        return describe_family_limits(self, family)
+
+    # -- persistence -----------------------------------------------------------------------------
+    def save(self, path) -> Path:
+        with write_file(path, LIMITS_KIND) as f:
+            for name in ("r_p", "phi_p", "upper_limit", "excluded_fraction", "m_lim"):
+                f.create_dataset(name, data=getattr(self, name))
+            f.create_dataset("flags", data=np.array(self.flags, dtype="S32"))
+            f.create_dataset("m_lim_status", data=np.array(self.m_lim_status, dtype="S16"))
+            meta = {"templates": self.templates, "cl": self.cl, "method": self.method, "hand": self.hand,
+                    "families": [fam.to_dict() for fam in self.families], "distance": self.distance,
+                    "disc": self.disc, "resolution": self.resolution,
+                    "bright_radius": None if not np.isfinite(self.bright_radius) else self.bright_radius,
+                    "resolution_factor": self.resolution_factor, "provenance": self.provenance}
+            f.attrs["meta"] = json.dumps(meta, default=json_default)
+        return Path(path)
+
+    @classmethod
+    def load(cls, path) -> "ExclusionLimits":
+        with open_file(path, LIMITS_KIND, "exclusion-limits file") as f:
+            meta = json.loads(f.attrs["meta"])
+            arrays = {n: f[n][()] for n in ("r_p", "phi_p", "upper_limit", "excluded_fraction", "m_lim")}
+            flags = np.array([s.decode() for s in f["flags"][()]])
+            status = np.array([[s.decode() for s in row] for row in f["m_lim_status"][()]]).reshape(arrays["m_lim"].shape)
+        bright = meta["bright_radius"]
+        return cls(meta["templates"], arrays["r_p"], arrays["phi_p"], meta["cl"], meta["method"], meta["hand"],
+                   arrays["upper_limit"], arrays["excluded_fraction"], flags,
+                   [Family.from_dict(d) for d in meta["families"]], arrays["m_lim"], status, meta["distance"],
+                   meta["disc"], meta["resolution"], np.inf if bright is None else bright,
+                   meta["resolution_factor"], meta["provenance"])
+
+
+def _flags(r_p, resolution: float, resolution_factor: float, bright_radius: float) -> np.ndarray:
+    flags = np.full(r_p.size, "", dtype=object)
+    flags[r_p < resolution_factor * resolution] = FLAG_UNRESOLVED
+    flags[r_p > bright_radius] = FLAG_EXTENT
+    return flags.astype(str)
+
+
+def _limiting_mass(masses, upper) -> tuple[np.ndarray, np.ndarray]:
+    """``M_lim`` per radius from ``A_up`` of each mass (rows, increasing masses); see the module docstring."""
+    masses = np.asarray(masses, dtype=float)
+    n_r = upper.shape[1]
+    m_lim = np.full(n_r, np.nan)
+    status = np.full(n_r, "none", dtype=object)
+    excluded = upper < 1.0
+    for i in range(n_r):
+        allowed = np.flatnonzero(~excluded[:, i])
+        if allowed.size == 0:
+            m_lim[i], status[i] = masses[0], "below_bank"
+            continue
+        k = allowed[-1]
+        if k == masses.size - 1:
+            continue
+        m_lim[i] = _crossing(masses[k], masses[k + 1], upper[k, i], upper[k + 1, i])
+        status[i] = "limit"
+    return m_lim, status.astype(str)
+
+
+def _crossing(m0, m1, u0, u1) -> float:
+    """Mass where ``A_up`` crosses 1, between ``m0`` (``u0 >= 1``) and ``m1`` (``u1 < 1``), in log mass."""
+    if u1 > 0 and np.isfinite(u0):
+        t = np.log(u0) / (np.log(u0) - np.log(u1))
+    elif np.isfinite(u0):  # a negative upper limit: interpolate A_up itself
+        t = (u0 - 1.0) / (u0 - u1)
+    else:
+        t = 1.0
+    return float(np.exp(np.log(m0) + np.clip(t, 0.0, 1.0) * (np.log(m1) - np.log(m0))))
+
+
+def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", hand: str = "both",
+                   resolution: float | None = None, bright_radius: float | None = None, vis=None,
+                   axisymmetric=None, resolution_factor: float = 1.0, extent_fraction: float = 0.95,
+                   distance: float | None = None, mstar: float = 0.8, h_ref: float | None = None,
+                   r_ref: float = 50.0, flaring: float = 0.25) -> ExclusionLimits:
+    """Exclusion limits and ``M_lim(r_p)`` of every template family of a scan.
+
+    Parameters
+    ----------
+    scan_result : ScanResult
+    cl : float
+        One-sided confidence level in (0.5, 1).
+    method : {'all_phi', 'marginal'}
+        Excluded at r_p when excluded at every phi_p, or with phi_p marginalised.
+    hand : {'both', 'R', 'L'}
+        Hands that must be excluded for a planet to be excluded.
+    resolution : float, optional
+        Beam FWHM [arcsec]; default from ``vis`` (:func:`data_resolution`), else 0 (no flag).
+    bright_radius : float, optional
+        Outer radius of the disc's bright part [arcsec]; default the radius holding
+        ``extent_fraction`` of ``axisymmetric``'s flux, else no flag.
+    vis : Visibilities, optional
+        The scanned data, for the beam.
+    axisymmetric : AxisymmetricModel, optional
+        The scan's axisymmetric model, for the bright extent.
+    resolution_factor : float
+        Radii below ``resolution_factor x resolution`` are flagged ``"unresolved"``.
+    distance : float, optional
+        [pc]; default the scan's.
+    mstar, h_ref, r_ref, flaring : float
+        Stellar mass [M_sun] and ``H/r = h_ref (r / r_ref [au])^flaring`` for M_Jup
+        (``h_ref`` default: the family's ``h_p``, else 0.07).
+
+    Raises
+    ------
+    InputError
+        A confidence level outside (0.5, 1), an unknown method or hand, a scan without families,
+        or a radius grid lying entirely outside the data (every r_p flagged).
+    """
+    z_score(cl)
+    if method not in METHODS:
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if hand not in ("both", "R", "L"):
+        raise InputError(f"hand must be 'both', 'R' or 'L', got {hand!r}")
+    if not np.all(scan_result.completed):
+        raise InputError("the scan is incomplete (NaN rows): finish it (run the scan again to resume) first")
+    families = template_families(scan_result.templates)
+    if not families:
+        select_family(families)  # raises the explanation
+    if resolution is None:
+        resolution = data_resolution(vis) if vis is not None else 0.0
+    if bright_radius is None:
+        bright_radius = bright_extent(axisymmetric, extent_fraction) if axisymmetric is not None else np.inf
+    r_p = np.asarray(scan_result.r_p, dtype=float)
+    flags = _flags(r_p, resolution, resolution_factor, bright_radius)
+    if np.all(flags != ""):
+        raise InputError(
+            f"every scanned r_p ({r_p.min():.3g}-{r_p.max():.3g} arcsec) lies outside the data: below "
+            f"{resolution_factor:g} x the resolution ({resolution:.3g} arcsec) or beyond the disc's bright "
+            f"extent ({bright_radius:.3g} arcsec); scan radii between these")
+    upper = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, method)
+    per_instance = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, "instance")
+    fraction = np.mean(per_instance < 1.0, axis=-1)
+    m_lim = np.full((len(families), r_p.size), np.nan)
+    status = np.full((len(families), r_p.size), "none", dtype=object)
+    for fi, fam in enumerate(families):
+        hands = fam.hands if hand == "both" else [hand]
+        if any(h not in fam.members for h in hands):
+            log.warning("family %s has no %s-handed templates: its limit uses hands %s", fam.label,
+                        "/".join(h for h in hands if h not in fam.members), fam.hands)
+            hands = [h for h in hands if h in fam.members] or fam.hands
+        rows = []
+        for k in range(len(fam.masses)):
+            idx = [fam.members[h][k] for h in hands if fam.members[h][k] is not None]
+            rows.append(np.max(upper[idx], axis=0) if idx else np.full(r_p.size, np.inf))
+        m_lim[fi], status[fi] = _limiting_mass(fam.masses, np.array(rows))
+    status[:, flags != ""] = "flagged"
+    m_lim[:, flags != ""] = np.nan
+    h_default = families[0].key.get("h_p") or 0.07
+    disc = {"mstar": float(mstar), "h_ref": float(h_ref if h_ref is not None else h_default), "r_ref": float(r_ref),
+            "flaring": float(flaring)}
+    distance = scan_result.distance if distance is None else distance
+    prov = provenance_record(scan=scan_result.provenance.get("data_hash"), method=method, cl=cl, hand=hand)
+    return ExclusionLimits(list(scan_result.templates), r_p, np.asarray(scan_result.phi_p), float(cl), method, hand,
+                           upper, fraction, flags, families, m_lim, status.astype(str), distance, disc,
+                           float(resolution), float(bright_radius), float(resolution_factor), prov)

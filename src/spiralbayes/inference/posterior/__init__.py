@@ -1,0 +1,77 @@
+"""The posterior: no planet against a planet of each template, profile and amplitude integrated out.
+
+* :mod:`.priors` — the parameters' priors;
+* :mod:`.likelihood` — the sampled likelihood (profile and amplitude marginalised);
+* :mod:`.conditional` — the likelihood at a fixed profile, the reference (:class:`SpiralLikelihood`);
+* :mod:`.tables`, :mod:`.perturbation` — the fast perturbation tables;
+* :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
+* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.moves` — the wrapped DE move;
+* :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files and the chain loop;
+* :mod:`.diagnostics` — convergence; :mod:`.results` — :class:`PosteriorResult` and its runs.
+"""
+
+from .likelihood import (
+    DEFAULT_AMPLITUDE_MAX,
+    MarginalSpiralLikelihood,
+    ProfileMarginal,
+    draw_amplitude,
+    log_amplitude_integral,
+)
+from .conditional import PARAMETER_LABELS, PARAMETER_NAMES, SpiralLikelihood, geometry_from_theta
+from .tables import AxisymmetricTable, PerturbationTable
+from .perturbation import FastPerturbation
+from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
+from .moves import WrappedDEMove, default_moves
+from .diagnostics import TAU_FACTOR, arviz_diagnostics, convergence_diagnostics
+from .results import SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun, wrap_phi
+from .chains import CHAIN_KIND, ChainState, ChainStore
+from .chain_runner import initial_walkers, make_pool, run_chain, streams
+from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
+from .optimise import find_map, fit_null_geometry
+from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
+
+__all__ = [
+    "AxisymmetricTable",
+    "CHAIN_KIND",
+    "ChainState",
+    "ChainStore",
+    "DEFAULT_AMPLITUDE_MAX",
+    "DEFAULT_WIDTHS",
+    "FastPerturbation",
+    "GEOMETRY_NAMES",
+    "GaussianGeometry",
+    "LogPosterior",
+    "MarginalSpiralLikelihood",
+    "N_DIM",
+    "NullLogPosterior",
+    "NullRun",
+    "PARAMETER_LABELS",
+    "PARAMETER_NAMES",
+    "PerturbationTable",
+    "PosteriorResult",
+    "Priors",
+    "ProfileMarginal",
+    "SAMPLE_NAMES",
+    "SpiralLikelihood",
+    "TAU_FACTOR",
+    "TemplateRun",
+    "WrappedDEMove",
+    "arviz_diagnostics",
+    "convergence_diagnostics",
+    "default_moves",
+    "draw_amplitude",
+    "find_map",
+    "fit_null_geometry",
+    "geometry_from_theta",
+    "importance_evidence",
+    "initial_walkers",
+    "laplace_evidence",
+    "log_amplitude_integral",
+    "make_pool",
+    "refit_axisymmetric",
+    "run_chain",
+    "sample_posterior",
+    "savage_dickey_log_bayes",
+    "streams",
+    "wrap_phi",
+]

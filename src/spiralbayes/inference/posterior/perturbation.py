@@ -1,0 +1,251 @@
+"""The spiral perturbation's visibilities at the data, from the tables of :mod:`.tables`.
+
+:class:`FastPerturbation` owns one template's tables (built by :class:`.tables._TableBuilder`,
+refined in ``r_p`` until the interpolation error at node midpoints is below ``rp_tolerance``) and
+evaluates ``cos i P_hat`` at the data with one type-2 NUFFT per call. Both the conditional
+likelihood (:mod:`.likelihood`) and the profile-marginalised one (:mod:`.marginal`) use it. The
+build logs each refinement round and shows a progress bar of node builds when asked.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import warnings
+
+import numpy as np
+
+from ...exceptions import AccuracyWarning, InputError
+from ...geometry import DiscGeometry
+from ...model import profile_breaks, profile_support
+from ...units import ARCSEC, TWO_PI
+from .tables import PerturbationTable, _Cells, _TableBuilder
+
+__all__ = ["FastPerturbation"]
+
+log = logging.getLogger(__name__)
+
+
+class FastPerturbation:
+    """``cos i P_hat(q; r_p, phi_p)`` at fixed baselines from the tables (see the module docs).
+
+    Parameters
+    ----------
+    u, v, weights : ndarray
+        The data's baselines [lambda] and weights (the weights only steer the r_p refinement).
+    profile : callable
+        ``I_A(r [arcsec])`` [Jy/sr] of the perturbation ``I_A delta``.
+    template : SpiralTemplate
+    r_range : (float, float)
+        Planet radii [arcsec] to serve.
+    reference_geometry : DiscGeometry
+        Geometry at which the refinement measures interpolation errors.
+    epsilon, oversample, rp_tolerance, rp_step, cell_factor, progress
+        As :class:`~spiralbayes.inference.likelihood.SpiralLikelihood`.
+    mirror_of : FastPerturbation, optional
+        The same perturbation for the mirror template (``template == mirror_of.template.mirror()``,
+        same profile and baselines): its table is shared and one coordinate flipped.
+    """
+
+    def __init__(self, u, v, weights, profile, template, r_range, reference_geometry: DiscGeometry, *,
+                 epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
+                 rp_step: float | None = None, cell_factor: float = 20.0, progress: bool = False,
+                 mirror_of: "FastPerturbation | None" = None, max_nodes: int = 2000, rp_order: int = 6):
+        t0 = time.perf_counter()
+        r_lo, r_hi = float(r_range[0]), float(r_range[1])
+        if not (0 < r_lo < r_hi):
+            raise InputError(f"r_range = {r_range!r}: need 0 < r_min < r_max [arcsec]")
+        self.template = template
+        self.profile = profile
+        self.r_range = (r_lo, r_hi)
+        self.epsilon = float(epsilon)
+        self.u, self.v, self.weights = u, v, weights
+        self.reference_geometry = reference_geometry
+        self._u32, self._v32 = u.astype(np.float32), v.astype(np.float32)
+        self.uv_max = float(np.max(np.hypot(u, v)))
+        self._complex = np.complex64 if self.epsilon >= 1e-6 else np.complex128
+        self.mirrored = mirror_of is not None
+        if mirror_of is not None:
+            _check_mirror(mirror_of, template, r_range, u)
+            self._cells, self._delta, self.table = mirror_of._cells, mirror_of._delta, mirror_of.table
+            self.table_source = mirror_of.template.name
+            self.quadrature_error = mirror_of.quadrature_error
+            self.build_time_s = time.perf_counter() - t0
+            return
+        # the product rule built once for the largest table node (_lattice: up to
+        # r_max + (order / 2 + 1) h for the first, largest step h) serves every smaller r_p
+        h0 = float(rp_step) if rp_step is not None else (r_hi - r_lo) / 8.0
+        r_cells = r_hi + (int(rp_order) // 2 + 1) * h0
+        self._cells = _Cells.build(template, r_cells, self.uv_max, support=profile_support(profile),
+                                   breaks=profile_breaks(profile))
+        builder = _TableBuilder(self._cells, profile, r_hi * ARCSEC * self.uv_max, self._cells.x_max, oversample)
+        self._delta = builder.delta
+        self.table = _refine(self, builder, rp_step, rp_tolerance, progress, max_nodes, int(rp_order))
+        self.table_source = getattr(template, "name", "")
+        self.n_node_builds = builder.n_builds
+        self.quadrature_error = _quadrature_error(self, rp_tolerance)
+        self.build_time_s = time.perf_counter() - t0
+        self.table.build_time_s = self.build_time_s
+
+    # -- coordinates -----------------------------------------------------------------------------
+    def check_r_p(self, r_p: float) -> None:
+        if not (self.r_range[0] <= r_p <= self.r_range[1]):
+            raise InputError(f"r_p = {r_p} arcsec is outside the likelihood's range {self.r_range}")
+
+    def coords(self, r_p, phi_p, inc, PA) -> np.ndarray:
+        """ducc0 coordinates ``2 pi Delta sigma`` of the data (n, 2), float32 or float64.
+
+        ``sigma = r_p R(-phi_p) (xi, eta)`` with ``(xi, eta)`` the disc-frame baseline; the mirror
+        of a template reads its partner's table at ``(sigma_xi, -sigma_eta)``.
+        """
+        ci = np.cos(np.radians(inc))
+        cp, sp = np.cos(np.radians(PA)), np.sin(np.radians(PA))
+        D = np.array([[-ci * cp, ci * sp], [sp, cp]])  # (u, v) -> (xi, eta)
+        c, s = np.cos(phi_p), np.sin(phi_p)
+        R = np.array([[c, s], [-s, c]])  # rotation by -phi_p
+        L = TWO_PI * self._delta * r_p * ARCSEC * (R @ D)
+        if self.mirrored:
+            L[1] *= -1.0
+        u, v = (self._u32, self._v32) if self._complex is np.complex64 else (self.u, self.v)
+        L = L.astype(u.dtype)
+        coord = np.empty((u.size, 2), dtype=u.dtype)
+        for j in range(2):
+            col = coord[:, j]
+            np.multiply(u, L[j, 0], out=col)
+            col += v * L[j, 1]
+        return coord
+
+    def u2nu(self, grid, coord) -> np.ndarray:
+        import ducc0
+
+        grid = grid.astype(self._complex, copy=False)
+        coord = coord.astype(np.float32 if self._complex is np.complex64 else np.float64, copy=False)
+        return ducc0.nufft.u2nu(grid=grid, coord=coord, forward=False, epsilon=self.epsilon, nthreads=1)
+
+    def disc_frame(self, r_p, phi_p, inc, PA) -> np.ndarray:
+        """``cos i P_hat`` at the data [Jy] (no phase-centre factor); complex64 by default."""
+        ci = np.cos(np.radians(inc))
+        grid = self.table.grid(r_p, scale=ci * (r_p * ARCSEC) ** 2)
+        return self.u2nu(grid, self.coords(r_p, phi_p, inc, PA))
+
+    def quadrature(self, r_p: float):
+        return self._cells.quadrature(r_p)
+
+    @property
+    def nbytes(self) -> int:
+        return 0 if self.mirrored else self.table.nbytes
+
+    def describe(self) -> dict:
+        return {"template": getattr(self.template, "name", ""), "r_range_arcsec": list(self.r_range),
+                "n_rp_nodes": int(self.table.r_nodes.size), "rp_step_arcsec": self.table.step,
+                "grid_N": int(self.table.N), "pseudo_pixel": self.table.delta, "sigma_max": self.table.sigma_max,
+                "epsilon": self.epsilon, "table_bytes": int(self.nbytes), "build_time_s": self.build_time_s,
+                "refinement": self.table.refinement, "n_cells": int(self._cells.positions.shape[0]),
+                "table_from": self.table_source, "quadrature_error": float(self.quadrature_error)}
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("profile", None)  # a bound method of the model: not needed after the build
+        return state
+
+
+def _check_mirror(other: FastPerturbation, template, r_range, u) -> None:
+    mine = getattr(template, "delta", None)
+    partner = other.template.mirror()
+    same = (mine is not None and np.shape(mine) == np.shape(partner.delta)
+            and np.allclose(np.asarray(mine, float), np.asarray(partner.delta, float), rtol=0, atol=1e-7)
+            and np.array_equal(template.x, partner.x) and np.array_equal(template.phi, partner.phi))
+    if not same or tuple(r_range) != tuple(other.r_range) or u.size != other.u.size:
+        raise InputError(f"template {getattr(template, 'name', '')!r} is not the mirror of {other.template.name!r} "
+                         "on the same data and r_p range: build its own table")
+
+
+def _quadrature_error(fp: FastPerturbation, tolerance: float) -> float:
+    """The product rule's bound over the table's radii in the norm of ``rp_tolerance``,
+    ``sqrt(sum w |dV|^2) <= cos i B sqrt(sum w)`` (``B`` bounds ``|dP_hat|`` at every baseline,
+    :meth:`~spiralbayes.quadrature.ProductQuadrature.error_bound`); warns above ``tolerance``."""
+    bound = max(fp._cells.bounds.values(), default=0.0)
+    error = fp.reference_geometry.cos_inc * bound * float(np.sqrt(np.sum(fp.weights)))
+    if error > tolerance:
+        msg = (f"{getattr(fp.template, 'name', 'the template')}: the quadrature's error bound sqrt(sum w |dV|^2) "
+               f"<= {error:.3g} exceeds rp_tolerance = {tolerance:.3g}; give a profile without jumps inside the disc")
+        log.warning(msg)
+        warnings.warn(msg, AccuracyWarning, stacklevel=4)
+    return error
+
+
+def _refine(fp: FastPerturbation, builder: _TableBuilder, rp_step, tol, progress, max_nodes,
+            order: int = 6) -> PerturbationTable:
+    """Uniform r_p nodes, halved until the midpoint interpolation error is below ``tol``.
+
+    The nodes of every round lie on one lattice anchored at ``r_min`` (:func:`_lattice`), so the
+    midpoints whose exact grids measure a round's error are the next round's new nodes: no grid
+    is built twice. While the error is far above ``tol`` (100x) the step is quartered
+    (``order``-point interpolation errors fall like ``h^order`` once the profile is resolved).
+    Measured on the fiducial frank profile, default prior: 6-point interpolation met the
+    tolerance with 132 nodes where cubic needed 197-260.
+    """
+    r_lo, r_hi = fp.r_range
+    h = float(rp_step) if rp_step is not None else (r_hi - r_lo) / 8.0
+    cache: dict = {}
+
+    def node(r):
+        key = round(r, 12)
+        if key not in cache:
+            cache[key] = builder(r)
+        return cache[key]
+
+    history = []
+    name = getattr(fp.template, "name", "template")
+    while True:
+        nodes = _lattice(r_lo, r_hi, h, order)
+        grids = np.stack([node(r) for r in _progress_iter(nodes, progress, f"{name}: r_p nodes")])
+        table = PerturbationTable(nodes, grids, builder.delta, builder.sigma_max, fp.r_range, refinement=history,
+                                  order=order)
+        if rp_step is not None:
+            return table
+        err = _midpoint_error(fp, table, node)
+        history.append({"step_arcsec": h, "n_nodes": int(nodes.size), "max_midpoint_error": err})
+        log.info("%s: r_p step %.4g arcsec, %d nodes, midpoint error %.3g (tolerance %.3g)", name, h, nodes.size,
+                 err, tol)
+        if err <= tol:
+            return table
+        factor = 4.0 if err > 100 * tol else 2.0
+        if _lattice(r_lo, r_hi, h / factor, order).size > max_nodes:
+            log.warning("%s: r_p interpolation error %.3g > tolerance %.3g with %d nodes; the cap is %d nodes",
+                        name, err, tol, nodes.size, max_nodes)
+            return table
+        h /= factor
+
+
+def _lattice(r_lo: float, r_hi: float, h: float, order: int = 4) -> np.ndarray:
+    """Nodes ``r_lo + k h`` covering ``[r_lo - (order/2 - 1) h, r_hi + (order/2) h]`` (>= ``order``
+    nodes, none below 0: near ``r = 0`` the stencil becomes one-sided)."""
+    below = order // 2 - 1
+    k_lo = min(below, int(np.floor(r_lo / h)))
+    k_hi = max(int(np.ceil((r_hi - r_lo) / h)) + order // 2, order - 1 - k_lo)
+    return r_lo + h * np.arange(-k_lo, k_hi + 1)
+
+
+def _midpoint_error(fp: FastPerturbation, table: PerturbationTable, node) -> float:
+    """Largest data-weighted norm of the r_p-interpolation error at node midpoints."""
+    r_lo, r_hi = fp.r_range
+    mids = 0.5 * (table.r_nodes[1:] + table.r_nodes[:-1])
+    mids = mids[(mids >= r_lo) & (mids <= r_hi)]
+    worst = 0.0
+    g0 = fp.reference_geometry
+    for r in mids:
+        diff = table.grid(r) - node(r)
+        scale = g0.cos_inc * (r * ARCSEC) ** 2
+        for phi_p in (0.0, 0.5 * np.pi, np.pi, 1.5 * np.pi):
+            dV = fp.u2nu(diff, fp.coords(r, phi_p, g0.inc, g0.PA)) * scale
+            worst = max(worst, float(np.sqrt(np.sum(fp.weights * np.abs(dV) ** 2))))
+    return worst
+
+
+def _progress_iter(items, enabled: bool, desc: str):
+    if not enabled:
+        return items
+    from tqdm.auto import tqdm
+
+    return tqdm(items, desc=desc, unit="node", leave=False, mininterval=1.0)

@@ -1,0 +1,365 @@
+"""Posterior results: one :class:`TemplateRun` per template, the :class:`NullRun`, and their combination.
+
+Hypotheses: "no planet" (the disc alone, :class:`NullRun`) and "a planet with template T" for
+each template (:class:`TemplateRun`). With evidences ``Z_0`` and ``Z_T``, prior probability
+``P(planet)`` shared uniformly (or as given) among the templates,
+
+    P(planet | data) = P(planet) sum_T pi_T Z_T / [P(planet) sum_T pi_T Z_T + (1 - P(planet)) Z_0],
+
+the Bayes factor is ``B = sum_T pi_T Z_T / Z_0``, and ``P(T | data, planet) = pi_T Z_T / sum``.
+:attr:`PosteriorResult.verdict` says "inconclusive" when ``|ln B| <`` :data:`INCONCLUSIVE_LN_B`
+(= 1, the Jeffreys scale's "not worth more than a bare mention", B < e ~ 2.7 either way; Kass &
+Raftery 1995, Trotta 2008): the data do not decide between planet and no planet, and no position
+is reported. Otherwise "no planet preferred" when ``P(planet | data) < 0.5`` (no position
+reported as a finding), else the most probable template's planet position and amplitude.
+
+Samples (:data:`SAMPLE_NAMES`): ``r_p`` [arcsec], ``phi_p`` [rad, wrapped around its circular
+mean], ``A`` (drawn exactly from its conditional posterior for each sample), ``inc``, ``PA``
+[deg], ``dRA``, ``dDec`` [arcsec].
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..._hdf5 import open_file, write_file
+from ..._provenance import json_default
+from ...exceptions import InputError
+from ...units import wrap_angle
+
+INCONCLUSIVE_LN_B = 1.0
+"""|ln B(planet : none)| below this is "inconclusive" (Jeffreys scale: B < e either way)."""
+from .diagnostics import _ChainView, _import_arviz
+from .conditional import PARAMETER_NAMES
+from .priors import GEOMETRY_NAMES, Priors
+
+__all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
+
+RESULT_KIND = "spiralbayes.PosteriorResult"
+SAMPLE_NAMES = ("r_p", "phi_p", "A", "inc", "PA", "dRA", "dDec")
+"""Columns of :attr:`TemplateRun.samples`."""
+
+
+def wrap_phi(samples: np.ndarray, column: int = 1) -> tuple[np.ndarray, float]:
+    """Wrap phi_p into ``[mu - pi, mu + pi)`` around its circular mean ``mu`` (in [0, 2 pi))."""
+    phi = samples[..., column]
+    mu = float(wrap_angle(np.angle(np.mean(np.exp(1j * phi))), 0.0))
+    out = samples.copy()
+    out[..., column] = wrap_angle(phi, mu - np.pi)
+    return out, mu
+
+
+def _stats(samples: np.ndarray, names) -> dict:
+    q = np.percentile(samples, [2.5, 16, 50, 84, 97.5], axis=0)
+    return {n: {"median": float(q[2, j]), "lo": float(q[1, j]), "hi": float(q[3, j]), "lo95": float(q[0, j]),
+                "hi95": float(q[4, j]), "std": float(np.std(samples[:, j]))} for j, n in enumerate(names)}
+
+
+@dataclass
+class TemplateRun:
+    """The posterior of one template.
+
+    Attributes
+    ----------
+    name : str
+    metadata : dict
+        Template metadata (mass, tau0, beta, hand, ...).
+    mode : {'mcmc', 'laplace'}
+        Whether a chain was run or only the Laplace approximation.
+    samples : ndarray, shape (n, 7)
+        Post-burn-in, thinned samples of :data:`SAMPLE_NAMES`.
+    theta_map : ndarray, shape (6,)
+        The optimum before sampling, ``(r_p, phi_p, inc, PA, dRA, dDec)``.
+    covariance : ndarray, shape (6, 6)
+        Laplace covariance at ``theta_map``.
+    ln_evidence, ln_evidence_err : float
+        Adopted ln Z and its error (importance sampling when a chain exists, else Laplace); same
+        constant as the :class:`NullRun`'s.
+    ln_evidence_laplace : float
+    diagnostics : dict
+        Convergence (``tau``, ESS, ...), evidence details (``evidence``, ``ln_bayes_savage_dickey``),
+        arviz's R-hat/ESS, the likelihood's settings, timings.
+    chain_path, group : str
+        Where the chain lives (HDF5 file, group).
+    """
+
+    name: str
+    metadata: dict
+    mode: str
+    samples: np.ndarray
+    theta_map: np.ndarray
+    covariance: np.ndarray
+    ln_evidence: float
+    ln_evidence_err: float
+    ln_evidence_laplace: float
+    diagnostics: dict = field(default_factory=dict)
+    chain_path: str | None = None
+    group: str | None = None
+
+    def summary(self) -> dict:
+        """Median, 16/84 and 2.5/97.5 percentiles and std of each of :data:`SAMPLE_NAMES`."""
+        return _stats(self.samples, SAMPLE_NAMES)
+
+    def chain(self, discard: int | None = None, thin: int | None = None) -> np.ndarray:
+        """The stored chain (n_steps, n_walkers, 6) of ``(r_p, phi_p, inc, PA, dRA, dDec)`` as sampled."""
+        import emcee
+
+        if self.chain_path is None or self.mode != "mcmc":
+            raise InputError(f"template {self.name} has no chain (mode = {self.mode!r})")
+        backend = emcee.backends.HDFBackend(self.chain_path, name=self.group, read_only=True)
+        d = self.diagnostics
+        return backend.get_chain(discard=d.get("burn_in", 0) if discard is None else discard,
+                                 thin=d.get("thin", 1) if thin is None else thin)
+
+    def inference_data(self):
+        """arviz ``InferenceData`` (walkers as chains; caveat: emcee walkers are not independent)."""
+        import emcee
+
+        az = _import_arviz()
+        backend = emcee.backends.HDFBackend(self.chain_path, name=self.group, read_only=True)
+        d = self.diagnostics
+        chain = backend.get_chain(discard=d.get("burn_in", 0), thin=d.get("thin", 1))
+        chain, _ = wrap_phi(chain)
+        lp = backend.get_log_prob(discard=d.get("burn_in", 0), thin=d.get("thin", 1))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "more chains than draws" on short runs
+            return az.from_emcee(_ChainView(chain, lp), var_names=list(PARAMETER_NAMES))
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "metadata": self.metadata, "mode": self.mode,
+                "theta_map": self.theta_map.tolist(), "covariance": self.covariance.tolist(),
+                "ln_evidence": self.ln_evidence, "ln_evidence_err": self.ln_evidence_err,
+                "ln_evidence_laplace": self.ln_evidence_laplace, "diagnostics": self.diagnostics,
+                "chain_path": self.chain_path, "group": self.group}
+
+    @classmethod
+    def from_json(cls, d: dict, samples: np.ndarray) -> "TemplateRun":
+        return cls(d["name"], d["metadata"], d["mode"], np.asarray(samples), np.array(d["theta_map"]),
+                   np.array(d["covariance"]), d["ln_evidence"], d["ln_evidence_err"], d["ln_evidence_laplace"],
+                   d["diagnostics"], d["chain_path"], d["group"])
+
+
+@dataclass
+class NullRun:
+    """The no-planet hypothesis: the disc alone, its profile integrated out.
+
+    Attributes
+    ----------
+    samples : ndarray, shape (n, 4)
+        ``(inc, PA, dRA, dDec)`` drawn from the no-planet posterior (importance resampling).
+    geometry_map, covariance : ndarray
+        Mode and Laplace covariance of the geometry.
+    ln_evidence, ln_evidence_err, ln_evidence_laplace : float
+        ``ln Z_0`` (same constant as the templates').
+    profile : dict
+        The profile refitted at the mode (``r`` [arcsec], ``I``, ``I_err`` [Jy/sr]) — the profile
+        of every template's spiral term.
+    diagnostics : dict
+    """
+
+    samples: np.ndarray
+    geometry_map: np.ndarray
+    covariance: np.ndarray
+    ln_evidence: float
+    ln_evidence_err: float
+    ln_evidence_laplace: float
+    profile: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        return _stats(self.samples, GEOMETRY_NAMES)
+
+    def to_json(self) -> dict:
+        return {"geometry_map": self.geometry_map.tolist(), "covariance": self.covariance.tolist(),
+                "ln_evidence": self.ln_evidence, "ln_evidence_err": self.ln_evidence_err,
+                "ln_evidence_laplace": self.ln_evidence_laplace, "profile": self.profile,
+                "diagnostics": self.diagnostics}
+
+    @classmethod
+    def from_json(cls, d: dict, samples: np.ndarray) -> "NullRun":
+        return cls(np.asarray(samples), np.array(d["geometry_map"]), np.array(d["covariance"]), d["ln_evidence"],
+                   d["ln_evidence_err"], d["ln_evidence_laplace"], d.get("profile", {}), d.get("diagnostics", {}))
+
+
+@dataclass
+class PosteriorResult:
+    """Per-template posteriors, the no-planet hypothesis, and the posterior over hypotheses.
+
+    Attributes
+    ----------
+    runs : list of TemplateRun
+    priors : Priors
+    template_prior : ndarray
+        Prior probabilities of the templates given a planet (uniform by default).
+    run_name : str
+    chain_path : str or None
+    provenance : dict
+    null : NullRun or None
+        The no-planet hypothesis (None for results made without it).
+    planet_prior : float
+        Prior probability that there is a planet (default 0.5).
+    """
+
+    runs: list
+    priors: Priors
+    template_prior: np.ndarray
+    run_name: str = "posterior"
+    chain_path: str | None = None
+    provenance: dict = field(default_factory=dict)
+    null: NullRun | None = None
+    planet_prior: float = 0.5
+
+    @property
+    def names(self) -> list[str]:
+        return [r.name for r in self.runs]
+
+    def _log_weights(self) -> np.ndarray:
+        return np.array([r.ln_evidence for r in self.runs], dtype=float) + np.log(self.template_prior)
+
+    @property
+    def template_probabilities(self) -> dict:
+        """``P(T | data, planet)`` for every template (evidence x prior, normalised over templates)."""
+        lnz = self._log_weights()
+        p = np.exp(lnz - np.max(lnz))
+        return dict(zip(self.names, (p / p.sum()).tolist()))
+
+    @property
+    def ln_bayes_factor(self) -> float:
+        """``ln[sum_T pi_T Z_T / Z_0]``: evidence for a planet over none (nan without the null)."""
+        from scipy.special import logsumexp
+
+        if self.null is None:
+            return float("nan")
+        return float(logsumexp(self._log_weights()) - self.null.ln_evidence)
+
+    @property
+    def p_planet(self) -> float:
+        """``P(planet | data)`` (nan without the null)."""
+        lnb = self.ln_bayes_factor
+        if not np.isfinite(lnb):
+            return float("nan") if np.isnan(lnb) else float(lnb > 0)
+        prior_odds = np.log(self.planet_prior) - np.log1p(-self.planet_prior)
+        return float(1.0 / (1.0 + np.exp(-(lnb + prior_odds))))
+
+    @property
+    def hypothesis_probabilities(self) -> dict:
+        """``P(hypothesis | data)`` for "no planet" and every template (sums to 1)."""
+        p = self.p_planet
+        out = {"no planet": 1.0 - p}
+        out.update({name: p * q for name, q in self.template_probabilities.items()})
+        return out
+
+    @property
+    def inconclusive(self) -> bool:
+        """True when ``|ln B| <`` :data:`INCONCLUSIVE_LN_B`: the data do not decide (Jeffreys scale)."""
+        return bool(np.isfinite(self.ln_bayes_factor) and abs(self.ln_bayes_factor) < INCONCLUSIVE_LN_B)
+
+    @property
+    def planet_preferred(self) -> bool:
+        """P(planet | data) >= 0.5 and the Bayes factor outside the inconclusive band."""
+        return bool(self.p_planet >= 0.5 and not self.inconclusive)
+
+    def amplitude(self, template=None) -> dict:
+        """The amplitude's posterior (median, 16/84, 2.5/97.5) for a template (default: most probable)."""
+        return self.run(template).summary()["A"]
+
+    @property
+    def verdict(self) -> str:
+        """One sentence: "no planet preferred" or the preferred planet and its position."""
+        p, lnb = self.p_planet, self.ln_bayes_factor
+        if np.isnan(p):
+            return f"most probable template {self.best.name} (no no-planet hypothesis computed)"
+        if self.inconclusive:
+            return (f"inconclusive: P(planet | data) = {p:.3g}, ln B(planet : none) = {lnb:.2f} (|ln B| < "
+                    f"{INCONCLUSIVE_LN_B:g}: the data do not decide between a planet and none on the Jeffreys scale; "
+                    f"no planet position is reported; prior P(planet) = {self.planet_prior:g})")
+        if p < 0.5:
+            return (f"no planet preferred: P(planet | data) = {p:.3g}, ln B(planet : none) = {lnb:.2f} "
+                    f"(prior P(planet) = {self.planet_prior:g})")
+        s = self.best.summary()
+        return (f"planet preferred: P(planet | data) = {p:.4g}, ln B = {lnb:.2f}; most probable template "
+                f"{self.best.name} (P = {self.template_probabilities[self.best.name]:.3g} given a planet): "
+                f"r_p = {s['r_p']['median']:.4f} (+{s['r_p']['hi'] - s['r_p']['median']:.4f} "
+                f"-{s['r_p']['median'] - s['r_p']['lo']:.4f}) arcsec, phi_p = {wrap_angle(np.degrees(s['phi_p']['median']), 0.0, 360.0):.1f} "
+                f"+- {np.degrees(s['phi_p']['std']):.1f} deg, A = {s['A']['median']:.2f} "
+                f"(+{s['A']['hi'] - s['A']['median']:.2f} -{s['A']['median'] - s['A']['lo']:.2f})")
+
+    def marginals(self) -> dict:
+        """``P(value | data, planet)`` of each value of hand, mass, beta, tau0 and h_p (summed over templates)."""
+        probs = self.template_probabilities
+        out: dict = {}
+        for key in ("hand", "mass", "beta", "tau0", "h_p"):
+            table: dict = {}
+            for r in self.runs:
+                value = r.metadata.get(key)
+                if value is None:
+                    continue
+                table[value] = table.get(value, 0.0) + probs[r.name]
+            out[key] = dict(sorted(table.items(), key=lambda kv: str(kv[0])))
+        return out
+
+    @property
+    def p_right_handed(self) -> float:
+        """``P(right-handed | data, planet)``."""
+        return float(self.marginals()["hand"].get("R", 0.0))
+
+    def run(self, template: str | int | None = None) -> TemplateRun:
+        """A template's run by name or index (default: the most probable)."""
+        if template is None:
+            probs = self.template_probabilities
+            template = max(probs, key=probs.get)
+        if isinstance(template, (int, np.integer)):
+            return self.runs[int(template)]
+        for r in self.runs:
+            if r.name == template:
+                return r
+        raise KeyError(f"no template named {template!r}; have {self.names}")
+
+    @property
+    def best(self) -> TemplateRun:
+        return self.run()
+
+    def summary(self, template=None) -> dict:
+        return self.run(template).summary()
+
+    def to_inference_data(self, template=None):
+        return self.run(template).inference_data()
+
+    # -- persistence -------------------------------------------------------------------------
+    def to_json(self) -> dict:
+        return {"run_name": self.run_name, "priors": self.priors.to_dict(), "template_prior": self.template_prior.tolist(),
+                "chain_path": self.chain_path, "provenance": self.provenance, "planet_prior": self.planet_prior,
+                "verdict": self.verdict, "p_planet": self.p_planet, "ln_bayes_factor": self.ln_bayes_factor,
+                "template_probabilities": self.template_probabilities, "marginals": _json_keys(self.marginals()),
+                "null": None if self.null is None else self.null.to_json(),
+                "runs": [r.to_json() for r in self.runs]}
+
+    def save(self, path) -> Path:
+        """Write the result (with the samples) to HDF5, atomically."""
+        with write_file(path, RESULT_KIND) as f:
+            f.attrs["result"] = json.dumps(self.to_json(), default=json_default)
+            for r in self.runs:
+                f.create_dataset(f"samples/{r.name}", data=r.samples)
+            if self.null is not None:
+                f.create_dataset("null_samples", data=self.null.samples)
+        return Path(path)
+
+    @classmethod
+    def load(cls, path) -> "PosteriorResult":
+        with open_file(path, RESULT_KIND, "posterior result") as f:
+            d = json.loads(f.attrs["result"])
+            runs = [TemplateRun.from_json(r, f[f"samples/{r['name']}"][()]) for r in d["runs"]]
+            null = NullRun.from_json(d["null"], f["null_samples"][()]) if d.get("null") else None
+        return cls(runs, Priors.from_dict(d["priors"]), np.array(d["template_prior"]), d["run_name"],
+                   d["chain_path"], d["provenance"], null, float(d.get("planet_prior", 0.5)))
+
+
+def _json_keys(d):
+    if isinstance(d, dict):
+        return {str(k): _json_keys(v) for k, v in d.items()}
+    return d

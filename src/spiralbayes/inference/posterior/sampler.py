@@ -1,0 +1,517 @@
+"""Posterior sampling: no planet against a planet of each template, profile and amplitude integrated out.
+
+Why this module is long: it is the one place where the run's stages meet — the no-planet
+hypothesis, the per-template likelihoods, optimisation, emcee with resumable chain files and
+pools, the evidences and the combination — and splitting it would scatter one procedure.
+
+Hypotheses (:mod:`.results`): the disc alone ("no planet", parameters ``inc, PA, dRA, dDec``) and,
+for every template, the disc plus that spiral (``r_p`` [arcsec], ``phi_p`` [rad], amplitude ``A``
+and the same geometry). In both the frank profile is integrated out analytically, and in the
+spiral model the amplitude too (:mod:`.marginal`); priors in :mod:`.priors`.
+
+Procedure (:func:`sample_posterior`):
+
+1. **No planet.** The geometry's posterior mode under the disc-alone likelihood
+   (:func:`.optimise.fit_null_geometry`), its Laplace covariance, the profile refitted there
+   (the spiral term's profile), and ``ln Z_0`` by importance sampling with a t proposal from the
+   Laplace fit (:mod:`.evidence`).
+2. **Each template** gets its likelihood tables (mirror templates share their partner's), its
+   mode (started from the no-planet geometry and the scan's best instances,
+   :func:`.optimise.find_map`), then either a chain (emcee) or — for templates whose scan peak is
+   ``prune_delta_lnL`` below the best — only a Laplace evidence from a table limited to a window
+   around that peak. emcee samples ``(r_p, phi_p, inc, PA, dRA, dDec)``; ``phi_p`` lives on the
+   circle (:class:`.moves.WrappedDEMove`), ``A`` is integrated out of the target and drawn
+   exactly for every stored sample from its conditional posterior (the amplitude terms are
+   emcee "blobs"). The evidence: importance sampling with a defensive mixture, cross-checked by
+   Laplace and Savage–Dickey (:mod:`.evidence`).
+3. **Combination**: ``P(planet | data)``, the Bayes factor, ``P(T | data, planet)``
+   (:class:`.results.PosteriorResult`).
+
+Why per-template runs rather than a template index inside emcee: the modes of different
+templates sit at different ``(r_p, phi_p)`` and geometries, so jumps between templates at fixed
+continuous parameters are almost always rejected, and stretch/DE moves are undefined on a
+discrete coordinate. Per-template runs are independent, resumable one by one, and each has its
+own convergence test.
+
+Convergence: the default runs in chunks of ``check_every`` steps until every parameter's chain is
+longer than 50 autocorrelation times and its ESS reaches ``min_ess``, or ``max_steps``
+(:mod:`.diagnostics`); ``n_steps`` fixes the total instead.
+
+Chains and resume (:mod:`.chains`): ``<chains_dir>/<run_name>.h5``, one group per template plus
+``__null__``, each rewritten atomically every ``flush_every`` steps with emcee's random state.
+Every template (and the null) draws from its own random streams, seeded by ``(seed, name)``, so a
+run killed at any point and started again continues exactly as the uninterrupted run: finished
+templates are read back, the interrupted one continues from its last flushed batch, later ones
+are as they would have been. A file written for other inputs (data, model, priors, templates,
+settings) is refused with :class:`~spiralbayes.exceptions.ResumeMismatchError`.
+
+Parallelism (:mod:`.chain_runner`): ``processes=k`` runs walkers in a ``multiprocessing`` pool whose
+workers receive the log-posterior once (pool initializer; emcee #199) and pin BLAS threads;
+``pool="mpi"`` uses ``schwimmbad.MPIPool`` (run the same script on every rank; worker ranks serve
+log-posterior calls and only the master writes files and returns a result); any object with
+``map`` may be passed as ``pool``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..._provenance import check_output_name, data_hash, provenance_record
+from ..._version import __version__
+from ...axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
+from ...axisymmetric.gp import ProfilePrior
+from ...exceptions import InputError
+from ...geometry import DiscGeometry
+from ...templates.template import template_metadata
+from ...units import wrap_angle
+from .chain_runner import _blas_single_thread, _ChainData, _set_mpi_rank, _writes_files, run_chain
+from .chain_runner import streams as chain_streams
+from .chains import ChainState, ChainStore
+from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, convergence_diagnostics
+from .evidence import (
+    GaussianGeometry,
+    StudentT,
+    hessian_cov,
+    importance_evidence,
+    laplace_evidence,
+    savage_dickey_log_bayes,
+)
+from .likelihood import MarginalSpiralLikelihood, ProfileMarginal, draw_amplitude
+from .optimise import find_map, fit_null_geometry
+from .perturbation import FastPerturbation
+from .priors import N_DIM, Priors
+from .results import NullRun, PosteriorResult, TemplateRun, wrap_phi
+
+__all__ = ["LogPosterior", "NullLogPosterior", "refit_axisymmetric", "sample_posterior"]
+
+log = logging.getLogger(__name__)
+
+NULL_GROUP = "__null__"
+_NAN_BLOB = np.array([np.nan, np.nan])
+
+
+class LogPosterior:
+    """``ln pi(theta) + ln L(theta)`` of one template, with the amplitude terms ``(c1, c2)`` as blob."""
+
+    def __init__(self, likelihood: MarginalSpiralLikelihood, priors: Priors):
+        self.likelihood = likelihood
+        self.priors = priors
+
+    def __call__(self, theta):
+        lp = self.priors.log_prior(theta)
+        lo, hi = self.likelihood.r_range  # narrower than the prior for Laplace-only templates
+        if not np.isfinite(lp) or not lo <= theta[0] <= hi:
+            return -np.inf, _NAN_BLOB
+        terms = self.likelihood.amplitude_terms(theta)
+        return lp + self.likelihood.marginal(terms), np.array(terms[1:])
+
+
+class NullLogPosterior:
+    """``ln pi(g) + ln L_0(g)`` of the disc alone, ``g = (inc, PA, dRA, dDec)``."""
+
+    def __init__(self, base: ProfileMarginal, priors: Priors):
+        self.base = base
+        self.priors = priors
+
+    def __call__(self, g) -> float:
+        lp = self.priors.log_prior_geometry(g)
+        return lp + self.base.log_likelihood(g) if np.isfinite(lp) else -np.inf
+
+
+def _model_hash(axisymmetric, prior: ProfilePrior) -> str:
+    g = axisymmetric.geometry
+    return data_hash(axisymmetric.I, np.array([axisymmetric.Rmax, g.inc, g.PA, g.dRA, g.dDec]), prior.power)
+
+
+def _template_hash(template) -> str:
+    return data_hash(np.asarray(template.x, float), np.asarray(template.phi, float), np.asarray(template.delta, float))
+
+
+# ---------------------------------------------------------------------------------------------
+# the no-planet hypothesis
+# ---------------------------------------------------------------------------------------------
+def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed, n_draws, likelihood_kwargs):
+    """The no-planet posterior and evidence; returns (NullRun, the re-centred ProfileMarginal)."""
+    t0 = time.perf_counter()
+    reference = DiscGeometry(*priors.geometry_centre)
+    base0 = ProfileMarginal(vis, axisymmetric, prior=prior, reference_geometry=reference,
+                            **{k: likelihood_kwargs[k] for k in ("tolerance", "order") if k in likelihood_kwargs})
+    saved = store.read()
+    store.check_inputs(saved, inputs)
+    if saved is not None and saved.result is not None:
+        null = NullRun.from_json(saved.result, saved.samples)
+        log.info("no planet: read back from %s (ln Z0 = %.2f)", store.path, null.ln_evidence)
+        return null, base0.centred_at(DiscGeometry(*null.geometry_map))
+    g_map, cov, lp_map = fit_null_geometry(base0.log_likelihood, priors)
+    base = base0.centred_at(DiscGeometry(*g_map))
+    logpost = NullLogPosterior(base, priors)
+    _, _, rng, _ = chain_streams(seed, NULL_GROUP)
+    proposal = StudentT(g_map, cov * 1.5 ** 2, priors.geometry_widths)
+    ev = importance_evidence(logpost, [proposal], [1.0], n_draws, rng)
+    draws = proposal.draw(n_draws, rng)  # importance resampling for the reported geometry samples
+    lw = np.array([logpost(d) for d in draws]) - proposal.logpdf(draws)
+    w = np.exp(lw - np.nanmax(lw[np.isfinite(lw)])) if np.any(np.isfinite(lw)) else np.ones(len(draws))
+    w = np.where(np.isfinite(w), w, 0.0)
+    samples = draws[rng.choice(len(draws), size=len(draws), p=w / w.sum())]
+    model = base.axisymmetric
+    profile = {"r": model.r.tolist(), "I": model.I.tolist(),
+               "I_err": None if model.I_err is None else model.I_err.tolist(), "prior": prior.source}
+    null = NullRun(samples, g_map, cov, ev["ln_evidence"], ev["ln_evidence_err"], laplace_evidence(lp_map, cov),
+                   profile, {"evidence": ev, "time_s": time.perf_counter() - t0})
+    if _writes_files():
+        store.write(ChainState(np.empty((0, 0, 4)), np.empty((0, 0)), None, np.zeros(0), None, inputs,
+                               null.to_json(), samples))
+    log.info("no planet: geometry mode inc %.4f PA %.4f dRA %.2f mas dDec %.2f mas; ln Z0 = %.2f +- %.2f (Laplace %.2f)",
+             g_map[0], g_map[1], 1e3 * g_map[2], 1e3 * g_map[3], null.ln_evidence, null.ln_evidence_err,
+             null.ln_evidence_laplace)
+    return null, base
+
+
+# ---------------------------------------------------------------------------------------------
+# one template
+# ---------------------------------------------------------------------------------------------
+def _build_likelihood(base, template, r_range, null, priors, likelihood_kwargs, partners, progress):
+    lk = {k: v for k, v in likelihood_kwargs.items() if k not in ("tolerance", "order")}
+    partner = partners.get(template.name)
+    if callable(partner):  # the partner was read back from the chain file: rebuild its table to share it
+        partner = partners[template.name] = partner()
+    mirror_of = None
+    if partner is not None and tuple(partner.r_range) == tuple(r_range):
+        try:
+            mirror_of = partner
+            fp = FastPerturbation(base.u, base.v, base.weights, base.axisymmetric.brightness, template, r_range,
+                                  DiscGeometry(*null.geometry_map), mirror_of=partner, **lk)
+        except InputError:
+            mirror_of = None
+    if mirror_of is None:
+        fp = FastPerturbation(base.u, base.v, base.weights, base.axisymmetric.brightness, template, r_range,
+                              DiscGeometry(*null.geometry_map), progress=progress, **lk)
+    return MarginalSpiralLikelihood(base, fp, amplitude_max=priors.amplitude_max)
+
+
+def _scales(priors: Priors, null: NullRun):
+    """Optimiser/Hessian scales and flat-direction variances of ``(r_p, phi_p, inc, PA, dRA, dDec)``."""
+    g_sigma = np.sqrt(np.clip(np.diag(null.covariance), 1e-30, None))
+    span = priors.r_p[1] - priors.r_p[0]
+    scales = np.concatenate([[span / np.sqrt(12.0), np.pi / np.sqrt(3.0)], g_sigma * 10])
+    max_var = np.concatenate([[span ** 2 / 12.0, np.pi ** 2 / 3.0], priors.geometry_widths ** 2])
+    return g_sigma, scales, max_var
+
+
+def _laplace(logpost, theta_map, priors, null):
+    g_sigma, scales, max_var = _scales(priors, null)
+    lo, hi = priors.r_p
+    theta = theta_map.copy()
+    theta[0] = np.clip(theta[0], lo + 1e-4 * (hi - lo), hi - 1e-4 * (hi - lo))
+    room = np.full(N_DIM, np.inf)
+    room[0] = 0.9 * min(theta[0] - lo, hi - theta[0])
+    room[2] = 0.9 * min(theta[2], 90.0 - theta[2])
+    f = lambda t: logpost(t)[0]  # noqa: E731
+    cov = hessian_cov(f, theta, scales * 1e-2, room=room, max_var=max_var)
+    lp = f(theta)
+    return theta, cov, lp, laplace_evidence(lp, cov)
+
+
+def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.ndarray:
+    """``(r_p, phi_p, A, inc, PA, dRA, dDec)``: ``A`` drawn from its conditional posterior per sample."""
+    if priors.amplitude_max is None:
+        A = np.ones(len(samples6))
+    else:
+        A = draw_amplitude(c1, c2, priors.amplitude_max, rng)
+    out = np.column_stack([samples6[:, :2], A, samples6[:, 2:]])
+    return wrap_phi(out)[0]
+
+
+def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_range, partners, settings):
+    s = settings
+    t0 = time.perf_counter()
+    name = template.name
+    streams = chain_streams(s["seed"], name)
+    store = ChainStore(chain_path, name)
+    inputs = {**s["inputs"], "template": template_metadata(template), "template_hash": _template_hash(template),
+              "mode": mode, "r_range": list(r_range)}
+    saved = store.read()
+    store.check_inputs(saved, inputs)
+    if saved is not None and saved.result is not None:
+        log.info("%s: finished earlier, read back from %s", name, chain_path)
+        return TemplateRun.from_json(saved.result, saved.samples), None
+    likelihood = _build_likelihood(base, template, r_range, null, priors, s["likelihood_kwargs"], partners,
+                                   s["progress"])
+    logpost = LogPosterior(likelihood, priors)
+    g_sigma, _, _ = _scales(priors, null)
+    theta_map = find_map(logpost, priors, scan, name, null.geometry_map, g_sigma)
+    theta_map, cov, lp_map, lnz_laplace = _laplace(logpost, theta_map, priors, null)
+    meta = template_metadata(template)
+    info = {"likelihood": likelihood.describe(), "build_time_s": likelihood.perturbation.build_time_s}
+    log.info("%s: optimum ln p = %.2f at %s; Laplace ln Z = %.2f", name, lp_map, np.round(theta_map, 5), lnz_laplace)
+    _, _, rng_evidence, rng_amp = streams
+    if mode == "laplace":
+        draws = rng_evidence.multivariate_normal(theta_map, cov, size=400)
+        draws[:, 1] = wrap_angle(draws[:, 1], 0.0)
+        draws = draws[[np.isfinite(logpost(d)[0]) for d in draws]]
+        terms = np.array([likelihood.amplitude_terms(d) for d in draws]).reshape(-1, 3)
+        samples = _with_amplitude(draws, terms[:, 1], terms[:, 2], priors, rng_amp)
+        run = TemplateRun(name, meta, "laplace", samples, theta_map, cov, lnz_laplace, float("nan"), lnz_laplace,
+                          {**info, "time_s": time.perf_counter() - t0}, str(chain_path), name)
+        store.write(ChainState(np.empty((0, s["n_walkers"], N_DIM)), np.empty((0, s["n_walkers"])), None,
+                               np.zeros(s["n_walkers"]), None, inputs, run.to_json(), samples))
+        return run, likelihood
+    out = run_chain(store, saved, inputs, logpost, theta_map, cov, priors, streams=streams, initial=s["initial"],
+                     name=name, **{k: s[k] for k in ("n_walkers", "n_steps", "max_steps", "check_every", "flush_every",
+                                                    "min_ess", "pool", "processes", "moves", "progress")})
+    if out is None:  # an MPI worker rank
+        return None, likelihood
+    chain, log_prob, blobs, accepted, mapper, owned_pool, fn = out
+    try:
+        diag = convergence_diagnostics(chain, min_ess=s["min_ess"])
+        sl = slice(diag["burn_in"], None, diag["thin"])
+        flat = chain[sl].reshape(-1, N_DIM)
+        fb = blobs[sl].reshape(-1, 2)
+        samples = _with_amplitude(flat, fb[:, 0], fb[:, 1], priors, rng_amp)
+        centred, mu = wrap_phi(flat)
+        chain_t = StudentT(centred.mean(axis=0), np.cov(centred, rowvar=False) * 1.2 ** 2, _scales(priors, null)[1],
+                           periodic=(1,))
+        plateau = GaussianGeometry(null.geometry_map, null.covariance * 1.5 ** 2, priors.geometry_widths, priors.r_p)
+        ev = importance_evidence(fn, [chain_t, plateau], [0.7, 0.3], s["evidence_draws"], rng_evidence, mapper)
+    finally:
+        if owned_pool is not None:
+            owned_pool.close()
+    sd = (savage_dickey_log_bayes(fb[:, 0], fb[:, 1], priors.amplitude_max)
+          if priors.amplitude_max is not None else float("nan"))
+    diag = {**diag, **info, "evidence": ev, "acceptance": float(np.mean(accepted) / max(chain.shape[0], 1)),
+            "ln_bayes_savage_dickey": sd + 0.0, "time_s": time.perf_counter() - t0}
+    run = TemplateRun(name, meta, "mcmc", samples, theta_map, cov, ev["ln_evidence"], ev["ln_evidence_err"],
+                      lnz_laplace, diag, str(chain_path), name)
+    try:
+        run.diagnostics["arviz"] = arviz_diagnostics(_ChainData(chain[sl]).inference_data())
+    except Exception as exc:  # pragma: no cover - diagnostics must not lose a run
+        log.warning("arviz diagnostics failed: %s", exc)
+    store.write(_final_state(store, run, samples))
+    if not diag["converged"]:
+        _apply_policy(s["convergence"], _convergence_message(name, diag))
+    return run, likelihood
+
+
+def _final_state(store, run, samples):
+    """The stored chain with the finished result added."""
+    state = store.read()
+    state.result, state.samples = run.to_json(), samples
+    return state
+
+
+# ---------------------------------------------------------------------------------------------
+def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors | None = None,
+                     run_name: str = "posterior", chains_dir="chains", n_walkers: int = 32,
+                     n_steps: int | None = None, max_steps: int = 20000, check_every: int = 500,
+                     flush_every: int = 100, convergence: str = "warn", min_ess: float = 400.0,
+                     processes: int | None = None, pool=None, seed: int = 0, moves=None, template_prior=None,
+                     planet_prior: float = 0.5, mcmc_templates=None, prune_delta_lnL: float = 25.0,
+                     evidence_draws: int = 2000, progress: bool = True, initial=None,
+                     likelihood_kwargs: dict | None = None) -> PosteriorResult:
+    """Sample the posterior of every template, the no-planet hypothesis, and combine them.
+
+    Parameters
+    ----------
+    vis : Visibilities
+    axisymmetric : AxisymmetricModel
+        The frank fit: its profile starts the profile marginalisation, its power spectrum is the
+        profile's prior (:class:`~spiralbayes.axisymmetric.gp.ProfilePrior`), its geometry centres
+        the default priors. A fit at a wrong geometry is fine: the profile is refitted at every
+        sampled geometry inside the likelihood.
+    templates : SpiralTemplate, TemplateBank or sequence
+    scan : ScanResult, optional
+        Starts each template's optimiser from its best grid instances, and prunes templates
+        (``prune_delta_lnL``).
+    priors : Priors, optional
+        Default :meth:`Priors.default` (``axisymmetric``), including the amplitude prior.
+    run_name, chains_dir : str, path
+        Chains go to ``<chains_dir>/<run_name>.h5``; an existing file with the same inputs is
+        resumed (see the module docs).
+    n_walkers : int
+        emcee walkers (>= 2 x 6; default 32).
+    n_steps : int, optional
+        Total steps per walker. ``None``: run in chunks of ``check_every`` until converged
+        (> 50 tau and ESS >= ``min_ess`` for every parameter) or ``max_steps``.
+    flush_every : int
+        Steps between atomic writes of the chain file (a kill loses at most these).
+    convergence : {'warn', 'raise', 'ignore'}
+        What to do when a chain fails the 50-tau / ESS test.
+    processes : int, optional
+        Run walkers in a multiprocessing pool of this size. ``pool``: ``"mpi"`` or any object with
+        ``map`` (then ``processes`` is ignored).
+    seed : int
+        Seed of every random stream (each template's own, derived from ``(seed, name)``).
+    moves : emcee moves, optional
+        Default :func:`.moves.default_moves` (differential evolution, ``phi_p`` wrapped).
+    template_prior : array_like, optional
+        Prior probabilities of the templates given a planet (default uniform).
+    planet_prior : float
+        Prior probability that there is a planet (default 0.5).
+    mcmc_templates : list of str, optional
+        Templates that get a chain; the others get a Laplace evidence only. Default: those within
+        ``prune_delta_lnL`` of the best scan peak (every template without a scan).
+    evidence_draws : int
+        Proposal draws of each importance-sampled evidence.
+    initial : array_like, optional
+        Explicit initial walkers (n_walkers, 6) for every template.
+    likelihood_kwargs : dict, optional
+        Table settings (``epsilon``, ``rp_tolerance``, ``oversample``, ``cell_factor``) and the
+        profile grid's ``tolerance``/``order`` (:mod:`.marginal`).
+    progress : bool
+        Progress bars for the table builds and the steps (default True).
+
+    Returns
+    -------
+    PosteriorResult
+        ``p_planet``, ``ln_bayes_factor``, ``verdict``, per-template runs and the ``null`` run.
+    """
+    templates = _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, flush_every)
+    vis = vis.standardised()
+    priors = priors or Priors.default(axisymmetric)
+    priors.check_data(vis, axisymmetric)
+    names = [t.name for t in templates]
+    prior_t = np.full(len(templates), 1.0 / len(templates)) if template_prior is None else np.asarray(template_prior, float)
+    if prior_t.shape != (len(templates),) or np.any(prior_t <= 0):
+        raise InputError("template_prior must hold one positive probability per template")
+    prior_t = prior_t / prior_t.sum()
+    chain_path = Path(chains_dir) / f"{check_output_name(run_name, 'run_name')}.h5"
+    chain_path.parent.mkdir(parents=True, exist_ok=True)
+    selected = _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL)
+    likelihood_kwargs = dict(likelihood_kwargs or {})
+    profile_prior = ProfilePrior.from_model(axisymmetric)
+    common = {"data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights), "n_data": int(vis.n),
+              "model_hash": _model_hash(axisymmetric, profile_prior), "priors": priors.to_dict(), "seed": int(seed),
+              "likelihood_kwargs": likelihood_kwargs, "spiralbayes": __version__}
+    settings = {"inputs": {**common, "n_walkers": int(n_walkers), "evidence_draws": int(evidence_draws),
+                           "moves": "wrapped DE" if moves is None else repr(moves)},
+                "n_walkers": n_walkers, "n_steps": n_steps, "max_steps": max_steps, "check_every": check_every,
+                "flush_every": flush_every, "min_ess": min_ess, "pool": pool, "processes": processes, "moves": moves,
+                "progress": progress, "seed": seed, "evidence_draws": evidence_draws, "initial": initial,
+                "convergence": convergence, "likelihood_kwargs": likelihood_kwargs}
+    _set_mpi_rank(pool)
+    with _blas_single_thread():
+        null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
+                               {**common, "evidence_draws": int(evidence_draws)}, seed, evidence_draws,
+                               likelihood_kwargs)
+        runs, partners = [], {}
+        for template in templates:
+            mode = "mcmc" if template.name in selected else "laplace"
+            r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan, template.name)
+            run, likelihood = _sample_one(vis, base, null, template, priors, scan=scan, chain_path=chain_path, mode=mode,
+                                          r_range=r_range, partners=partners, settings=settings)
+            if mode == "mcmc":  # its mirror shares the table (rebuilt on demand if read back from the file)
+                partners[_mirror_name(template)] = (likelihood.perturbation if likelihood is not None else
+                                                    _deferred_table(base, template, r_range, null, likelihood_kwargs))
+            if run is not None:
+                runs.append(run)
+    if pool == "mpi" and not runs:
+        return None
+    result = PosteriorResult(runs, priors, prior_t, run_name, str(chain_path),
+                             provenance_record(data_hash=common["data_hash"], geometry=axisymmetric.geometry.to_dict(),
+                                               profile_prior=profile_prior.source),
+                             null, float(planet_prior))
+    ChainStore(chain_path, NULL_GROUP).write_root(summary=result.to_json())
+    log.info("%s", result.verdict)
+    return result
+
+
+def _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, flush_every) -> list:
+    if convergence not in ("warn", "raise", "ignore"):
+        raise InputError(f"convergence = {convergence!r}: use 'warn', 'raise' or 'ignore'")
+    if hasattr(templates, "evaluate"):
+        templates = [templates]
+    templates = list(templates)
+    if not templates:
+        raise InputError("no templates: pass a SpiralTemplate, a TemplateBank or a list of them")
+    names = [t.name for t in templates]
+    if len(set(names)) != len(names) or NULL_GROUP in names:
+        raise InputError(f"template names must be unique (and not {NULL_GROUP!r}), got {names}")
+    if n_walkers < 2 * N_DIM:
+        raise InputError(f"n_walkers = {n_walkers}: emcee needs at least 2 x {N_DIM} = {2 * N_DIM} walkers")
+    if n_steps is not None and n_steps < 1:
+        raise InputError(f"n_steps = {n_steps} must be a positive number of steps")
+    if not 0.0 < float(planet_prior) < 1.0:
+        raise InputError(f"planet_prior = {planet_prior!r} must lie strictly between 0 and 1")
+    if int(flush_every) < 1:
+        raise InputError(f"flush_every = {flush_every!r} must be a positive number of steps")
+    return templates
+
+
+def _deferred_table(base, template, r_range, null, likelihood_kwargs):
+    """A function that builds ``template``'s table exactly as :func:`_sample_one` would."""
+    lk = {k: v for k, v in likelihood_kwargs.items() if k not in ("tolerance", "order")}
+    return lambda: FastPerturbation(base.u, base.v, base.weights, base.axisymmetric.brightness, template, r_range,
+                                    DiscGeometry(*null.geometry_map), **lk)
+
+
+def _mirror_name(template) -> str:
+    name = template.name
+    hand = getattr(template, "hand", "")
+    other = {"R": "L", "L": "R"}.get(hand, "")
+    return name[:-1] + other if other and name.endswith("_" + hand) else f"{name}_mirror"
+
+
+def _laplace_window(priors: Priors, scan, name: str) -> tuple:
+    """A narrow r_p window around the template's best scan radius (its Laplace evidence needs no more)."""
+    if scan is None:
+        return priors.r_p
+    try:
+        k = scan.template_index(name)
+    except (KeyError, IndexError):
+        return priors.r_p
+    dchi2 = np.nan_to_num(scan.delta_chi2()[k], nan=-np.inf)
+    lo, hi = priors.r_p
+    inside = (scan.r_p >= lo) & (scan.r_p <= hi)
+    if not inside.any():
+        return priors.r_p
+    i = int(np.argmax(np.where(inside, np.max(dchi2, axis=1), -np.inf)))
+    step = float(np.median(np.diff(scan.r_p))) if scan.r_p.size > 1 else 0.1 * (hi - lo)
+    r_lo, r_hi = max(lo, scan.r_p[i] - 2 * step), min(hi, scan.r_p[i] + 2 * step)
+    return (r_lo, r_hi) if r_hi > r_lo else priors.r_p
+
+
+def _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL) -> set:
+    if mcmc_templates is not None:
+        unknown = set(mcmc_templates) - set(names)
+        if unknown:
+            raise InputError(f"mcmc_templates names unknown templates {sorted(unknown)}")
+        return set(mcmc_templates)
+    if scan is None:
+        return set(names)
+    peaks = {}
+    dchi2 = scan.delta_chi2()
+    for name in names:
+        try:
+            peaks[name] = float(np.nanmax(dchi2[scan.template_index(name)]))
+        except (KeyError, IndexError):
+            peaks[name] = np.inf
+    best = max(peaks.values())
+    return {n for n, p in peaks.items() if (best - p) / 2 <= prune_delta_lnL}
+
+
+def refit_axisymmetric(vis, axisymmetric, result, template=None, *, progress: bool = False):
+    """Refit the frank profile (with frank's own iterations) at the posterior-median geometry.
+
+    Not needed for the posterior — the likelihood integrates the profile out at every sampled
+    geometry — but useful to inspect a frank fit, with its own power spectrum, at the geometry
+    the data prefer.
+
+    Parameters
+    ----------
+    vis : Visibilities
+    axisymmetric : AxisymmetricModel
+        Its frank hyperparameters are reused.
+    result : PosteriorResult or TemplateRun
+    template : str or int, optional
+        Which template's posterior gives the geometry (default: the most probable).
+    """
+    run = result.run(template) if hasattr(result, "run") else result
+    median = {name: stats["median"] for name, stats in run.summary().items()}
+    geometry = DiscGeometry(median["inc"], median["PA"], median["dRA"], median["dDec"])
+    hyper = {k: axisymmetric.hyperparameters.get(k, v) for k, v in DEFAULT_HYPERPARAMETERS.items()}
+    log.info("refitting the frank profile at the posterior geometry %s", geometry)
+    return fit_axisymmetric(vis, geometry, progress=progress, **hyper)

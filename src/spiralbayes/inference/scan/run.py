@@ -1,0 +1,557 @@
+"""The grid scan: Δχ² of every template at every planet position (Stevenson et al. 2024, sec. 2.3).
+
+:func:`scan` runs the fast engine (:mod:`spiralbayes.inference.scan_engine`, where the method and
+its exactness are described) over a template bank and the (r_p, phi_p) grid, with checkpoints
+after every template, resume, progress bars and optional Dask parallelism; :class:`ScanResult`
+holds the two terms of Δχ² = 2 cross - power per template and position.
+
+Resume key
+----------
+A checkpoint is resumed only when it was written for the same inputs: :func:`resume_key` records
+a hash of the data, of the axisymmetric profile (its arrays, or the profile sampled on the
+scanned radii) and frank's settings, each template's content hash (x, phi, δ) and metadata, the
+(r_p, phi_p) grid, the geometry, the quadrature settings (the rule, ``cell_factor`` for the
+midpoint rule, and the power path's settings, :class:`~.scan_engine.ScanSettings`) and
+spiralbayes' version; a checkpoint written with other settings, or before they were recorded, is
+refused. Any difference raises :class:`ResumeMismatchError` naming it; ``force_resume=True`` keeps
+the completed templates anyway (same grid required). The thread count is not part of the key: it
+changes the last digits only.
+
+Accuracy
+--------
+Every template's ``cross`` and ``power`` come with error estimates (``cross_error``,
+``power_error``; :mod:`.scan_engine` says how they are made); :meth:`ScanResult.delta_chi2_error`
+combines them and :func:`scan` raises an :class:`~spiralbayes.exceptions.AccuracyWarning` where
+the estimate exceeds ``0.05 + 1e-4 |Δχ²|`` (:mod:`.scan_accuracy`).
+
+Why this module is long: the result class (with its checksummed persistence and the error
+estimates), the runner and the resume key with its readable differences share one set of
+fields; split apart, each would have to know the others' layout. The numerics live elsewhere
+(:mod:`.scan_engine`, :mod:`.uv_levels`, :mod:`.scan_accuracy`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+import warnings
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..._hdf5 import checked_dataset, open_file, write_file
+from ..._provenance import content_hash, data_hash, json_safe, provenance_record, to_json
+from ..._version import __version__
+from ...exceptions import DataWarning, InputError, ResumeMismatchError
+from ...axisymmetric.provenance import check_fitted_to
+from ...geometry import DiscGeometry
+from ...io.data_checks import check_search_data
+from ...model import DEFAULT_CELL_FACTOR, DEFAULT_RULE
+from ...templates.template import template_metadata
+from .accuracy import TOLERANCE, check_terms, warn_if_inaccurate
+from .engine import ScanContext, ScanSettings, scan_template
+from .statistics import bic_threshold, delta_chi2_from_terms
+
+__all__ = ["ScanResult", "default_rp_grid", "resume_key", "scan"]
+
+SCAN_KIND = "spiralbayes.ScanResult"
+DATASET_UNITS = {"r_p": "arcsec", "phi_p": "rad", "cross": "dimensionless (chi^2 units)",
+                 "power": "dimensionless (chi^2 units)", "cross_error": "dimensionless (chi^2 units)",
+                 "power_error": "dimensionless (chi^2 units)"}
+"""The ``units`` attribute of each dataset of a saved scan (Δχ² = 2 cross - power)."""
+
+log = logging.getLogger(__name__)
+
+
+def default_rp_grid(r_max: float, n: int = 25, r_min: float | None = None) -> np.ndarray:
+    """Planet radii [arcsec]: ``n`` values from ``r_min`` (default ``r_max / 25``) to ``r_max``.
+
+    The paper used 25 radii between 0.02 and 0.5 arcsec for discs of about 0.8 arcsec radius.
+    """
+    r_min = r_max / n if r_min is None else r_min
+    return np.linspace(r_min, r_max, n)
+
+
+@dataclass
+class ScanResult:
+    """Δχ² over template × r_p × phi_p, with what is needed to reproduce it.
+
+    Attributes
+    ----------
+    templates : list of dict
+        Template metadata (name, mass, tau0, beta, hand, ...), one per row of the arrays.
+    r_p : ndarray
+        Planet radii [arcsec].
+    phi_p : ndarray
+        Planet azimuths [rad] (disc azimuth convention).
+    cross, power : ndarray, shape (n_templates, n_rp, n_phi)
+        ``Re sum w R* ΔV`` and ``sum w |ΔV|^2``; NaN where not yet computed.
+    chi2_AO : float
+        χ² of the axisymmetric model.
+    n_data : int
+        Number of visibility points N.
+    geometry : DiscGeometry
+    distance : float or None
+        Distance [pc], for au axes.
+    provenance : dict
+    cross_error, power_error : ndarray, shape (n_templates, n_rp, n_phi)
+        Error estimates of ``cross`` and ``power`` (NaN where unknown: not computed, the midpoint
+        rule, or a checkpoint written before they were recorded).
+    """
+
+    templates: list
+    r_p: np.ndarray
+    phi_p: np.ndarray
+    cross: np.ndarray
+    power: np.ndarray
+    chi2_AO: float
+    n_data: int
+    geometry: DiscGeometry
+    distance: float | None = None
+    provenance: dict = field(default_factory=dict)
+    cross_error: np.ndarray | None = None
+    power_error: np.ndarray | None = None
+
+    def __post_init__(self):
+        for name in ("cross_error", "power_error"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.full(np.shape(self.cross), np.nan))
+
+    def delta_chi2_error(self) -> np.ndarray:
+        """Error estimate of :meth:`delta_chi2` (the paper's fixed amplitude): ``2 cross_error + power_error``."""
+        return 2 * self.cross_error + self.power_error
+
+    def accuracy_violations(self, tolerance=TOLERANCE) -> np.ndarray:
+        """Where the error estimate exceeds ``tolerance[0] + tolerance[1] |Δχ²|`` (boolean, like :attr:`cross`)."""
+        err = np.nan_to_num(self.delta_chi2_error(), nan=0.0)
+        return err > tolerance[0] + tolerance[1] * np.abs(np.nan_to_num(self.dchi2))
+
+    def delta_chi2(self, amplitude=None) -> np.ndarray:
+        """Δχ² array (template, r_p, phi_p); ``amplitude="free"`` fits a linear amplitude ≥ 0."""
+        return delta_chi2_from_terms(self.cross, self.power, amplitude)
+
+    @property
+    def dchi2(self) -> np.ndarray:
+        return self.delta_chi2()
+
+    @property
+    def completed(self) -> np.ndarray:
+        return ~np.isnan(self.cross).any(axis=(1, 2))
+
+    def n_params(self, amplitude=None) -> int:
+        return 6 + (1 if amplitude == "free" else 0)
+
+    def delta_bic(self, amplitude=None) -> np.ndarray:
+        """ΔBIC of each template: peak Δχ² minus ``k ln N`` (k = 6, or 7 with a free amplitude)."""
+        peak = np.nanmax(self.delta_chi2(amplitude), axis=(1, 2))
+        return peak - bic_threshold(self.n_data, self.n_params(amplitude))
+
+    def best(self, template: int | str | None = None, amplitude=None) -> dict:
+        """The best instance of one template (or overall): indices, position and Δχ²."""
+        dchi2 = self.delta_chi2(amplitude)
+        t_index = self.template_index(template) if template is not None else None
+        if t_index is None:
+            t_index, i, j = np.unravel_index(np.nanargmax(dchi2), dchi2.shape)
+        else:
+            i, j = np.unravel_index(np.nanargmax(dchi2[t_index]), dchi2.shape[1:])
+        value = float(dchi2[t_index, i, j])
+        return {"template": self.templates[t_index]["name"], "template_index": int(t_index),
+                "r_p": float(self.r_p[i]), "phi_p": float(self.phi_p[j]), "i_rp": int(i), "i_phi": int(j),
+                "delta_chi2": value,
+                "delta_bic": value - bic_threshold(self.n_data, self.n_params(amplitude))}
+
+    def template_index(self, template: int | str) -> int:
+        if isinstance(template, (int, np.integer)):
+            return int(template)
+        names = [t["name"] for t in self.templates]
+        if template not in names:
+            raise KeyError(f"no template named {template!r}; have {names}")
+        return names.index(template)
+
+    # -- persistence ------------------------------------------------------------------------
+    def save(self, path) -> Path:
+        """Write to HDF5 (atomically)."""
+        with write_file(path, SCAN_KIND) as f:
+            for name in ("r_p", "phi_p", "cross", "power", "cross_error", "power_error"):
+                checked_dataset(f, name, getattr(self, name)).attrs["units"] = DATASET_UNITS[name]
+            f.attrs["chi2_AO"] = self.chi2_AO
+            f.attrs["n_data"] = self.n_data
+            f.attrs["geometry"] = json.dumps(self.geometry.to_dict())
+            f.attrs["distance"] = -1.0 if self.distance is None else self.distance
+            f.attrs["templates"] = to_json(self.templates)
+            f.attrs["provenance"] = to_json(self.provenance)
+        return Path(path)
+
+    @classmethod
+    def load(cls, path) -> "ScanResult":
+        """Read a result (or a checkpoint) written by :meth:`save`.
+
+        Raises :class:`~spiralbayes.exceptions.DataFileError` naming the file when it is
+        truncated, corrupt or inconsistent (array shapes that do not match the grid).
+        """
+        with open_file(path, SCAN_KIND, "scan result") as f:
+            distance = float(f.attrs["distance"])
+            result = cls(json.loads(f.attrs["templates"]), f["r_p"][()], f["phi_p"][()], f["cross"][()],
+                         f["power"][()], float(f.attrs["chi2_AO"]), int(f.attrs["n_data"]),
+                         DiscGeometry(**json.loads(f.attrs["geometry"])), None if distance < 0 else distance,
+                         json.loads(f.attrs["provenance"]),
+                         *(f[name][()] if name in f else None for name in ("cross_error", "power_error")))
+            shape = (len(result.templates), result.r_p.size, result.phi_p.size)
+            if any(np.shape(a) != shape for a in (result.cross, result.power, result.cross_error, result.power_error)):
+                raise InputError(f"arrays of shape {result.cross.shape} / {result.power.shape} do not match "
+                                 f"{shape[0]} templates x {shape[1]} radii x {shape[2]} azimuths")
+            return result
+
+    def __repr__(self) -> str:
+        done = int(self.completed.sum())
+        head = (f"ScanResult({len(self.templates)} templates ({done} done), {self.r_p.size} r_p from "
+                f"{self.r_p[0]:.3g} to {self.r_p[-1]:.3g} arcsec x {self.phi_p.size} phi_p, N = {self.n_data}, "
+                f"chi2_AO = {self.chi2_AO:.6g}")
+        if done:
+            best = self.best()
+            head += f"; best {best['template']}: Delta chi2 = {best['delta_chi2']:.1f} at r_p = {best['r_p']:.3g}"
+        return head + ")"
+
+
+# --------------------------------------------------------------------------------------------
+def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, r_p=None, n_phi_p: int = 90,
+         distance: float | None = None, checkpoint=None, client=None, progress: bool = True,
+         cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1, force_resume: bool = False,
+         rule: str = DEFAULT_RULE, power_path: str = "auto", allow_other_data: bool = False) -> ScanResult:
+    """Δχ² of every template at every planet position.
+
+    Parameters
+    ----------
+    vis : Visibilities
+        The observed data.
+    axisymmetric : AxisymmetricModel or (profile, V_A)
+        The axisymmetric model: frank's fit (its ``brightness`` [Jy/sr] and ``visibilities``),
+        or a brightness callable and its model visibilities at ``vis``.
+    templates : TemplateBank or sequence of SpiralTemplate
+    geometry : DiscGeometry, optional
+        Defaults to the axisymmetric model's.
+    r_p : array_like, optional
+        Planet radii [arcsec], positive, finite and increasing; default 25 radii up to 0.6 R_eff
+        (the paper's 0.02–0.5 arcsec). Radii beyond the model's ``Rmax`` raise a DataWarning.
+    n_phi_p : int
+        Number of planet azimuths over 360 deg, a positive even integer (default 90: 4 deg steps,
+        as the paper; the polar uv grid's angular nodes are a multiple of it and come in pairs).
+    distance : float, optional
+        Distance [pc], recorded for au axes.
+    checkpoint : path, optional
+        HDF5 file updated after every template; an existing one with the same inputs (see
+        :func:`resume_key`) is resumed, one for other inputs raises
+        :class:`~spiralbayes.exceptions.ResumeMismatchError`.
+    client : dask.distributed.Client, str, or "local", optional
+        Run templates in parallel on a Dask cluster (a scheduler address, an existing client, or
+        ``"local"`` for a LocalCluster with one single-threaded worker per core); serial when None
+        or when Dask is not installed. On one machine a serial scan with ``nthreads`` = cores is
+        as fast; Dask pays off on a cluster (one scan per disc, or many discs at once).
+    progress : bool
+        Show a tqdm progress bar.
+    cell_factor : float
+        Midpoint rule only: cells at most ``1 / (cell_factor u_max)`` across (:mod:`spiralbayes.model`).
+    nthreads : int
+        Threads for the NUFFTs of each template. Results agree to ~1e-9 between thread counts
+        and are identical for the same count.
+    force_resume : bool
+        Resume a checkpoint even though it was written for other inputs (its completed
+        templates are kept where the names match; the grids must be the same). The
+        differences are logged and recorded in ``provenance["forced_resume"]``.
+    rule : {"product", "midpoint"}
+        The quadrature of the perturbation (:func:`spiralbayes.model.make_quadrature`): the exact
+        product rule (default) or the earlier midpoint cells (a reference; no error estimate).
+    power_path : {"auto", "polar", "direct"}
+        How ``power`` is computed (:mod:`.scan_engine`): "auto" takes the cheaper for the data.
+    allow_other_data : bool
+        Scan with an axisymmetric model whose recorded data hash is not that of ``vis`` (e.g.
+        injected signals); by default such a model is refused (InputError).
+
+    The result carries error estimates (:meth:`ScanResult.delta_chi2_error`); an
+    :class:`~spiralbayes.exceptions.AccuracyWarning` says where they exceed
+    ``0.05 + 1e-4 |Δχ²|``. The power path's own check is in ``provenance["power_check"]``.
+    """
+    templates = list(templates)
+    if not templates:
+        raise InputError("no templates to scan: pass a TemplateBank or a list of SpiralTemplate")
+    check_search_data(vis, distance=distance)
+    if not allow_other_data:
+        check_fitted_to(axisymmetric, vis)
+    geometry = geometry or getattr(axisymmetric, "geometry", None)
+    if geometry is None:
+        raise InputError("geometry is needed: pass geometry=DiscGeometry(...) or an AxisymmetricModel")
+    r_p = _default_rp(axisymmetric) if r_p is None else _check_rp(r_p)
+    n_phi_p = _check_n_phi(n_phi_p)
+    _check_cell_factor(cell_factor)
+    settings = ScanSettings(rule=rule, cell_factor=float(cell_factor), power_path=power_path)
+    warn_beyond_rmax(axisymmetric, r_p)
+    t0 = time.perf_counter()
+    x_max = max(float(np.max(t.x)) for t in templates)
+    context = ScanContext.build(vis, axisymmetric, geometry, r_p, n_phi_p, x_max=x_max, nthreads=nthreads,
+                                settings=settings)
+    setup_s = time.perf_counter() - t0
+    log.info("scan set-up (%s power path, %d uv grids): %.2f s", context.power_path, len(context.levels), setup_s)
+    _warn_if_weights_too_small(context.chi2_AO, vis.n)
+    result = empty_result(context, templates, vis, distance)
+    result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context)
+    if checkpoint is not None:
+        result = resume_from_checkpoint(checkpoint, result, force_resume)
+    todo = [i for i in range(len(templates)) if not result.completed[i]]
+    if todo and settings.rule == "product":
+        context.algorithm_error = check_terms(context, templates[0])
+        result.provenance["power_check"] = context.algorithm_error
+    t1 = time.perf_counter()
+    runner = _run_dask if client is not None else _run_serial
+    runner(context, templates, todo, result, checkpoint, progress, client)
+    result.provenance["scan_time_s"] = time.perf_counter() - t0
+    result.provenance["timing_s"] = {"setup": setup_s, "check": t1 - t0 - setup_s, "templates": time.perf_counter() - t1}
+    warn_if_inaccurate(result)
+    return result
+
+
+def _default_rp(axisymmetric) -> np.ndarray:
+    r_eff = getattr(axisymmetric, "R_eff", None)
+    if r_eff is None:
+        raise InputError("give r_p (planet radii in arcsec): the axisymmetric model has no R_eff")
+    r_max = 0.6 * float(r_eff() if callable(r_eff) else r_eff)
+    return default_rp_grid(r_max)
+
+
+def empty_result(context: ScanContext, templates, vis, distance) -> ScanResult:
+    shape = (len(templates), context.r_p.size, context.n_phi_p)
+    prov = provenance_record(
+        data=vis.provenance, data_hash=data_hash(vis.u, vis.v, vis.V, vis.weights), quadrature=context.describe())
+    return ScanResult([template_metadata(t) for t in templates], context.r_p.copy(),
+                      2 * np.pi * np.arange(context.n_phi_p) / context.n_phi_p,
+                      np.full(shape, np.nan), np.full(shape, np.nan), context.chi2_AO, int(vis.n),
+                      context.geometry, distance, prov)
+
+
+def _check_rp(r_p) -> np.ndarray:
+    try:
+        r_p = np.atleast_1d(np.asarray(r_p, dtype=float))
+    except (TypeError, ValueError):
+        raise InputError(f"r_p must be planet radii in arcsec (numbers), got {r_p!r}") from None
+    if r_p.ndim != 1 or r_p.size == 0 or not np.all(np.isfinite(r_p)) or np.any(r_p <= 0):
+        raise InputError(f"r_p must be positive, finite radii in arcsec (a 1-D grid), got {r_p}")
+    if np.any(np.diff(r_p) <= 0):
+        raise InputError(f"r_p must be strictly increasing (no repeated radii), got {r_p}")
+    return r_p
+
+
+def _check_n_phi(n_phi_p) -> int:
+    if isinstance(n_phi_p, bool) or not isinstance(n_phi_p, (int, np.integer)) or n_phi_p < 2 or n_phi_p % 2:
+        raise InputError(f"n_phi_p = {n_phi_p!r}: the number of planet azimuths must be a positive, even "
+                         "integer (the paper uses 90, i.e. 4 deg steps)")
+    return int(n_phi_p)
+
+
+def _check_cell_factor(cell_factor) -> None:
+    if isinstance(cell_factor, bool) or not np.isfinite(cell_factor) or cell_factor <= 0:
+        raise InputError(f"cell_factor = {cell_factor!r} must be a positive number (default {DEFAULT_CELL_FACTOR})")
+
+
+def warn_beyond_rmax(axisymmetric, r_p) -> None:
+    r_max = getattr(axisymmetric, "Rmax", None)
+    if r_max is not None and r_p.max() > r_max:
+        warnings.warn(f"planet radii up to {r_p.max():.3g} arcsec lie beyond frank's Rmax = {r_max:g} arcsec, "
+                      "where the axisymmetric profile is zero (no spiral can show there): lower the largest "
+                      "r_p or refit with a larger Rmax", DataWarning, stacklevel=3)
+
+
+def _warn_if_weights_too_small(chi2_AO: float, n: int) -> None:
+    """chi2_AO far below its expectation 2N means weights too small (it cannot be a poor model)."""
+    ratio = chi2_AO / (2 * n)
+    if ratio < 0.5:
+        warnings.warn(f"the axisymmetric model fits the data with chi2 = {chi2_AO:.4g} for 2N = {2 * n} (Re and Im): "
+                      f"the weights look about {1 / ratio:.3g} times too small (CASA's simobserve leaves WEIGHT = 1), "
+                      "so every Delta chi2 and Delta BIC is too small by that factor; re-estimate them with "
+                      "estimate_weights(vis, method='neighbours') ([data] estimate_weights = true)",
+                      DataWarning, stacklevel=3)
+
+
+def _axisymmetric_key(axisymmetric, r_p) -> tuple[str, dict]:
+    """Hash of the axisymmetric profile and frank's settings (empty for a bare profile)."""
+    if hasattr(axisymmetric, "r") and hasattr(axisymmetric, "I"):
+        profile = content_hash(np.asarray(axisymmetric.r, float), np.asarray(axisymmetric.I, float),
+                               float(getattr(axisymmetric, "Rmax", 0.0)))
+        return profile, json_safe(dict(getattr(axisymmetric, "hyperparameters", {}) or {}))
+    brightness, V_A = axisymmetric if isinstance(axisymmetric, tuple) else (axisymmetric.brightness, None)
+    radii = np.linspace(0.0, 2.5 * float(np.max(r_p)), 2049)  # beyond the templates' reach (2.2 r_p)
+    items = [np.asarray(brightness(radii), dtype=float)]
+    if V_A is not None:
+        items.append(np.asarray(V_A, dtype=complex))
+    return content_hash(*items), {}
+
+
+def resume_key(vis, axisymmetric, templates, context: ScanContext) -> dict:
+    """Everything a checkpoint's numbers depend on, as hashes and small dicts (JSON-able).
+
+    Two scans with equal keys compute identical arrays (for the same thread count).
+    """
+    profile, settings = _axisymmetric_key(axisymmetric, context.r_p)
+    return {
+        "spiralbayes": __version__,
+        "data": data_hash(vis.u, vis.v, vis.V, vis.weights) + ("*" if getattr(vis, "conjugated", False) else ""),
+        "axisymmetric_profile": profile,
+        "axisymmetric_settings": settings,
+        "templates": [content_hash(np.asarray(t.x), np.asarray(t.phi), np.asarray(t.delta), template_metadata(t))
+                      for t in templates],
+        "r_p": content_hash(context.r_p),
+        "n_phi_p": context.n_phi_p,
+        "geometry": context.geometry.to_dict(),
+        "quadrature": context.settings.describe(),
+    }
+
+
+def _describe_differences(old: ScanResult, fresh: ScanResult) -> list[str]:
+    """What differs between a checkpoint and the run that found it, in words."""
+    a, b = old.provenance.get("resume_key"), fresh.provenance["resume_key"]
+    if not isinstance(a, dict):
+        return ["it holds no resume key (written by an older spiralbayes)"]
+    diffs = []
+    if a.get("spiralbayes") != b["spiralbayes"]:
+        diffs.append(f"spiralbayes version ({a.get('spiralbayes')} -> {b['spiralbayes']})")
+    if a.get("data") != b["data"]:
+        diffs.append("the data (u, v, V or weights)")
+    if a.get("axisymmetric_profile") != b["axisymmetric_profile"]:
+        diffs.append("the axisymmetric model's profile")
+    settings = _changed(a.get("axisymmetric_settings") or {}, b["axisymmetric_settings"])
+    if settings:
+        diffs.append(f"frank settings ({settings})")
+    templates = _template_differences(old.templates, a.get("templates"), fresh.templates, b["templates"])
+    if templates:
+        diffs.append(templates)
+    grid_changed = a.get("r_p") != b["r_p"] or a.get("n_phi_p") != b["n_phi_p"]
+    if grid_changed:
+        diffs.append(f"the planet grid ({_grid_text(old)} -> {_grid_text(fresh)})")
+    geometry = _changed(a.get("geometry") or {}, b["geometry"])
+    if geometry:
+        diffs.append(f"geometry ({geometry})")
+    quadrature = _changed(a.get("quadrature") or {}, b["quadrature"])
+    if quadrature:
+        diffs.append(f"quadrature settings ({quadrature})")
+    return diffs
+
+
+def _grid_text(result: ScanResult) -> str:
+    return (f"{result.r_p.size} r_p from {result.r_p[0]:.4g} to {result.r_p[-1]:.4g} arcsec x "
+            f"{result.phi_p.size} phi_p")
+
+
+def _changed(a: dict, b: dict) -> str:
+    keys = sorted(set(a) | set(b), key=str)
+    return ", ".join(f"{k}: {a.get(k)!r} -> {b.get(k)!r}" for k in keys if a.get(k) != b.get(k))
+
+
+def _template_differences(old_meta, old_hashes, new_meta, new_hashes) -> str:
+    old = {m["name"]: h for m, h in zip(old_meta, old_hashes or [None] * len(old_meta))}
+    new = {m["name"]: h for m, h in zip(new_meta, new_hashes)}
+    changed = [n for n in new if n in old and old[n] != new[n]]
+    parts = [f"{label}: {', '.join(names[:4])}{' ...' if len(names) > 4 else ''}" for label, names in (
+        ("changed", changed), ("new", [n for n in new if n not in old]),
+        ("only in the checkpoint", [n for n in old if n not in new])) if names]
+    return f"templates ({'; '.join(parts)})" if parts else ""
+
+
+def resume_from_checkpoint(checkpoint, fresh: ScanResult, force: bool = False) -> ScanResult:
+    checkpoint = Path(checkpoint)
+    if not checkpoint.exists():
+        return fresh
+    old = ScanResult.load(checkpoint)
+    diffs = _describe_differences(old, fresh)
+    if diffs and not force:
+        raise ResumeMismatchError(
+            f"checkpoint {checkpoint} was written for other inputs — {'; '.join(diffs)}: delete it (or use "
+            "another checkpoint path) to start afresh, or pass force_resume=True (CLI: --force-resume) to "
+            "keep its completed templates anyway")
+    if diffs:
+        if old.r_p.shape != fresh.r_p.shape or not np.allclose(old.r_p, fresh.r_p, rtol=1e-12, atol=0) \
+                or old.phi_p.size != fresh.phi_p.size:
+            raise ResumeMismatchError(f"checkpoint {checkpoint} cannot be force-resumed: its planet grid differs "
+                                      "(r_p or n_phi_p); delete it to start afresh")
+        log.warning("force-resuming %s although %s differ", checkpoint, "; ".join(diffs))
+    rows = {m["name"]: i for i, m in enumerate(old.templates)}
+    kept = []
+    for i, meta in enumerate(fresh.templates):
+        j = rows.get(meta["name"])
+        if j is not None and old.completed[j]:
+            fresh.cross[i], fresh.power[i] = old.cross[j], old.power[j]
+            fresh.cross_error[i], fresh.power_error[i] = old.cross_error[j], old.power_error[j]
+            kept.append(meta["name"])
+    if diffs:
+        fresh = _record_forced_resume(fresh, old, checkpoint, diffs, kept)
+    log.info("resuming from %s: %d of %d templates done", checkpoint, fresh.completed.sum(), len(fresh.templates))
+    return fresh
+
+
+def _record_forced_resume(fresh: ScanResult, old: ScanResult, checkpoint, diffs, kept) -> ScanResult:
+    """Record the truth of a forced resume: the numbers kept were computed with the checkpoint's inputs.
+
+    When every template comes from the checkpoint, the result takes the checkpoint's geometry and
+    resume key (what its numbers were computed with) and keeps the requested ones under
+    ``provenance["forced_resume"]["requested"]``; otherwise the result is mixed and says which
+    templates came from the checkpoint.
+    """
+    record = {"checkpoint": str(checkpoint), "differences": diffs, "templates_from_checkpoint": kept,
+              "checkpoint_geometry": old.geometry.to_dict(), "checkpoint_resume_key": old.provenance.get("resume_key")}
+    if len(kept) == len(fresh.templates):
+        record["requested"] = {"geometry": fresh.geometry.to_dict(), "resume_key": fresh.provenance["resume_key"]}
+        fresh.provenance["resume_key"] = old.provenance.get("resume_key")
+        fresh = replace(fresh, geometry=old.geometry)
+    else:
+        record["mixed"] = ("templates_from_checkpoint were computed with the checkpoint's inputs, the others with "
+                           "the requested ones")
+    fresh.provenance["forced_resume"] = record
+    return fresh
+
+
+def store_template_terms(result: ScanResult, index: int, terms, checkpoint) -> None:
+    """Keep one template's :class:`~.scan_engine.TemplateTerms` (and checkpoint)."""
+    result.cross[index], result.power[index] = terms
+    result.cross_error[index] = getattr(terms, "cross_error", np.nan)
+    result.power_error[index] = getattr(terms, "power_error", np.nan)
+    if checkpoint is not None:
+        result.save(checkpoint)
+
+
+def _progress(total: int, enabled: bool):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc="templates", unit="template", disable=not enabled)
+
+
+def _run_serial(context, templates, todo, result, checkpoint, progress, client=None) -> None:
+    with _progress(len(todo), progress) as bar:
+        for i in todo:
+            store_template_terms(result, i, scan_template(context, templates[i]), checkpoint)
+            bar.update()
+
+
+def _run_dask(context, templates, todo, result, checkpoint, progress, client) -> None:
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        log.warning("dask.distributed is not installed: scanning serially (pip install 'dask[distributed]')")
+        _run_serial(context, templates, todo, result, checkpoint, progress)
+        return
+
+    own = None
+    if isinstance(client, str):
+        if client == "local":
+            own = Client(LocalCluster(processes=True, threads_per_worker=1))
+        else:
+            own = Client(client)
+        client = own
+    try:
+        shared = client.scatter(context, broadcast=True)
+        futures = {client.submit(scan_template, shared, templates[i], pure=False): i for i in todo}
+        with _progress(len(todo), progress) as bar:
+            for future in as_completed(futures):
+                store_template_terms(result, futures[future], future.result(), checkpoint)
+                bar.update()
+    finally:
+        if own is not None:
+            own.close()

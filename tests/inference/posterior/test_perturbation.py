@@ -1,0 +1,54 @@
+"""The likelihood tables: a node grid's Fourier series is the product rule's exact transform inside
+sigma_max, and a mirror template reading its partner's table equals a table of its own."""
+
+import ducc0
+import numpy as np
+
+from spiralbayes.inference.posterior.perturbation import FastPerturbation, _lattice
+from spiralbayes.inference.posterior.tables import _Cells, _TableBuilder
+from spiralbayes.units import ARCSEC, TWO_PI
+from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
+
+
+def test_node_grids_hold_the_rules_exact_transform(setup):
+    template = setup["template"]
+    uv_max = float(np.max(setup["vis"].uv_distance))
+    cells = _Cells.build(template, R_RANGE[1], uv_max)
+    builder = _TableBuilder(cells, profile, R_RANGE[1] * ARCSEC * uv_max, cells.x_max, 1.5)
+    rng = np.random.default_rng(5)
+    radius = builder.sigma_max * np.sqrt(rng.uniform(0, 1, 400))
+    angle = rng.uniform(0, TWO_PI, 400)
+    sigma = np.stack([radius * np.cos(angle), radius * np.sin(angle)], -1)
+    for r_p in (R_RANGE[0], 0.4):
+        series = ducc0.nufft.u2nu(grid=builder(r_p).astype(complex), coord=TWO_PI * builder.delta * sigma,
+                                  forward=False, epsilon=1e-12, nthreads=1)
+        exact = ducc0.nufft.experimental.nu2nu(points_in=cells.fluxes(profile, r_p), coord_in=TWO_PI * cells.positions,
+                                               coord_out=sigma, forward=False, epsilon=1e-12, nthreads=1)
+        assert np.max(np.abs(series - exact)) < 1e-6 * np.max(np.abs(exact))  # complex64 grids
+
+
+def test_mirror_template_shares_its_partners_table(setup):
+    vis, template = setup["vis"], setup["template"]
+    mirror = template.mirror()
+    args = (vis.u, vis.v, vis.weights, profile)
+    right = FastPerturbation(*args, template, R_RANGE, TRUE_GEOMETRY, rp_tolerance=0.05)
+    shared = FastPerturbation(*args, mirror, R_RANGE, TRUE_GEOMETRY, mirror_of=right)
+    own = FastPerturbation(*args, mirror, R_RANGE, TRUE_GEOMETRY, rp_tolerance=0.05)
+    assert shared.table is right.table and shared.nbytes == 0
+    rng = np.random.default_rng(2)
+    for _ in range(4):
+        r_p, phi_p = rng.uniform(*R_RANGE), rng.uniform(0, 2 * np.pi)
+        inc, PA = 40 + rng.normal(0, 2), 70 + rng.normal(0, 2)
+        a, b = shared.disc_frame(r_p, phi_p, inc, PA), own.disc_frame(r_p, phi_p, inc, PA)
+        assert np.sqrt(np.sum(vis.weights * np.abs(a - b) ** 2)) < 0.05  # within the tables' tolerance
+        assert np.sqrt(np.sum(vis.weights * np.abs(a) ** 2)) > 10  # and not trivially small
+
+
+def test_node_lattices_nest_when_halved():
+    coarse, fine = _lattice(0.15, 0.6, 0.04, 6), _lattice(0.15, 0.6, 0.02, 6)
+    assert coarse[0] >= 0 and fine[0] >= 0
+    inside = coarse[(coarse >= 0.15) & (coarse <= 0.6)]
+    assert all(np.min(np.abs(fine - r)) < 1e-12 for r in inside)  # the coarse nodes are reused...
+    mids = 0.5 * (inside[1:] + inside[:-1])
+    assert all(np.min(np.abs(fine - r)) < 1e-12 for r in mids)  # ...and so are the midpoints that checked them
+    assert coarse[0] <= 0.15 - 0.04 and coarse[-1] >= 0.6 + 3 * 0.04  # room for the 6-point stencil
