@@ -103,16 +103,16 @@ def _case(name, mu, h_p, **kw) -> Case:
     return Case(name=name, mu=mu, h_p=h_p, **kw)
 
 
-CASES: list[Case] = [  # run order: cheapest route to the most distinct cases (see tools/README.md)
+CASES: list[Case] = [  # run order: the most distinct cases per CPU hour first (see tools/README.md)
     _case("lib_mu1_h007", 1.0, 0.07),
     _case("lib_mu0.3_h007", 0.3, 0.07),
     _case("relax_test_beta10", 0.0, 0.07, beta=10.0, orbits=2.0, role="relaxtest"),
-    _case("lib_mu1_h007_beta10", 1.0, 0.07, beta=10.0),
-    _case("lib_mu3_h007", 3.0, 0.07),
     _case("lib_mu1_h010", 1.0, 0.10),
     _case("lib_mu0.3_h010", 0.3, 0.10),
-    _case("lib_mu0.1_h007", 0.1, 0.07),
+    _case("lib_mu1_h007_beta10", 1.0, 0.07, beta=10.0),
+    _case("lib_mu3_h007", 3.0, 0.07),
     _case("lib_mu0.3_h007_beta10", 0.3, 0.07, beta=10.0),
+    _case("lib_mu0.1_h007", 0.1, 0.07),
     _case("lib_mu1_h007_st0.03", 1.0, 0.07, stokes=0.03),
     _case("lib_mu1_h007_soft0.35", 1.0, 0.07, softening=0.35, role="soft0.35"),
     _case("lib_mu1_h005", 1.0, 0.05),
