@@ -249,12 +249,12 @@ def fidelity_table(cases=None, taus=TAUS, setups=SETUPS, **options) -> list[dict
 
 def format_table(rows, scan: bool = True) -> str:
     """The fidelity table as text (one line per case × τ0 × set-up); ``scan=False``: map level only."""
-    head = f"{'case':22s} {'tau0':>4s} {'ncc':>5s} {'rms':>5s} {'b_ncc':>5s} {'b_rms':>5s} {'b_rec':>6s}"
+    head = f"{'case':32s} {'tau0':>4s} {'ncc':>5s} {'rms':>5s} {'b_ncc':>5s} {'b_rms':>5s} {'b_rec':>6s}"
     if scan:
         head += f" {'inc':>3s} {'recov':>6s} {'dr':>4s} {'dphi':>5s} {'mass':>5s} {'true':>5s} {'ref_dchi2':>9s} pass"
     lines = [head, "-" * len(head)]
     for r in rows:
-        line = (f"{r['case']:22s} {r['tau0']:4g} {r['ncc']:5.2f} {r['rms_ratio']:5.2f} {r['beam_ncc']:5.2f} "
+        line = (f"{r['case']:32s} {r['tau0']:4g} {r['ncc']:5.2f} {r['rms_ratio']:5.2f} {r['beam_ncc']:5.2f} "
                 f"{r['beam_rms_ratio']:5.2f} {r['beam_recovery']:6.2f}")
         if scan:
             line += (f" {r['inc']:3.0f} {r['recovery']:6.2f} {r['dr_steps']:4.1f} {r['dphi_deg']:5.1f} "
