@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import re
 import shutil
 import subprocess
@@ -51,6 +52,9 @@ def build(fargo_dir: Path, setup: str) -> Path:
     """Build ``setup`` (CPU, sequential) and return its executable, kept as ``bin_<setup>/fargo3d``."""
     exe = fargo_dir / f"bin_{setup}" / "fargo3d"
     if setup in OUR_SETUPS:
+        src = HERE / "fargo3d" / "setups" / setup
+        if exe.exists() and exe.stat().st_mtime > max(p.stat().st_mtime for p in src.iterdir()):
+            return exe  # built from the current setup files
         dest = fargo_dir / "setups" / setup
         shutil.rmtree(dest, ignore_errors=True)
         shutil.copytree(HERE / "fargo3d" / "setups" / setup, dest)
@@ -76,13 +80,27 @@ def run_case(case: lib.Case, exe: Path, runs_dir: Path, nice: int) -> None:
     """Run ``case`` to its end (restarting from its last output if any); stamps in ``runs_dir/logs``.
 
     ``logs/<name>.start`` holds one ``epoch first_output`` line per (re)start, ``.end`` the epoch at
-    the end; the wall time is the sum over segments (tools/fargo3d_library_reduce.py).
+    the end; ``.lock`` holds the id of the driver running it, so that two drivers (two streams on
+    an idle machine) never run one case at once.
     """
     logs = runs_dir / "logs"
     logs.mkdir(parents=True, exist_ok=True)
     if (logs / f"{case.name}.end").exists():
         log.info("%s: finished already", case.name)
         return
+    lock = logs / f"{case.name}.lock"
+    if lock.exists() and Path(f"/proc/{lock.read_text().strip()}").exists():
+        log.info("%s: being run by process %s; skipped", case.name, lock.read_text().strip())
+        return
+    lock.write_text(f"{os.getpid()}\n")
+    try:
+        _run_unlocked(case, exe, runs_dir, nice)
+    finally:
+        lock.unlink(missing_ok=True)
+
+
+def _run_unlocked(case: lib.Case, exe: Path, runs_dir: Path, nice: int) -> None:
+    logs = runs_dir / "logs"
     out = runs_dir / case.name
     out.mkdir(exist_ok=True)
     cfg = logs / f"{case.name}.cfg"
