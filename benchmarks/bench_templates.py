@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/bench_templates.py [--n-x 320] [--n-phi 720] [--table]
-    python benchmarks/bench_templates.py --fidelity [--maps-only] [--setups inclined|face-on|both]
+    python benchmarks/bench_templates.py --fidelity [--maps-only] [--setups inclined|face-on|both] [--source fargo3dlib ...]
 
 Timing: builds the default bank (the paper's 64-template grid for H/r = 0.05, 0.07, 0.10: 192
 templates) into a temporary cache directory (the user's cache is untouched), then loads it back.
@@ -63,10 +63,11 @@ def fidelity(args) -> None:
     setups = {"inclined": F.SETUPS[1:], "face-on": F.SETUPS[:1], "both": F.SETUPS}[args.setups]
     for label, options in (("BEFORE (generator version 1 settings)", F.VERSION1), ("AFTER (calibrated)", {})):
         t0 = time.perf_counter()
+        cases = [c for c in F.reference_cases() if not args.source or c.source in args.source]
         if args.maps_only:
-            rows = F.map_table(**options)
+            rows = F.map_table(cases, **options)
         else:
-            rows = F.fidelity_table(setups=setups, **options)
+            rows = F.fidelity_table(cases, setups=setups, **options)
         log.info("\n%s  [%.0f s]\n%s", label, time.perf_counter() - t0, F.format_table(rows, scan=not args.maps_only))
 
 
@@ -77,6 +78,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3, help="cache loads to time")
     ap.add_argument("--table", action="store_true", help="print the amplitude table")
     ap.add_argument("--fidelity", action="store_true", help="compare with the reference maps instead of timing")
+    ap.add_argument("--source", nargs="*", default=None,
+                    help="with --fidelity: only these reference sources (wakeflow, fargo3d, fargo3dlib)")
     ap.add_argument("--maps-only", action="store_true", help="with --fidelity: δ-map metrics only (seconds)")
     ap.add_argument("--setups", choices=("inclined", "face-on", "both"), default="both",
                     help="with --fidelity: which fiducial observations to scan")

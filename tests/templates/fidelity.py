@@ -33,6 +33,9 @@ for the side of the optional secondary arm (φ_wake − φ_sep in version 1, + s
 the 1 M_th maps inside 0.75 r_p only; the issue-9 report's "before" table ran version 1 itself."""
 
 REF_DIR = Path(__file__).resolve().parents[1] / "data" / "references"
+SOURCE_LABELS = {"fargo3d_library": "fargo3dlib"}
+"""Case-label source of a file (default: its name up to the first '_'); the issue-21 library
+(``fargo3d_library.h5``) gets its own so that its labels differ from ``fargo3d_isothermal.h5``'s."""
 TAUS = (0.3, 3.0)
 BANK_MASSES = (0.1, 0.3, 1.0, 3.0)
 DISTANCE = 140.0  # pc
@@ -50,6 +53,7 @@ class Case:
     source: str
     h_p: float
     mu: float
+    beta: float = 0.0
 
     @property
     def label(self) -> str:
@@ -63,11 +67,12 @@ def reference_cases() -> list[Case]:
     cases = []
     for path in sorted(REF_DIR.glob("*.h5"), reverse=True):  # wakeflow_, then fargo3d_
         with h5py.File(path, "r") as f:
-            source = path.stem.split("_")[0]
+            source = SOURCE_LABELS.get(path.stem, path.stem.split("_")[0])
             for g in sorted(f):
                 if isinstance(f[g], h5py.Group):
                     a = f[g].attrs
-                    cases.append(Case(path.name, g, source, float(a["h_p"]), float(a["mu_Mth"])))
+                    cases.append(Case(path.name, g, source, float(a["h_p"]), float(a["mu_Mth"]),
+                                      float(a.get("beta", 0.0))))
     return cases
 
 
@@ -81,16 +86,16 @@ def reference_template(case: Case, tau0: float):
     with h5py.File(REF_DIR / case.file, "r") as f:
         x, phi = f["x"][()], f["phi"][()]
         delta = f[f"{case.group}/delta_tau{tau0:g}"][()].astype(float)
-    return SpiralTemplate(x=x, phi=phi, delta=delta, mass=case.mu, tau0=tau0, beta=0.0, h_p=case.h_p,
+    return SpiralTemplate(x=x, phi=phi, delta=delta, mass=case.mu, tau0=tau0, beta=case.beta, h_p=case.h_p,
                           name=f"ref_{case.source}_{case.group}_tau{tau0:g}",
                           provenance={"reference": f"tests/data/references/{case.file}:{case.group}"})
 
 
-def generator_template(mass: float, tau0: float, h_p: float, **options):
-    """The built-in generator's template (β = 0, hand R) at these parameters."""
+def generator_template(mass: float, tau0: float, h_p: float, beta: float = 0.0, **options):
+    """The built-in generator's template (hand R) at these parameters (β = 0: isothermal)."""
     from spiralbayes.templates import make_template
 
-    return make_template(mass, tau0, 0.0, "R", h_p=h_p, **options)
+    return make_template(mass, tau0, beta, "R", h_p=h_p, **options)
 
 
 # ------------------------------------------------------------------------------- map level
@@ -218,7 +223,7 @@ def evaluate_case(case: Case, tau0: float, inc: float, phi_p_deg: float = 0.0, s
                   masses=BANK_MASSES, noise: bool = False, frank: bool = False, **options) -> dict:
     """Map-level and scan-level fidelity of the generator for one reference case."""
     ref = reference_template(case, tau0)
-    gens = [generator_template(m, tau0, case.h_p, **options) for m in masses]
+    gens = [generator_template(m, tau0, case.h_p, case.beta, **options) for m in masses]
     k = int(np.argmin(np.abs(np.asarray(masses) - case.mu)))
     out = {"case": case.label, "mu": case.mu, "h_p": case.h_p, "tau0": tau0, "inc": inc, "phi_p_deg": phi_p_deg,
            **map_metrics(ref, gens[k]), **beam_metrics(ref, gens[k])}
@@ -244,12 +249,12 @@ def fidelity_table(cases=None, taus=TAUS, setups=SETUPS, **options) -> list[dict
 
 def format_table(rows, scan: bool = True) -> str:
     """The fidelity table as text (one line per case × τ0 × set-up); ``scan=False``: map level only."""
-    head = f"{'case':22s} {'tau0':>4s} {'ncc':>5s} {'rms':>5s} {'b_ncc':>5s} {'b_rms':>5s} {'b_rec':>6s}"
+    head = f"{'case':32s} {'tau0':>4s} {'ncc':>5s} {'rms':>5s} {'b_ncc':>5s} {'b_rms':>5s} {'b_rec':>6s}"
     if scan:
         head += f" {'inc':>3s} {'recov':>6s} {'dr':>4s} {'dphi':>5s} {'mass':>5s} {'true':>5s} {'ref_dchi2':>9s} pass"
     lines = [head, "-" * len(head)]
     for r in rows:
-        line = (f"{r['case']:22s} {r['tau0']:4g} {r['ncc']:5.2f} {r['rms_ratio']:5.2f} {r['beam_ncc']:5.2f} "
+        line = (f"{r['case']:32s} {r['tau0']:4g} {r['ncc']:5.2f} {r['rms_ratio']:5.2f} {r['beam_ncc']:5.2f} "
                 f"{r['beam_rms_ratio']:5.2f} {r['beam_recovery']:6.2f}")
         if scan:
             line += (f" {r['inc']:3.0f} {r['recovery']:6.2f} {r['dr_steps']:4.1f} {r['dphi_deg']:5.1f} "
@@ -267,7 +272,7 @@ def map_table(cases=None, taus=TAUS, **options) -> list[dict]:
     for case in cases or reference_cases():
         for tau0 in taus:
             ref = reference_template(case, tau0)
-            gen = generator_template(case.mu, tau0, case.h_p, **options)
+            gen = generator_template(case.mu, tau0, case.h_p, case.beta, **options)
             rows.append({"case": case.label, "mu": case.mu, "h_p": case.h_p, "tau0": tau0,
                          **map_metrics(ref, gen), **beam_metrics(ref, gen)})
     return rows

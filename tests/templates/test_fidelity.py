@@ -19,7 +19,8 @@ pytest.importorskip("h5py")
 
 from tests.templates import fidelity as F  # noqa: E402
 
-CASES = F.reference_cases()
+CASES = [c for c in F.reference_cases() if c.source != "fargo3dlib"]  # the issue-9 calibration set
+LIBRARY = [c for c in F.reference_cases() if c.source == "fargo3dlib"]  # issue 21: reported, see below
 IDS = [c.label for c in CASES]
 
 
@@ -62,6 +63,26 @@ def test_mean_beam_recovery_per_source(map_rows):
     assert len(wf) == 18 and len(hydro) == 4
     assert np.mean(wf) >= 0.78
     assert np.mean(hydro) >= 0.55
+
+
+LIBRARY_MAIN = [c for c in LIBRARY if c.group.count("_") == 1 or c.group.endswith("_beta10")]  # no checks
+LIBRARY_PARAMS = [pytest.param(c, id=c.label, marks=[pytest.mark.xfail(
+    strict=True, reason="3 M_th: generator 1.4-1.5x too bright, beam NCC 0.51-0.57 (issue 21)")] if c.mu > 2 else [])
+    for c in LIBRARY_MAIN]
+
+
+@pytest.mark.parametrize("case", LIBRARY_PARAMS)
+def test_generator_holds_on_the_issue21_hydro_library(case):
+    """Issue 21's FARGO3D runs (other masses, H/r and β than the calibration's; 20 orbits, r 0.4–2.5):
+    the calibrated generator meets the same map-level bounds as on the calibration set and beats
+    version 1 (measured at 0.3–1 M_th, H/r 0.07–0.10, β 0 and 10: beam NCC 0.80–0.90, recovery
+    0.54–0.79); at 3 M_th it does not (strict xfail)."""
+    for tau0 in F.TAUS:
+        ref = F.reference_template(case, tau0)
+        row = F.beam_metrics(ref, F.generator_template(case.mu, tau0, case.h_p, case.beta))
+        old = F.beam_metrics(ref, F.generator_template(case.mu, tau0, case.h_p, case.beta, **F.VERSION1))
+        assert row["beam_ncc"] >= 0.60 and 0.5 <= row["beam_rms_ratio"] <= 2.0, (case.label, tau0, row)
+        assert row["beam_recovery"] >= 0.35 and row["beam_recovery"] > old["beam_recovery"], (case.label, tau0, row)
 
 
 def test_map_metrics_against_brute_force():

@@ -1,0 +1,182 @@
+"""The FARGO3D hydrodynamic reference library of issue 21: its cases and their parameter files.
+
+One table (:data:`CASES`, in run order) fixes every run; :func:`par_text` and :func:`planet_text`
+write the FARGO3D ``.par`` and planet files from it, so the library is reproducible from this module
+and the setups in ``tools/fargo3d/setups/``. Used by ``tools/make_fargo3d_library.py``.
+
+Common set-up (issue 21's planning figures): 2-D cylindrical, r ∈ [0.4, 2.5] r_p log-spaced, square
+cells at ``cells_per_h`` cells per H(r_p) (7.1 by default: 640 × 187 at H/r 0.07), H/r ∝ r^0.25,
+Σ ∝ r^-1, ν = 1e-5, Stockholm damping within period ratio 1.15 of both edges, planet on a fixed
+circular orbit at r = 1 (feels neither disc nor others), indirect term, frame corotating with the
+planet, mass ramped over 5 orbits, 20 orbits, a field output every 5 orbits. Code units
+G = M_* = r_p = 1 (one orbit = 2π).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+TWO_PI = 2.0 * math.pi
+Y_MIN, Y_MAX = 0.4, 2.5
+SIGMA0 = 6.3661977237e-4
+NU = 1.0e-5
+FLARING = 0.25
+SIGMA_SLOPE = 1.0
+GAMMA = 1.4
+STEPS_PER_ORBIT = 20          # DT = 1/20 orbit
+ORBITS_PER_OUTPUT = 5
+
+
+@dataclass(frozen=True)
+class Case:
+    """One library run.
+
+    Attributes
+    ----------
+    name : str
+        Run and output-directory name.
+    mu : float
+        Planet mass in thermal masses, M_p/M_th with M_th = h_p³ M_*.
+    h_p : float
+        H/r at the planet.
+    beta : float
+        Cooling time in units of 1/Ω (0: locally isothermal, the ``fargo`` setup).
+    stokes : float
+        Stokes number of the one dust fluid (0: gas only).
+    softening : float
+        Potential softening in units of H(r_p) (FARGO3D ThicknessSmoothing).
+    cells_per_h : float
+        Cells per H(r_p) in both directions.
+    orbits : float
+        Run length in planet orbits.
+    taper : float
+        Mass-ramp length in orbits.
+    role : str
+        What the case is for.
+    """
+
+    name: str
+    mu: float
+    h_p: float
+    beta: float = 0.0
+    stokes: float = 0.0
+    softening: float = 0.6
+    cells_per_h: float = 7.13
+    orbits: float = 20.0
+    taper: float = 5.0
+    role: str = "library"
+
+    @property
+    def setup(self) -> str:
+        """FARGO3D setup: ``fargo`` (isothermal), ``spiral_beta`` or ``spiral_dust`` (ours)."""
+        if self.stokes > 0:
+            return "spiral_dust"
+        return "spiral_beta" if self.beta > 0 else "fargo"
+
+    @property
+    def group(self) -> str:
+        """HDF5 group name of the reduced case."""
+        tag = f"h{self.h_p:.2f}_mu{self.mu:g}"
+        if self.beta > 0:
+            tag += f"_beta{self.beta:g}"
+        if self.stokes > 0:
+            tag += f"_st{self.stokes:g}"
+        if self.role != "library":
+            tag += f"_{self.role}"
+        return tag
+
+    @property
+    def grid(self) -> tuple[int, int]:
+        """(N_φ, N_r): N_φ a multiple of 16 giving ``cells_per_h``; square log-r cells."""
+        nx = int(round(TWO_PI * self.cells_per_h / self.h_p / 16.0)) * 16
+        ny = int(round(math.log(Y_MAX / Y_MIN) / (TWO_PI / nx)))
+        return nx, ny
+
+    @property
+    def q_planet(self) -> float:
+        """M_p/M_*."""
+        return self.mu * self.h_p**3
+
+
+def _case(name, mu, h_p, **kw) -> Case:
+    return Case(name=name, mu=mu, h_p=h_p, **kw)
+
+
+CASES: list[Case] = [  # run order: the most distinct cases per CPU hour first (see tools/README.md)
+    _case("lib_mu1_h007", 1.0, 0.07),
+    _case("lib_mu0.3_h007", 0.3, 0.07),
+    _case("relax_test_beta10", 0.0, 0.07, beta=10.0, orbits=2.0, role="relaxtest"),
+    _case("lib_mu1_h010", 1.0, 0.10),
+    _case("lib_mu0.3_h010", 0.3, 0.10),
+    _case("lib_mu1_h007_beta10", 1.0, 0.07, beta=10.0),
+    _case("lib_mu3_h007", 3.0, 0.07),
+    _case("lib_mu0.3_h007_beta10", 0.3, 0.07, beta=10.0),
+    _case("lib_mu1_h007_st0.03", 1.0, 0.07, stokes=0.03),
+    _case("lib_mu0.1_h007", 0.1, 0.07),
+    _case("lib_mu1_h007_soft0.35", 1.0, 0.07, softening=0.35, role="soft0.35"),
+    _case("lib_mu1_h005", 1.0, 0.05),
+    _case("lib_mu0.3_h005", 0.3, 0.05),
+    _case("lib_mu1_h007_res14", 1.0, 0.07, cells_per_h=14.26, role="res14"),
+]
+BY_NAME = {c.name: c for c in CASES}
+
+
+def n_outputs(case: Case) -> int:
+    """Number of the last field output of a complete run."""
+    ninterm = 2 if case.role == "relaxtest" else ORBITS_PER_OUTPUT * STEPS_PER_ORBIT
+    return int(round(case.orbits * STEPS_PER_ORBIT)) // ninterm
+
+
+def planet_text(case: Case) -> str:
+    """FARGO3D planet file: one planet at r = 1 on a fixed circular orbit."""
+    return ("# spiralbayes library (issue 21): M_p = {mu:g} M_th, M_th = h_p^3 M_*, h_p = {h:g}\n"
+            "# Name  Distance  Mass  Accretion  FeelsDisk  FeelsOthers\n"
+            "Planet  1.0  {q:.6e}  0.0  NO  NO\n").format(mu=case.mu, h=case.h_p, q=case.q_planet)
+
+
+def par_text(case: Case, output_dir: str, planet_file: str) -> str:
+    """FARGO3D ``.par`` file of ``case``, writing its outputs to ``output_dir``."""
+    nx, ny = case.grid
+    steps = int(round(case.orbits * STEPS_PER_ORBIT))
+    ninterm = steps // n_outputs(case)   # relaxation test: every 1/10 orbit, planet of zero mass
+    # (a zero-mass planet rather than PlanetConfig NONE, which crashes this FARGO3D version)
+    lines = [
+        f"Setup\t\t\t{case.setup}",
+        f"# spiralbayes library case {case.name} (tools/fargo3d_library_cases.py, issue 21)",
+        f"AspectRatio\t\t{case.h_p:g}",
+        f"FlaringIndex\t\t{FLARING:g}",
+        f"Sigma0\t\t\t{SIGMA0:.10e}",
+        f"SigmaSlope\t\t{SIGMA_SLOPE:g}",
+        f"Nu\t\t\t{NU:.3e}",
+        "Noise\t\t\t0.0",
+        "DampingZone\t\t1.15",
+        "TauDamp\t\t\t0.3",
+        f"PlanetConfig\t\t{planet_file}",
+        f"MassTaper\t\t{case.taper * TWO_PI:.10f}",
+        f"ThicknessSmoothing\t{case.softening:g}",
+        "RocheSmoothing\t\t0.0",
+        "Eccentricity\t\t0.0",
+        "ExcludeHill\t\tno",
+        "IndirectTerm\t\tYes",
+        f"Nx\t\t\t{nx}",
+        f"Ny\t\t\t{ny}",
+        "Spacing\t\t\tLog",
+        "Xmin\t\t\t-3.14159265358979323844",
+        "Xmax\t\t\t3.14159265358979323844",
+        f"Ymin\t\t\t{Y_MIN:g}",
+        f"Ymax\t\t\t{Y_MAX:g}",
+        "Frame\t\t\tC",
+        "OmegaFrame\t\t1.0",
+        f"DT\t\t\t{TWO_PI / STEPS_PER_ORBIT:.12f}",
+        f"Ninterm\t\t\t{ninterm}",
+        f"Ntot\t\t\t{steps}",
+        f"OutputDir\t\t{output_dir}",
+        "PlotLog\t\t\tyes",
+    ]
+    if case.setup == "spiral_beta":
+        lines += [f"Gamma\t\t\t{GAMMA:g}", f"BetaCool\t\t{case.beta:g}",
+                  f"EPert\t\t\t{0.1 if case.role == 'relaxtest' else 0.0:g}"]
+    if case.setup == "spiral_dust":
+        lines += [f"Invstokes1\t\t{1.0 / case.stokes:.6g}", "Epsilon\t\t\t0.01"]
+    return "\n".join(lines) + "\n"
