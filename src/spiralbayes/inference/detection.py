@@ -58,7 +58,7 @@ def mirror_index(result, template: int) -> int | None:
     if hand not in ("R", "L"):
         return None
     other = {"R": "L", "L": "R"}[hand]
-    keys = [k for k in ("mass", "tau0", "beta", "h_p", "flaring", "wavelength") if k in meta]
+    keys = [k for k in ("mass", "tau0", "beta", "h_p", "flaring", "wavelength", "variant") if k in meta]
     for j, m in enumerate(result.templates):
         if m.get("hand") == other and all(_same(m.get(k), meta[k]) for k in keys):
             return j
