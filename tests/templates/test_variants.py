@@ -142,3 +142,28 @@ def test_leave_fargo3d_out():
     result = _refit_and_plant([r for r in rows if r[0].source == "wakeflow"], [r for r in rows if r[0].source == "fargo3d"])
     print(result)
     assert all(a >= 1.0 for _, _, a in result), result
+
+
+def test_compute_limits_is_robust_over_variants_for_a_planted_hydro_spiral():
+    """FARGO3D 1 M_th (τ0 0.3) planted noise-free at 50 au: the compromise family alone rules out
+    1 M_th at the planet's radius; over the three variants it is not ruled out, and the summary names
+    the morphology set and prints the price of robustness."""
+    from spiralbayes.inference.limits import compute_limits
+
+    case = CASES["fargo3d:h0.07_mu1"]
+    ref = F.reference_template(case, 0.3)
+    temps = []
+    for v in DEFAULT_VARIANTS:
+        for m in (0.3, 1.0, 3.0):
+            right = variant_template(m, 0.3, 0.0, "R", v, h_p=0.07)
+            temps += [right, right.mirror()]
+    result, _, _ = F.observe_and_scan(ref, temps, 0.3, VF.INC, VF.PHI_P_DEG, n_rp=1)
+    keep = [i for i, t in enumerate(result.templates) if t.get("variant")]  # drop the reference itself
+    result.templates = [result.templates[i] for i in keep]
+    result.cross, result.power = result.cross[keep], result.power[keep]
+    limits = compute_limits(result, resolution=0.0)
+    single = {"tau0": 0.3, "beta": 0.0, "h_p": 0.07, "variant": "compromise"}
+    assert limits.excluded(single, 1.0)[0]
+    assert not limits.excluded(mass=1.0)[0]
+    text = limits.summary()
+    assert "{compromise, hydro, wakeflow}" in text and "price of robustness" in text
