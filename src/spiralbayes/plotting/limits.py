@@ -78,8 +78,12 @@ def plot_mass_radius(limits, family=None, completeness=None, *, unit: str = "au"
     """The mass–radius plane: M_lim(r_p) with the excluded region shaded, and M_det(r_p).
 
     Left panel in thermal masses, right panel in Jupiter masses (``M_th ∝ r_p^{3/4}``; needs a
-    distance). ``completeness`` (same family) adds M_det at 50 % and 90 % completeness.
+    distance). ``completeness`` (same family) adds M_det at 50 % and 90 % completeness. Without
+    ``family`` on a scan of several families: the limit that holds for every family
+    (:mod:`spiralbayes.inference.robust`; M_Jup from each family's own ``h_p``).
     """
+    if family is None and len(limits.families) > 1:
+        return _plot_over_families(limits, unit)
     fam = limits.family(family)
     fi = limits.families.index(fam)
     scale, label = _scale(limits, unit)
@@ -93,7 +97,7 @@ def plot_mass_radius(limits, family=None, completeness=None, *, unit: str = "au"
     axes = np.atleast_1d(fig.subplots(1, len(panels)))
     for ax, (kind, ylabel) in zip(axes, panels):
         conv = (lambda m, rr=limits.r_p: np.asarray(m, float)) if kind == "th" else \
-            (lambda m, rr=limits.r_p: limits.to_mjup(m, rr))
+            (lambda m, rr=limits.r_p: limits.to_mjup(m, rr, family=fam))
         lim = conv(m_lim)
         top = conv(np.full(r.size, m_top))
         ax.fill_between(r, lim, top, where=np.isfinite(lim), color="tab:red", alpha=0.25, lw=0,
@@ -105,7 +109,7 @@ def plot_mass_radius(limits, family=None, completeness=None, *, unit: str = "au"
             rc = completeness.r_p * scale
             for level, style in ((0.5, "-"), (0.9, "--")):
                 m_det = completeness.m_det(level)
-                values = m_det if kind == "th" else limits.to_mjup(m_det, completeness.r_p)
+                values = m_det if kind == "th" else limits.to_mjup(m_det, completeness.r_p, family=fam)
                 ax.plot(rc, values, style, color="tab:blue", lw=1.8,
                         label=rf"$M_{{\rm det}}$ ({level:.0%} completeness)")
         for m in fam.masses:
@@ -116,6 +120,31 @@ def plot_mass_radius(limits, family=None, completeness=None, *, unit: str = "au"
         ax.set_ylabel(ylabel)
     axes[0].legend(fontsize=7, loc="upper right")
     fig.suptitle(f"Template family {fam.label}; grey: flagged radii", fontsize=9)
+    return fig
+
+
+def _plot_over_families(limits, unit: str):
+    """Robust M_lim over every family (thick) and each family's own (thin), M_th and M_Jup."""
+    from ..inference.robust import combined_m_lim, combined_m_lim_mjup
+
+    scale, label = _scale(limits, unit)
+    r = limits.r_p * scale
+    panels = [("th", r"$M_p$ [$M_{\rm th}$]")] + ([("jup", r"$M_p$ [$M_{\rm Jup}$]")] if limits.distance else [])
+    fig = Figure(figsize=(5.2 * len(panels), 4.0), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(panels)))
+    for ax, (kind, ylabel) in zip(axes, panels):
+        for fi, fam in enumerate(limits.families):
+            curve, _ = _limit_curve(limits, fi)
+            ax.plot(r, curve if kind == "th" else limits.to_mjup(curve, family=fam), color="0.6", lw=0.7)
+        robust = combined_m_lim(limits)[0] if kind == "th" else combined_m_lim_mjup(limits)
+        ax.plot(r, robust, color="tab:red", lw=2, label=r"$M_{\rm lim}$ holding for every family")
+        _grey_flags(ax, limits, scale)
+        ax.set_yscale("log")
+        ax.set_xlabel(f"r_p [{label}]")
+        ax.set_ylabel(ylabel)
+    axes[0].legend(fontsize=7, loc="upper right")
+    fig.suptitle(f"All {len(limits.families)} template families (grey: each family; grey bands: flagged radii)",
+                 fontsize=9)
     return fig
 
 

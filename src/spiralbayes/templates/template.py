@@ -339,4 +339,7 @@ def template_metadata(template) -> dict:
     keys = ("name", "mass", "tau0", "beta", "hand", "h_p", "flaring", "wavelength")
     meta = {k: getattr(template, k) for k in keys if getattr(template, k, None) is not None}
     meta.setdefault("name", f"template{id(template)}")
+    variant = (getattr(template, "provenance", None) or {}).get("variant")
+    if variant is not None:  # the morphology variant (templates.variants)
+        meta["variant"] = str(variant)
     return json_safe(meta)

@@ -58,7 +58,7 @@ def mirror_index(result, template: int) -> int | None:
     if hand not in ("R", "L"):
         return None
     other = {"R": "L", "L": "R"}[hand]
-    keys = [k for k in ("mass", "tau0", "beta", "h_p", "flaring", "wavelength") if k in meta]
+    keys = [k for k in ("mass", "tau0", "beta", "h_p", "flaring", "wavelength", "variant") if k in meta]
     for j, m in enumerate(result.templates):
         if m.get("hand") == other and all(_same(m.get(k), meta[k]) for k in keys):
             return j
@@ -214,6 +214,8 @@ class Verdict:
     alternative_threshold: float = ALTERNATIVE_THRESHOLD
     alternatives: dict | None = None
     candidate: dict | None = None
+    test3_spiral_model: str | None = None
+    planet_peak: dict | None = None
 
     @property
     def r_p_au(self) -> float | None:
@@ -251,6 +253,8 @@ class Verdict:
             return " Test 3 (competing asymmetry models, sb.fit_alternatives) was not run."
         label, margin, thr = self.best_alternative_label, self.delta_bic_vs_alternative, self.alternative_threshold
         own = f"Delta BIC = {self.alternative_delta_bic:.1f} against the axisymmetric model"
+        if self.test3_spiral_model == "spiral + compact peak at the planet":
+            own += "; the spiral hypothesis scored as spiral + compact peak at the planet (inference.planet_peak)"
         if self.test3_passed:
             return (f" Test 3: the spiral is preferred over the best competing asymmetry model ({label}, {own}) "
                     f"by Delta BIC = {margin:.1f} (> {thr:g}).")

@@ -59,6 +59,7 @@ __all__ = ["ExclusionLimits", "amplitude_upper_limit", "compute_limits", "data_r
 LIMITS_KIND = "spiralbayes.ExclusionLimits"
 FLAG_UNRESOLVED = "unresolved"
 FLAG_EXTENT = "beyond_bright_extent"
+FLAG_NEAR_PLANET = "near_planet"
 METHODS = ("all_phi", "marginal")
 
 log = logging.getLogger(__name__)
@@ -203,8 +204,14 @@ class ExclusionLimits:
     def excluded(self, family=None, mass: float | None = None) -> np.ndarray:
         """Whether planets of ``mass`` [M_th] (default: every bank mass) are excluded at each r_p.
 
-        Shape (n_rp,) for one mass, else (n_masses, n_rp).
+        Shape (n_rp,) for one mass, else (n_masses, n_rp). Without ``family`` on a scan of several
+        families: excluded only where every family that has the mass excludes it
+        (:func:`~spiralbayes.inference.robust.combined_excluded`; masses are then those of the union).
         """
+        if family is None and len(self.families) > 1:
+            from .robust import combined_excluded
+
+            return combined_excluded(self, mass)
         fam = self.family(family)
         masses = fam.masses if mass is None else [mass]
         rows = []
@@ -220,33 +227,66 @@ class ExclusionLimits:
         return fam.hands if self.hand == "both" else [self.hand]
 
     def m_lim_mjup(self, family=None) -> np.ndarray:
-        """``M_lim(r_p)`` [M_Jup] (needs a distance)."""
-        fi = self.family_index(family)
-        return self.to_mjup(self.m_lim[fi])
+        """``M_lim(r_p)`` [M_Jup] of a family, with that family's own ``h_p`` (needs a distance)."""
+        fam = self.family(family)
+        return self.to_mjup(self.m_lim[self.families.index(fam)], family=fam)
 
-    def to_mjup(self, mass_mth, r_p=None) -> np.ndarray:
-        """Convert masses [M_th] at the scan's radii (or ``r_p`` [arcsec]) to M_Jup."""
+    def h_ref(self, family=None) -> float:
+        """``H/r`` at ``r_ref`` used for M_th of ``family``: the ``h_ref`` given to
+        :func:`compute_limits`, else the family's own ``h_p``, else 0.07."""
+        if self.disc.get("h_ref") is not None and not self.disc.get("h_ref_from_family", False):
+            return float(self.disc["h_ref"])
+        if family is not None:
+            h_ps = {family.key.get("h_p") if isinstance(family, Family) else self.family(family).key.get("h_p")}
+        else:
+            h_ps = {f.key.get("h_p") for f in self.families}
+        h_ps.discard(None)
+        if len(h_ps) > 1:
+            raise InputError(f"the families have several h_p ({sorted(h_ps)}): give family= for Jupiter masses")
+        return float(h_ps.pop()) if h_ps else 0.07
+
+    def to_mjup(self, mass_mth, r_p=None, family=None) -> np.ndarray:
+        """Convert masses [M_th] at the scan's radii (or ``r_p`` [arcsec]) to M_Jup, with
+        ``M_th = h³ M_*`` and ``h`` from ``family``'s ``h_p`` (see :meth:`h_ref`)."""
         if self.distance is None:
             raise InputError("Jupiter masses need the distance: give distance= to the scan or to compute_limits")
+        h_ref = self.h_ref(family)
         r_p = self.r_p if r_p is None else np.asarray(r_p, dtype=float)
         mass = np.asarray(mass_mth, dtype=float)
         out = np.full(np.broadcast(mass, r_p).shape, np.nan)
         ok = np.isfinite(mass) & np.broadcast_to(np.isfinite(r_p), out.shape)
         if ok.any():
             full_m, full_r = np.broadcast_to(mass, out.shape), np.broadcast_to(r_p, out.shape)
-            out[ok] = mth_to_mjup(full_m[ok], full_r[ok], self.disc["mstar"], h_ref=self.disc["h_ref"],
+            out[ok] = mth_to_mjup(full_m[ok], full_r[ok], self.disc["mstar"], h_ref=h_ref,
                                   r_ref=self.disc["r_ref"], flaring=self.disc["flaring"], distance=self.distance)
         return out
 
     def excluded_ranges(self, family=None, mass: float = 3.0) -> list[tuple[float, float]]:
-        """Contiguous r_p ranges [arcsec] (grid points) where planets of ``mass`` [M_th] and above are excluded."""
-        fi = self.family_index(family)
-        ok = (self.m_lim_status[fi] == "limit") | (self.m_lim_status[fi] == "below_bank")
-        ok &= np.nan_to_num(self.m_lim[fi], nan=np.inf) <= mass * (1 + 1e-9)
+        """Contiguous r_p ranges [arcsec] (grid points) where planets of ``mass`` [M_th] and above are
+        excluded (without ``family`` on several families: by every family, :mod:`.robust`)."""
+        m_lim, status = self.robust_m_lim(family)
+        ok = (status == "limit") | (status == "below_bank")
+        ok &= np.nan_to_num(m_lim, nan=np.inf) <= mass * (1 + 1e-9)
         return runs(self.r_p, ok)
 
+    def robust_m_lim(self, family=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(M_lim, status)`` of ``family``; without one on several families, the limit that holds
+        for every family (the largest, :func:`~spiralbayes.inference.robust.combined_m_lim`)."""
+        if family is None and len(self.families) > 1:
+            from .robust import combined_m_lim
+
+            return combined_m_lim(self)
+        fi = self.family_index(family)
+        return self.m_lim[fi], self.m_lim_status[fi]
+
     def summary(self, family=None) -> str:
-        """A sentence per mass threshold (the paper's Table 3 wording)."""
+        """A sentence per mass threshold (the paper's Table 3 wording); without ``family`` on a scan
+        of several families, the limits that hold for every family, the set named
+        (:func:`~spiralbayes.inference.robust.describe_over_families`)."""
+        if family is None and len(self.families) > 1:
+            from .robust import describe_over_families
+
+            return describe_over_families(self)
         return describe_family_limits(self, family)
 
     # -- persistence -----------------------------------------------------------------------------
@@ -277,6 +317,18 @@ class ExclusionLimits:
                    [Family.from_dict(d) for d in meta["families"]], arrays["m_lim"], status, meta["distance"],
                    meta["disc"], meta["resolution"], np.inf if bright is None else bright,
                    meta["resolution_factor"], meta["provenance"])
+
+
+def _planet_radii(planets) -> list[float]:
+    """Radii [arcsec] of the detected or candidate planets in ``planets`` (a Verdict or radii)."""
+    if planets is None:
+        return []
+    if hasattr(planets, "test1_passed"):  # a detection Verdict
+        out = [float(planets.r_p)] if planets.test1_passed else []
+        if getattr(planets, "candidate", None):
+            out.append(float(planets.candidate["r_p"]))
+        return out
+    return [float(r) for r in np.atleast_1d(np.asarray(planets, dtype=float))]
 
 
 def _flags(r_p, resolution: float, resolution_factor: float, bright_radius: float) -> np.ndarray:
@@ -321,7 +373,8 @@ def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", ha
                    resolution: float | None = None, bright_radius: float | None = None, vis=None,
                    axisymmetric=None, resolution_factor: float = 1.0, extent_fraction: float = 0.95,
                    distance: float | None = None, mstar: float = 0.8, h_ref: float | None = None,
-                   r_ref: float = 50.0, flaring: float = 0.25) -> ExclusionLimits:
+                   r_ref: float = 50.0, flaring: float = 0.25, planets=None,
+                   planet_beam: float | None = None) -> ExclusionLimits:
     """Exclusion limits and ``M_lim(r_p)`` of every template family of a scan.
 
     Parameters
@@ -348,7 +401,14 @@ def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", ha
         [pc]; default the scan's.
     mstar, h_ref, r_ref, flaring : float
         Stellar mass [M_sun] and ``H/r = h_ref (r / r_ref [au])^flaring`` for M_Jup
-        (``h_ref`` default: the family's ``h_p``, else 0.07).
+        (``h_ref`` default: each family's own ``h_p``, else 0.07).
+    planets : Verdict or sequence of float, optional
+        Detected or candidate planets not in the scan's model: a :func:`detect` verdict (its peak
+        when test 1 passes, and its candidate) or radii [arcsec]. Radii within ``planet_beam`` of
+        one are flagged ``"near_planet"``, not excluded (:mod:`.robust`). Leave it out when the
+        planet is in the model (scan the residual of a fit that includes it).
+    planet_beam : float, optional
+        [arcsec]; default ``resolution`` (the beam FWHM).
 
     Raises
     ------
@@ -377,6 +437,12 @@ def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", ha
             f"every scanned r_p ({r_p.min():.3g}-{r_p.max():.3g} arcsec) lies outside the data: below "
             f"{resolution_factor:g} x the resolution ({resolution:.3g} arcsec) or beyond the disc's bright "
             f"extent ({bright_radius:.3g} arcsec); scan radii between these")
+    near = _planet_radii(planets)
+    if near:
+        from .robust import near_planet_mask
+
+        flags = np.where(near_planet_mask(r_p, near, resolution if planet_beam is None else planet_beam)
+                         & (flags == ""), FLAG_NEAR_PLANET, flags)
     upper = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, method)
     per_instance = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, "instance")
     fraction = np.mean(per_instance < 1.0, axis=-1)
@@ -395,11 +461,11 @@ def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", ha
         m_lim[fi], status[fi] = _limiting_mass(fam.masses, np.array(rows))
     status[:, flags != ""] = "flagged"
     m_lim[:, flags != ""] = np.nan
-    h_default = families[0].key.get("h_p") or 0.07
-    disc = {"mstar": float(mstar), "h_ref": float(h_ref if h_ref is not None else h_default), "r_ref": float(r_ref),
-            "flaring": float(flaring)}
+    disc = {"mstar": float(mstar), "h_ref": None if h_ref is None else float(h_ref), "r_ref": float(r_ref),
+            "flaring": float(flaring), "h_ref_from_family": h_ref is None}
     distance = scan_result.distance if distance is None else distance
-    prov = provenance_record(scan=scan_result.provenance.get("data_hash"), method=method, cl=cl, hand=hand)
+    prov = provenance_record(scan=scan_result.provenance.get("data_hash"), method=method, cl=cl, hand=hand,
+                             near_planets=near)
     return ExclusionLimits(list(scan_result.templates), r_p, np.asarray(scan_result.phi_p), float(cl), method, hand,
                            upper, fraction, flags, families, m_lim, status.astype(str), distance, disc,
                            float(resolution), float(bright_radius), float(resolution_factor), prov)

@@ -4,7 +4,9 @@ A limit on the planet mass needs templates that differ only in mass: the family 
 its initial optical depth ``tau0``, cooling time ``beta`` and aspect ratio ``h_p`` (when the
 metadata give it; banks without ``h_p`` form families by ``tau0`` and ``beta`` alone), with both
 hands. A family's masses are sorted; each hand's templates are listed in that order (missing
-ones as None).
+ones as None). Templates of a bank with morphology variants (:mod:`spiralbayes.templates.variants`)
+carry a ``variant`` name, which is part of the family key (``None`` without one), so each variant is
+its own family; :mod:`.robust` combines them.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from ...exceptions import InputError
 
 __all__ = ["Family", "select_family", "template_families"]
 
-FAMILY_KEYS = ("tau0", "beta", "h_p")
+FAMILY_KEYS = ("tau0", "beta", "h_p", "variant")
 
 
 def _value(meta: dict, key: str):
@@ -51,6 +53,8 @@ class Family:
         parts = [f"tau0={self.key['tau0']:g}", f"beta={self.key['beta']:g}"]
         if self.key.get("h_p") is not None:
             parts.append(f"h_p={self.key['h_p']:g}")
+        if self.key.get("variant") is not None:
+            parts.append(f"variant={self.key['variant']}")
         return ", ".join(parts)
 
     @property
@@ -84,17 +88,25 @@ def template_families(templates: list) -> list[Family]:
         mass, tau0, beta = _value(meta, "mass"), _value(meta, "tau0"), _value(meta, "beta")
         if mass is None or tau0 is None or beta is None or mass <= 0:
             continue
-        key = (tau0, beta, _value(meta, "h_p"))
+        variant = meta.get("variant")
+        key = (tau0, beta, _value(meta, "h_p"), None if variant is None else str(variant))
         groups.setdefault(key, []).append((mass, str(meta.get("hand", "R")), index))
     families = []
-    for (tau0, beta, h_p), rows in sorted(groups.items(), key=lambda kv: tuple(-1 if v is None else v for v in kv[0])):
+    for (tau0, beta, h_p, variant), rows in sorted(groups.items(), key=_sort_key):
         masses = sorted({m for m, _, _ in rows})
         members: dict = {}
         for mass, hand, index in rows:
             members.setdefault(hand, [None] * len(masses))[masses.index(mass)] = index
         key = {"tau0": tau0, "beta": beta, "h_p": h_p}
+        if variant is not None:
+            key["variant"] = variant
         families.append(Family(key, masses, members))
     return families
+
+
+def _sort_key(item) -> tuple:
+    tau0, beta, h_p, variant = item[0]
+    return tuple(-1 if v is None else v for v in (tau0, beta, h_p)) + ("" if variant is None else variant,)
 
 
 def select_family(families: list[Family], family=None) -> Family:
@@ -119,16 +131,21 @@ def select_family(families: list[Family], family=None) -> Family:
             if f.label == family:
                 return f
         raise InputError(f"no template family {family!r}; the scan has: {'; '.join(f.label for f in families)}")
-    wanted = {k: float(v) for k, v in dict(family).items() if v is not None}
-    unknown = set(wanted) - set(FAMILY_KEYS)
+    unknown = set(dict(family)) - set(FAMILY_KEYS)
     if unknown:
         raise InputError(f"a family is chosen by {FAMILY_KEYS}, got {sorted(unknown)}")
-    chosen = [f for f in families
-              if all(f.key.get(k) is not None and np.isclose(f.key[k], v, rtol=1e-6) for k, v in wanted.items())]
+    wanted = {k: (str(v) if k == "variant" else float(v)) for k, v in dict(family).items() if v is not None}
+
+    def matches(f, k, v):
+        if f.key.get(k) is None:
+            return False
+        return f.key[k] == v if k == "variant" else bool(np.isclose(f.key[k], v, rtol=1e-6))
+
+    chosen = [f for f in families if all(matches(f, k, v) for k, v in wanted.items())]
     if not chosen:
         raise InputError(f"the template family {wanted} is empty: no scanned template matches it; "
                          f"the scan has: {'; '.join(f.label for f in families)}")
     if len(chosen) > 1:
         raise InputError(f"{wanted} matches several families ({'; '.join(f.label for f in chosen)}): "
-                         "give tau0, beta and h_p")
+                         "give tau0, beta, h_p (and variant)")
     return chosen[0]

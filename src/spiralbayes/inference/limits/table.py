@@ -20,14 +20,14 @@ __all__ = ["describe_family_limits", "limits_table", "runs", "table_csv", "table
 THRESHOLDS = (3.0, 1.0)
 
 
-def _range_text(limits, lo: float, hi: float, mass: float | None) -> str:
+def _range_text(limits, lo: float, hi: float, mass: float | None, family=None) -> str:
     if limits.distance:
         a, b, unit = f"{lo * limits.distance:.0f}", f"{hi * limits.distance:.0f}", "au"
     else:
         a, b, unit = f"{lo:.3f}", f"{hi:.3f}", "arcsec"
     text = f"{a} {unit}" if a == b else f"{a}-{b} {unit}"
     if mass is not None and limits.distance:
-        m_lo, m_hi = (f"{m:.2g}" for m in limits.to_mjup(mass, np.array([lo, hi])))
+        m_lo, m_hi = (f"{m:.2g}" for m in limits.to_mjup(mass, np.array([lo, hi]), family=family))
         text += f" ({m_lo} M_Jup)" if m_lo == m_hi else f" ({m_lo}-{m_hi} M_Jup)"
     return text
 
@@ -48,7 +48,7 @@ def limits_table(limits, completeness=None, *, name: str = "disc", thresholds=TH
             ranges = limits.excluded_ranges(fam, mass)
             for lo, hi in ranges or [(np.nan, np.nan)]:
                 row = {**base, "mass_mth": mass, "r_min_arcsec": lo, "r_max_arcsec": hi}
-                row.update(_physical(limits, mass, lo, hi))
+                row.update(_physical(limits, mass, lo, hi, fam))
                 rows.append(row)
         if completeness is not None and completeness.family.label == fam.label:
             for level in (0.5, 0.9):
@@ -56,17 +56,17 @@ def limits_table(limits, completeness=None, *, name: str = "disc", thresholds=TH
                 for r, m in zip(completeness.r_p, m_det):
                     row = {**base, "mass_mth": f"M_det({level:.0%})", "r_min_arcsec": r, "r_max_arcsec": r,
                            "m_det_mth": m}
-                    row.update(_physical(limits, m, r, r))
+                    row.update(_physical(limits, m, r, r, fam))
                     rows.append(row)
     return rows
 
 
-def _physical(limits, mass, lo, hi) -> dict:
+def _physical(limits, mass, lo, hi, family=None) -> dict:
     out = {"r_min_au": np.nan, "r_max_au": np.nan, "m_min_mjup": np.nan, "m_max_mjup": np.nan}
     if limits.distance and np.isfinite(lo):
         out.update(r_min_au=lo * limits.distance, r_max_au=hi * limits.distance)
         if np.isfinite(mass):
-            m_lo, m_hi = limits.to_mjup(mass, np.array([lo, hi]))
+            m_lo, m_hi = limits.to_mjup(mass, np.array([lo, hi]), family=family)
             out.update(m_min_mjup=float(m_lo), m_max_mjup=float(m_hi))
     return out
 
@@ -87,9 +87,9 @@ def table_markdown(limits, completeness=None, *, name: str = "disc", thresholds=
         cells = [name, fam.label]
         for mass in thresholds:
             ranges = limits.excluded_ranges(fam, mass)
-            cells.append("; ".join(_range_text(limits, lo, hi, mass) for lo, hi in ranges) or "none")
+            cells.append("; ".join(_range_text(limits, lo, hi, mass, fam) for lo, hi in ranges) or "none")
         if with_det:
-            cells.append(_m_det_text(limits, completeness) if completeness.family.label == fam.label else "-")
+            cells.append(_m_det_text(limits, completeness, fam) if completeness.family.label == fam.label else "-")
         head.append("| " + " | ".join(cells) + " |")
     flagged = [(f, r) for f, r in zip(limits.flags, limits.r_p) if f]
     if flagged:
@@ -118,7 +118,7 @@ def runs(r_p, mask) -> list[tuple[float, float]]:
     return out
 
 
-def _m_det_text(limits, completeness) -> str:
+def _m_det_text(limits, completeness, family=None) -> str:
     parts = []
     for level in (0.5, 0.9):
         m = completeness.m_det(level)
@@ -128,7 +128,7 @@ def _m_det_text(limits, completeness) -> str:
             continue
         text = _span(np.nanmin(m), np.nanmax(m)) + " M_th"
         if limits.distance:
-            mj = limits.to_mjup(m[ok], completeness.r_p[ok])
+            mj = limits.to_mjup(m[ok], completeness.r_p[ok], family=family)
             text += f" ({_span(np.min(mj), np.max(mj))} M_Jup)"
         parts.append(text)
     return " / ".join(parts)

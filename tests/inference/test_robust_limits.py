@@ -1,0 +1,144 @@
+"""Issue 22: limits over several families (M_Jup per family's own h_p, no family= needed),
+radii next to a detected planet, and exclusion robust to the template morphology."""
+
+import numpy as np
+import pytest
+
+from spiralbayes.inference.limits import compute_limits, z_score
+from spiralbayes.inference.robust import combined_m_lim, near_planet_mask, price_of_robustness, variant_groups
+from spiralbayes.inference.scan import ScanResult
+from spiralbayes.units import mth_to_mjup
+from tests import limits_setup
+
+MASSES = (0.3, 1.0, 3.0)
+
+
+def multi_family_scan(h_ps=(0.05, 0.07, 0.10), variants=(None,), a_up=(2.0, 0.5, 0.1), r_p=(0.1, 0.2, 0.3),
+                      n_phi=4, distance=140.0):
+    """Noise-free planet-free scan: A_up = a_up[mass] for every family (A_hat = 0, power = (z/A_up)²);
+    ``a_up`` may be a dict ``variant -> a_up`` to give the variants different sensitivities."""
+    z = z_score(0.95)
+    meta, power = [], []
+    for h in h_ps:
+        for v in variants:
+            ups = a_up[v] if isinstance(a_up, dict) else a_up
+            for m, u in zip(MASSES, ups):
+                for hand in ("R", "L"):
+                    d = {"name": f"t_m{m}_h{h}_{v}_{hand}", "mass": m, "tau0": 0.3, "beta": 10.0, "hand": hand,
+                         "h_p": h}
+                    if v is not None:
+                        d["variant"] = v
+                    meta.append(d)
+                    power.append(np.full((len(r_p), n_phi), (z / u) ** 2))
+    power = np.array(power)
+    return ScanResult(meta, np.asarray(r_p, float), 2 * np.pi * np.arange(n_phi) / n_phi, np.zeros_like(power),
+                      power, 0.0, 10000, limits_setup.GEOMETRY, distance)
+
+
+def test_jupiter_masses_use_each_familys_own_aspect_ratio():
+    limits = compute_limits(multi_family_scan())
+    assert len(limits.families) == 3
+    m_th = limits.m_lim[0]  # same A_up in every family: same M_lim in M_th
+    for fam in limits.families:
+        h = fam.key["h_p"]
+        expected = mth_to_mjup(m_th, limits.r_p, 0.8, h_ref=h, r_ref=50.0, flaring=0.25, distance=140.0)
+        np.testing.assert_allclose(limits.m_lim_mjup(fam), expected, rtol=1e-9)
+    # M_th ∝ h³: the h_p = 0.10 family's planets are (0.10/0.05)³ = 8 times heavier than h_p = 0.05's
+    ratio = limits.m_lim_mjup({"h_p": 0.10}) / limits.m_lim_mjup({"h_p": 0.05})
+    np.testing.assert_allclose(ratio, 8.0, rtol=1e-9)
+    # an explicit h_ref still overrides the families' own
+    given = compute_limits(multi_family_scan(), h_ref=0.07)
+    np.testing.assert_allclose(given.m_lim_mjup({"h_p": 0.10}), given.m_lim_mjup({"h_p": 0.05}), rtol=1e-12)
+
+
+def test_table_rows_use_their_familys_aspect_ratio():
+    from spiralbayes.inference.limits_table import limits_table
+
+    rows = [r for r in limits_table(compute_limits(multi_family_scan())) if r["mass_mth"] == 1.0]
+    by_h = {r["family"].split("h_p=")[1]: r["m_min_mjup"] for r in rows}
+    assert by_h["0.1"] / by_h["0.05"] == pytest.approx(8.0, rel=1e-9)
+
+
+def test_summary_excluded_and_plot_work_without_family_on_the_default_bank_layout(tmp_path):
+    a_up = {"compromise": (2.0, 0.5, 0.1), "hydro": (2.0, 2.0, 0.5)}  # hydro excludes only 3 M_th
+    limits = compute_limits(multi_family_scan(variants=("compromise", "hydro"), a_up=a_up))
+    assert len(limits.families) == 6
+    text = limits.summary()
+    assert "Over all 6 template families" in text and "variant=hydro" in text
+    # robust: 1 M_th is excluded by the compromise variant but not by hydro, so not at all
+    assert not limits.excluded(mass=1.0).any() and limits.excluded(mass=3.0).all()
+    assert limits.excluded().shape == (3, 3)
+    m_lim, status = combined_m_lim(limits)
+    single = limits.m_lim[limits.family_index({"h_p": 0.07, "variant": "compromise"})]
+    hydro = limits.m_lim[limits.family_index({"h_p": 0.07, "variant": "hydro"})]
+    np.testing.assert_allclose(m_lim, np.maximum(single, hydro))
+    assert set(status) == {"limit"}
+    group = [g for g in variant_groups(limits.families) if g["key"]["h_p"] == 0.07][0]
+    np.testing.assert_allclose(price_of_robustness(limits, group), hydro / single)
+    assert "price of robustness" in text and f"{np.min(hydro / single):.2g}" in text
+    assert limits.excluded_ranges(mass=3.0) == [(0.1, 0.3)] and limits.excluded_ranges(mass=1.0) == []
+    from spiralbayes.plotting.limits import plot_mass_radius
+
+    plot_mass_radius(limits).savefig(tmp_path / "mr.png")
+    assert (tmp_path / "mr.png").stat().st_size > 0
+
+
+def test_single_family_summary_is_unchanged():
+    limits = compute_limits(multi_family_scan(h_ps=(0.07,)))
+    assert limits.summary().startswith("Planets of >= 3 M_th (template family tau0=0.3, beta=10, h_p=0.07)")
+
+
+def test_near_planet_mask_is_one_beam():
+    mask = near_planet_mask([0.1, 0.2, 0.3, 0.4, 0.5], [0.3], 0.1)
+    assert mask.tolist() == [False, True, True, True, False]
+    assert not near_planet_mask([0.1, 0.2], [], 0.1).any()
+
+
+@pytest.fixture(scope="module")
+def planted_planet_limits():
+    """A 1 M_th planet (the family's own template) at 50 au = 0.357 arcsec, noise small; scanned at
+    radii around it with the planet *not* in the model."""
+    from spiralbayes.inference.scan import scan
+
+    r_p = np.array([0.15, 0.25, 0.3, 0.357, 0.4, 0.45])
+    templates = list(limits_setup.family(tau0=0.3, beta=10.0))
+    planet = templates[2]  # 1 M_th, R
+    from spiralbayes.inference.scan_engine import ScanContext
+    from spiralbayes.model import perturbation_visibilities
+
+    vis = limits_setup.observation(40e-6, seed=3)
+    ctx = ScanContext.build(vis, limits_setup.disc_model(), limits_setup.GEOMETRY, [0.357], limits_setup.N_PHI)
+    dv = perturbation_visibilities(vis.u, vis.v, limits_setup.GEOMETRY, ctx.profile, planet, 0.357,
+                                   2 * np.pi * 3 / limits_setup.N_PHI, quad=ctx.quadrature(planet, 0.357))
+    vis = _add(vis, dv)
+    result = scan(vis, limits_setup.disc_model(), templates, limits_setup.GEOMETRY, r_p=r_p, n_phi_p=limits_setup.N_PHI,
+                  distance=limits_setup.DISTANCE, progress=False)
+    return vis, result
+
+
+def _add(vis, dv):
+    import dataclasses
+
+    return dataclasses.replace(vis, V=vis.V + dv)
+
+
+def test_radii_within_a_beam_of_a_detected_planet_are_not_excluded(planted_planet_limits):
+    from spiralbayes.inference.detection import detect
+    from spiralbayes.inference.limits import data_resolution
+
+    vis, result = planted_planet_limits
+    verdict = detect(result)
+    assert verdict.test1_passed and abs(verdict.r_p - 0.357) < 0.06
+    beam = 0.08  # [arcsec]: a narrower guard than this C-4 set-up's beam, so that far radii remain
+    assert data_resolution(vis) > beam
+    plain = compute_limits(result, resolution=0.0)
+    guarded = compute_limits(result, resolution=0.0, planets=verdict, planet_beam=beam)
+    near = np.abs(result.r_p - verdict.r_p) <= beam
+    assert near.sum() >= 3
+    # without the guard the planet's neighbourhood reads as "3 M_th ruled out" somewhere near it
+    assert plain.excluded(mass=3.0)[near].any()
+    assert not guarded.excluded().any(axis=0)[near].any()
+    assert set(guarded.flags[near]) == {"near_planet"} and np.all(np.isnan(guarded.m_lim[:, near]))
+    # far from the planet nothing changes
+    np.testing.assert_array_equal(guarded.excluded()[:, ~near], plain.excluded()[:, ~near])
+    assert "near_planet" in guarded.flags.tolist()
