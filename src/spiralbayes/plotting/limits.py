@@ -80,7 +80,7 @@ def plot_mass_radius(limits, family=None, completeness=None, *, unit: str = "au"
     Left panel in thermal masses, right panel in Jupiter masses (``M_th ∝ r_p^{3/4}``; needs a
     distance). ``completeness`` (same family) adds M_det at 50 % and 90 % completeness. Without
     ``family`` on a scan of several families: the limit that holds for every family
-    (:mod:`spiralbayes.inference.robust`; M_Jup from each family's own ``h_p``).
+    (:mod:`spiralbayes.inference.limits.robust`; M_Jup from each family's own ``h_p``).
     """
     if family is None and len(limits.families) > 1:
         return _plot_over_families(limits, unit)
@@ -125,7 +125,7 @@ def plot_mass_radius(limits, family=None, completeness=None, *, unit: str = "au"
 
 def _plot_over_families(limits, unit: str):
     """Robust M_lim over every family (thick) and each family's own (thin), M_th and M_Jup."""
-    from ..inference.robust import combined_m_lim, combined_m_lim_mjup
+    from ..inference.limits.robust import combined_m_lim, combined_m_lim_mjup
 
     scale, label = _scale(limits, unit)
     r = limits.r_p * scale

@@ -4,6 +4,7 @@
 * :mod:`.alternatives` — maximum-likelihood fits of the non-spiral asymmetries, scored by ΔBIC;
 * :mod:`.starts` — their starting points, read off the residual dirty image;
 * :mod:`.refit` — refit frank at the fitted geometry, scan again, decide again.
+* :mod:`.planet_peak` — the spiral hypothesis as spiral + compact source at the planet, scored in test 3.
 """
 
 from .verdict import (
@@ -25,7 +26,12 @@ from .alternatives import (
 )
 from .refit import GeometryFollowUp, frank_settings, rescan_at_fitted_geometry
 
+from .planet_peak import COMPACT_ALTERNATIVES, apply_planet_peak, spiral_with_planet_peak
+
 __all__ = [
+    "spiral_with_planet_peak",
+    "apply_planet_peak",
+    "COMPACT_ALTERNATIVES",
     "ALTERNATIVES_KIND",
     "AlternativeFit",
     "AlternativesResult",

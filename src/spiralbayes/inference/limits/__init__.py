@@ -6,6 +6,7 @@
 * :mod:`.injection` — injected planets' Δχ² without re-scanning;
 * :mod:`.recovery` — detection completeness by injection–recovery, M_det;
 * :mod:`.forecasting` — expected Δχ², detection probability and time on source for a set-up.
+* :mod:`.robust` — limits over several families and morphology variants (robust exclusion).
 """
 
 from .families import Family, select_family, template_families
@@ -28,7 +29,24 @@ from .recovery import (
 )
 from .forecasting import Forecast, compare_setups, detectable_mass, forecast, format_minutes, setup_for_time
 
+from .robust import (
+    SINGLE_VARIANT,
+    combined_m_lim,
+    combined_m_lim_mjup,
+    describe_over_families,
+    near_planet_mask,
+    price_of_robustness,
+    variant_groups,
+)
+
 __all__ = [
+    "variant_groups",
+    "price_of_robustness",
+    "near_planet_mask",
+    "describe_over_families",
+    "combined_m_lim_mjup",
+    "combined_m_lim",
+    "SINGLE_VARIANT",
     "CompletenessResult",
     "ExclusionLimits",
     "Family",

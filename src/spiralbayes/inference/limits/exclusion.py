@@ -206,7 +206,7 @@ class ExclusionLimits:
 
         Shape (n_rp,) for one mass, else (n_masses, n_rp). Without ``family`` on a scan of several
         families: excluded only where every family that has the mass excludes it
-        (:func:`~spiralbayes.inference.robust.combined_excluded`; masses are then those of the union).
+        (:func:`~spiralbayes.inference.limits.robust.combined_excluded`; masses are then those of the union).
         """
         if family is None and len(self.families) > 1:
             from .robust import combined_excluded
@@ -271,7 +271,7 @@ class ExclusionLimits:
 
     def robust_m_lim(self, family=None) -> tuple[np.ndarray, np.ndarray]:
         """``(M_lim, status)`` of ``family``; without one on several families, the limit that holds
-        for every family (the largest, :func:`~spiralbayes.inference.robust.combined_m_lim`)."""
+        for every family (the largest, :func:`~spiralbayes.inference.limits.robust.combined_m_lim`)."""
         if family is None and len(self.families) > 1:
             from .robust import combined_m_lim
 
@@ -282,7 +282,7 @@ class ExclusionLimits:
     def summary(self, family=None) -> str:
         """A sentence per mass threshold (the paper's Table 3 wording); without ``family`` on a scan
         of several families, the limits that hold for every family, the set named
-        (:func:`~spiralbayes.inference.robust.describe_over_families`)."""
+        (:func:`~spiralbayes.inference.limits.robust.describe_over_families`)."""
         if family is None and len(self.families) > 1:
             from .robust import describe_over_families
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..exceptions import InputError
+from ...exceptions import InputError
 
 __all__ = ["SINGLE_VARIANT", "combined_m_lim", "combined_m_lim_mjup", "describe_over_families",
            "near_planet_mask", "price_of_robustness", "variant_groups"]
@@ -127,7 +127,7 @@ def _range_text_over(limits, lo: float, hi: float, mass: float) -> str:
 def describe_over_families(limits) -> str:
     """Sentences for :meth:`ExclusionLimits.summary` without ``family=``: the robust limit over every
     family, the set named, and the price of robustness where variants exist."""
-    from .limits_table import THRESHOLDS, runs
+    from .table import THRESHOLDS, runs
 
     fams = list(limits.families)
     m_lim, status = combined_m_lim(limits, fams)

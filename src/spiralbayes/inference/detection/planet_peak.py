@@ -21,8 +21,8 @@ import dataclasses
 
 import numpy as np
 
-from ..units import ARCSEC
-from .statistics import bic_threshold, chi2
+from ...units import ARCSEC
+from ..scan.statistics import bic_threshold, chi2
 
 __all__ = ["COMPACT_ALTERNATIVES", "apply_planet_peak", "spiral_with_planet_peak"]
 
@@ -69,8 +69,8 @@ def spiral_with_planet_peak(result, vis, axisymmetric, templates, geometry, *, t
         that instance, recomputed from the visibilities), ``peak_flux`` [Jy], ``width`` [arcsec],
         ``template``, ``r_p`` [arcsec], ``phi_p`` [rad].
     """
-    from ..model import perturbation_visibilities
-    from .scan_engine import ScanContext
+    from ...model import perturbation_visibilities
+    from ..scan.engine import ScanContext
 
     best = result.best(template)
     k = best["template_index"]

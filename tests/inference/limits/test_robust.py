@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from spiralbayes.inference.limits import compute_limits, z_score
-from spiralbayes.inference.robust import combined_m_lim, near_planet_mask, price_of_robustness, variant_groups
+from spiralbayes.inference.limits.robust import combined_m_lim, near_planet_mask, price_of_robustness, variant_groups
 from spiralbayes.inference.scan import ScanResult
 from spiralbayes.units import mth_to_mjup
 from tests import limits_setup
