@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("h5py")
 
-from spiralbayes.inference.families import template_families  # noqa: E402
+from spiralbayes.inference.limits.families import template_families  # noqa: E402
 from spiralbayes.templates import make_template  # noqa: E402
 from spiralbayes.templates.template import template_metadata  # noqa: E402
 from spiralbayes.templates.variants import (  # noqa: E402

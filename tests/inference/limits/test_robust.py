@@ -8,7 +8,7 @@ from spiralbayes.inference.limits import compute_limits, z_score
 from spiralbayes.inference.limits.robust import combined_m_lim, near_planet_mask, price_of_robustness, variant_groups
 from spiralbayes.inference.scan import ScanResult
 from spiralbayes.units import mth_to_mjup
-from tests import limits_setup
+from tests._support import limits_setup
 
 MASSES = (0.3, 1.0, 3.0)
 
@@ -52,7 +52,7 @@ def test_jupiter_masses_use_each_familys_own_aspect_ratio():
 
 
 def test_table_rows_use_their_familys_aspect_ratio():
-    from spiralbayes.inference.limits_table import limits_table
+    from spiralbayes.inference.limits.table import limits_table
 
     rows = [r for r in limits_table(compute_limits(multi_family_scan())) if r["mass_mth"] == 1.0]
     by_h = {r["family"].split("h_p=")[1]: r["m_min_mjup"] for r in rows}
@@ -103,7 +103,7 @@ def planted_planet_limits():
     r_p = np.array([0.15, 0.25, 0.3, 0.357, 0.4, 0.45])
     templates = list(limits_setup.family(tau0=0.3, beta=10.0))
     planet = templates[2]  # 1 M_th, R
-    from spiralbayes.inference.scan_engine import ScanContext
+    from spiralbayes.inference.scan.engine import ScanContext
     from spiralbayes.model import perturbation_visibilities
 
     vis = limits_setup.observation(40e-6, seed=3)
