@@ -76,7 +76,13 @@ def test_generator_holds_on_the_issue21_hydro_library(case):
     """Issue 21's FARGO3D runs (other masses, H/r and β than the calibration's; 20 orbits, r 0.4–2.5):
     the calibrated generator meets the same map-level bounds as on the calibration set and beats
     version 1 (measured at 0.3–1 M_th, H/r 0.07–0.10, β 0 and 10: beam NCC 0.80–0.90, recovery
-    0.54–0.79); at 3 M_th it does not (strict xfail)."""
+    0.54–0.79); at 3 M_th it does not (strict xfail). A run reduced before its end (attribute
+    ``complete`` False, e.g. H/r 0.05 at 10 orbits, not yet steady) is not held to them."""
+    import h5py
+
+    with h5py.File(F.REF_DIR / case.file, "r") as f:
+        if not bool(f[case.group].attrs["complete"]):
+            pytest.skip(f"{case.label}: reduced at {f[case.group].attrs['orbits']} orbits, before the run's end")
     for tau0 in F.TAUS:
         ref = F.reference_template(case, tau0)
         row = F.beam_metrics(ref, F.generator_template(case.mu, tau0, case.h_p, case.beta))
