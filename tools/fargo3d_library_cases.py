@@ -118,6 +118,9 @@ CASES: list[Case] = [  # run order: the most distinct cases per CPU hour first (
     _case("lib_mu1_h005", 1.0, 0.05),
     _case("lib_mu0.3_h005", 0.3, 0.05),
     _case("lib_mu1_h007_res14", 1.0, 0.07, cells_per_h=14.26, role="res14"),
+    # longer evolution (gap growth): the 1 and 3 M_th runs continued to 200 orbits
+    _case("lib_mu1_h007_long", 1.0, 0.07, orbits=200.0, role="orbits200"),
+    _case("lib_mu3_h007_long", 3.0, 0.07, orbits=200.0, role="orbits200"),
 ]
 BY_NAME = {c.name: c for c in CASES}
 

@@ -19,6 +19,7 @@ test (decay rate of the temperature excess against Ω/β).
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import subprocess
 import sys
@@ -237,12 +238,47 @@ def dataset_docs(fluid: str, beta: bool) -> dict:
     return docs
 
 
+def existing_cases(path: Path, reduced_now: set) -> tuple[dict, str | None]:
+    """The cases of an existing library file that were not reduced now, as written, and its β test.
+
+    Raw FARGO3D outputs are large and kept outside git, so a later session (another machine) may hold
+    only the runs it made; the cases reduced earlier are carried over unchanged (their attributes,
+    including wall time and run state, describe the run that made them).
+    """
+    import h5py
+
+    if not path.exists():
+        return {}, None
+    kept = {}
+    with h5py.File(path, "r") as f:
+        relax = f.attrs.get("beta_cooling_test")
+        for name in f:
+            if not isinstance(f[name], h5py.Group) or name in reduced_now:
+                continue
+            g = f[name]
+            kept[name] = {"datasets": {k: g[k][()] for k in g},
+                          "attrs": {k: _plain(v) for k, v in g.attrs.items()},
+                          "dataset_attrs": {k: {a: _plain(v) for a, v in g[k].attrs.items()} for k in g}}
+            log.info("%s: kept from %s (no raw outputs reduced now)", name, path.name)
+    return kept, (None if relax is None else str(relax))
+
+
+def _plain(v):
+    """An HDF5 attribute value as written (JSON strings stay strings; NumPy scalars become Python)."""
+    if isinstance(v, bytes):
+        return v.decode()
+    return v.item() if isinstance(v, np.generic) else v
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs-dir", type=Path, default=Path("/work/fargo_runs"))
     ap.add_argument("--fargo-dir", type=Path, default=Path("/work/fargo3d"))
     ap.add_argument("--min-output", type=int, default=2, help="skip runs with fewer outputs (5 orbits each)")
     ap.add_argument("--out", type=Path, default=rc.REPO / "tests/data/references/fargo3d_library.h5")
+    ap.add_argument("--replace", action="store_true",
+                    help="write only the cases reduced now (default: keep the file's other cases, whose raw "
+                         "outputs may live on another machine)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     x, phi = rc.reference_grid()
@@ -259,6 +295,13 @@ def main(argv=None) -> None:
         log.info("%s: output %d (%.1f orbits, %s, %s s), arm rms %.4f, near-planet peak %.3f, steady %s",
                  rec[0], a["output"], a["orbits"], a["run_state"], a["wall_time_s"], a["arm_rms"],
                  a["near_planet_peak"], {k: v for k, v in a["steadiness"].items() if k.startswith("rms")})
+    kept, kept_relax = ({}, None) if args.replace else existing_cases(args.out, set(cases))
+    cases = {**kept, **cases}
+    cases = {g: cases[g] for g in [c.group for c in lib.CASES if c.group in cases] + sorted(set(cases) - {
+        c.group for c in lib.CASES})}
+    relax = relaxation_test(args.runs_dir)
+    if relax == "not run" and kept_relax is not None:
+        relax = json.loads(kept_relax)
     commit = subprocess.run(["git", "-C", str(args.fargo_dir), "rev-parse", "HEAD"], capture_output=True,
                             text=True).stdout.strip() or "unknown"
     root = {
@@ -275,7 +318,7 @@ def main(argv=None) -> None:
         "radiative_transfer": "spiralbayes.templates.radiative.template_from_perturbation, tau = tau0 "
                               "Sigma/Sigma_0(r_p) with the run's own gap, M_* = 0.8 Msun, r_p = 50 au, "
                               f"wavelength {rc.WAVELENGTH} m",
-        "beta_cooling_test": relaxation_test(args.runs_dir),
+        "beta_cooling_test": relax,
         "cases": list(cases),
     }
     path = rc.write_reference_file(args.out, root, x, phi, cases)
