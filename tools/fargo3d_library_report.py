@@ -20,6 +20,14 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 LIB = REPO / "tests/data/references/fargo3d_library.h5"
+CHECK_ROLES = ("soft0.35", "res14", "orbits200")  # group suffixes of runs that repeat a library case
+
+
+def gap_depth(f, group: str) -> float:
+    """<Σ>_φ/Σ_0 at the planet's radius (1: no gap), from the stored azimuthal mean."""
+    x, s = f["x"][()], f[group]["sigma_axisym"][()]
+    ok = np.isfinite(s)
+    return float(np.interp(1.0, x[ok], s[ok]) / np.interp(1.0, x[ok], x[ok] ** -1.0))
 
 
 def _template(f, group: str, tau0: float, key: str | None = None):
@@ -112,10 +120,11 @@ def main() -> None:
         print()
         for line in scaling(f):
             print("-", line)
-        base = "h0.07_mu1"
-        for g in groups:
-            if g != base and g.startswith(base + "_") and base in groups:
-                print(f"- {g} vs {base}: {json.dumps({k: round(v, 3) for k, v in compare(f, base, g).items()})}")
+        for g in groups:  # numerical checks and longer runs against the library case they repeat
+            base = next((b for b in groups if g.startswith(b + "_") and f[g].attrs["variant"] in CHECK_ROLES), None)
+            if base is not None:
+                print(f"- {g} vs {base}: {json.dumps({k: round(v, 3) for k, v in compare(f, base, g).items()})}"
+                      + (f"; gap {gap_depth(f, base):.3f} -> {gap_depth(f, g):.3f}" if "orbits" in g else ""))
         for g in groups:
             a = f[g].attrs
             if float(a["beta"]) > 0:
