@@ -140,7 +140,7 @@ def test_leave_one_source_out_fast():
 
 
 LOSO_KNOWN_SHORT = {"library_gas": "the library's 3 M_th run is the only 3 M_th reference: without it the hydro "
-                                   "variant is fitted at 0.3-1 M_th and the 3 M_th maps get robust A_up 0.26-0.47 "
+                                   "variant is fitted at 0.3-1 M_th and the 3 M_th maps get robust A_up 0.28-0.48 "
                                    "(A_hat 0.24-0.44; docs/limits.md section 4d)"}
 
 

@@ -29,6 +29,7 @@ from tests.templates import variant_fit as VF
 
 CL = 0.95
 R_P, PHI_P = 0.3, 2 * np.pi * 10 / L.N_PHI
+F_INC = 30.0  # the fiducial set-up's inclination [deg] (variant_fit.INC)
 
 
 def loso_variants(held_out: str) -> list[Variant]:
@@ -191,5 +192,3 @@ def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int
     return planted_exclusion_rate(vis, axisym, fam, planted, r_p, phi_p, case.mu, n_realisations=n, cl=CL,
                                   n_phi_p=90, geometry=geometry, seed=seed, robust=True, hand=hand)
 
-
-F_INC = 30.0
