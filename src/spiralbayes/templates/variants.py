@@ -176,8 +176,8 @@ def variant_template(mass: float, tau0: float, beta: float, hand: str = "R", var
         delta = delta + v.blob_amplitude(mass) * np.asarray(b.delta, dtype=float)
     prefix = "wake" if v.name == "compromise" else v.name
     prov = {**base.provenance, "variant": v.name, "variant_constants": {
-        "scale": v.scale, "scale_slope": v.scale_slope, "blob": v.blob, "blob_slope": v.blob_slope, "blob_width_Hp": v.blob_width,
-        "fitted_to": list(v.fitted_to), "note": v.note}}
+        "scale": v.scale, "scale_slope": v.scale_slope, "blob": v.blob, "blob_slope": v.blob_slope,
+        "blob_width_Hp": v.blob_width, "fitted_to": list(v.fitted_to), "note": v.note}}
     t = replace(base, delta=delta.astype(base.delta.dtype, copy=False), brightness=None,
                 name=template_name(mass, tau0, beta, "R", prefix=prefix, h_p=h_p), provenance=prov)
     return t if validate_hand(hand) == "R" else t.mirror()

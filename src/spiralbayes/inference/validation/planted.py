@@ -143,7 +143,8 @@ def planted_exclusion_rate(vis, axisymmetric, family_templates, planted, r_p: fl
             value, status = value[0], stat[0]
             for fi, fam in enumerate(limits.families):
                 ok = limits.m_lim_status[fi, 0] in ("limit", "below_bank")
-                by_family.setdefault(fam.label, np.full(n_realisations, np.nan))[j] = limits.m_lim[fi, 0] if ok else np.nan
+                row = by_family.setdefault(fam.label, np.full(n_realisations, np.nan))
+                row[j] = limits.m_lim[fi, 0] if ok else np.nan
         else:
             label = limits.families[0].label
             value, status = limits.m_lim[0, 0], limits.m_lim_status[0, 0]
