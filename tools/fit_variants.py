@@ -1,24 +1,28 @@
 """Fit the morphology variants of ``spiralbayes.templates.variants`` to the reference maps (issue 22).
 
-For each reference case × τ0 ∈ {0.3, 3}: the noise-free inner products at the truth of the
-reference S with the compromise template T and the near-planet peak B
-(``tests/templates/variant_fit.py``). A source's variant ``scale T + blob μ^slope B`` minimises
-``Σ_cases |S − scale T − blob μ^slope B|² / |S|²`` (linear least squares in scale and blob for each
-slope tried), then both are multiplied by the largest ``k ≤ margin`` for which every case of the
-source has ``A_hat ≥ 1/margin``... (printed: the binding case). Prints the before/after A_up table.
+For each reference case (``tests/templates/fidelity.py:acceptance_cases``: wakeflow, the FARGO3D
+runs of ``fargo3d_isothermal.h5`` and the library's finished ``role = library`` runs) × each τ0
+it was reduced for: the noise-free inner products at the truth of the reference S with the
+generator's template T of the same (M_p, H/r, τ0, β) and the near-planet peak B
+(``tests/templates/variant_fit.py``). ``hydro`` is fitted to every FARGO3D case, ``wakeflow`` to
+the wakeflow maps (:func:`tests.templates.variant_fit.fit_source`: least squares, powers of M_p on a
+grid, shrunk so that every map has ``A_hat >= 1/margin``; the binding map is printed). Prints the
+constants, the A_up table at the truth (noise-free) and the leave-one-source-out A_hat table.
 
-    PYTHONPATH=src:. python tools/fit_variants.py [--source fargo3d|wakeflow] [--exclude CASE ...]
+    PYTHONPATH=src:. python tools/fit_variants.py [--cache FILE.json] [--exclude CASE ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import logging
+import os
 
 import numpy as np
 
 from tests.templates import fidelity as F
-from tests.templates.variant_fit import case_gram, fit_source, upper_limit
+from tests.templates import variant_fit as VF
 
 log = logging.getLogger("fit_variants")
 
@@ -31,37 +35,34 @@ def main() -> None:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     logging.getLogger("spiralbayes").setLevel(logging.ERROR)
     rows = _rows(args.cache, args.exclude)
+    fits = VF.fit_variants(rows)
+    for name, f in fits.items():
+        log.info("%s: %s", name, {k: (round(v, 4) if isinstance(v, float) else v) for k, v in f.items()})
+    log.info("A_up at the truth (noise-free): compromise / %s / robust max", " / ".join(fits))
     for case, tau0, g in rows:
-        a_hat, a_up = upper_limit(g, 1.0, 0.0)
-        opt = np.linalg.solve([[g["TT"], g["TB"]], [g["TB"], g["BB"]]], [g["ST"], g["SB"]])
-        log.info("%-22s tau0=%-3g compromise A_hat=%.3f A_up=%.3f sigma=%.3f | per-case LS scale=%.3f blob=%.3f",
-                 case.label, tau0, a_hat, a_up, 1 / np.sqrt(g["TT"]), opt[0], opt[1])
-    fits = {}
-    for source in ("fargo3d", "wakeflow"):
-        sub = [r for r in rows if r[0].source == source]
-        if sub:
-            fits[source] = fit_source(sub)
-            log.info("%s: %s", source, fits[source])
-    log.info("A_up at the truth (noise-free): compromise / fargo3d-fit / wakeflow-fit / robust max")
-    for case, tau0, g in rows:
-        ups = [upper_limit(g, 1.0, 0.0)[1]] + [
-            upper_limit(g, f["scale_final"], f["blob_final"] * case.mu ** f["slope"])[1] for f in fits.values()]
-        log.info("%-22s tau0=%-3g %s  robust %.3f", case.label, tau0, " ".join(f"{u:6.3f}" for u in ups), max(ups))
+        ups = [VF.upper_limit(g, 1.0, 0.0)[1]] + [VF.upper_limit(g, *VF.fitted_amplitudes(f, case.mu))[1]
+                                                    for f in fits.values()]
+        log.info("%-34s tau0=%-4g %s  robust %.3f", case.label, tau0, " ".join(f"{u:6.3f}" for u in ups), max(ups))
+    log.info("leave one source out: best A_hat (noise-free) of the held-out maps over compromise + refitted variants")
+    for source in VF.SOURCES:
+        held = [r for r in rows if VF.calibration_source(r[0]) == source]
+        refit = VF.fit_variants([r for r in rows if VF.calibration_source(r[0]) != source])
+        worst = min((max([VF.upper_limit(g, 1.0, 0.0)[0]] + [VF.upper_limit(g, *VF.fitted_amplitudes(f, c.mu))[0]
+                                                             for f in refit.values()]), c.label, t)
+                    for c, t, g in held)
+        log.info("%-20s %d maps; worst held-out best A_hat %.3f (%s tau0 %g)", source, len(held), *worst)
 
 
 def _rows(cache, exclude):
-    import json
-    import os
-
     store = json.load(open(cache)) if cache and os.path.exists(cache) else {}
     rows = []
-    for c in F.reference_cases():
+    for c in F.acceptance_cases():
         if c.label in exclude:
             continue
-        for t in F.TAUS:
+        for t in c.taus:
             key = f"{c.label}|{t:g}"
             if key not in store:
-                store[key] = case_gram(c, t)
+                store[key] = VF.case_gram(c, t)
             rows.append((c, t, {k: float(v) for k, v in store[key].items()}))
     if cache:
         with open(cache + ".tmp", "w") as f:

@@ -54,10 +54,21 @@ class Case:
     h_p: float
     mu: float
     beta: float = 0.0
+    role: str = "library"
+    run_state: str = "finished"
+    taus: tuple = TAUS
 
     @property
     def label(self) -> str:
         return f"{self.source}:{self.group}"
+
+    @property
+    def is_reference(self) -> bool:
+        """A reference of the variant fit and acceptance (issue 22): a finished run of the library's
+        own role. Not: checks of one setting (``soft0.35``, ``res14``, ``orbits200``: the library
+        groups' ``variant`` attribute) and runs stored before their planned orbits
+        (``run_state = running``, not yet steady); the fidelity report still shows them."""
+        return self.role == "library" and not self.run_state.startswith("running")
 
 
 def reference_cases() -> list[Case]:
@@ -71,9 +82,23 @@ def reference_cases() -> list[Case]:
             for g in sorted(f):
                 if isinstance(f[g], h5py.Group):
                     a = f[g].attrs
+                    taus = tuple(sorted(float(k.removeprefix("delta_tau")) for k in f[g] if k.startswith("delta_tau")))
                     cases.append(Case(path.name, g, source, float(a["h_p"]), float(a["mu_Mth"]),
-                                      float(a.get("beta", 0.0))))
+                                      float(a.get("beta", 0.0)), _role(g),
+                                      str(a.get("run_state", "finished")), taus))
     return cases
+
+
+def _role(group: str) -> str:
+    """The library's role of a group from its name (tools/fargo3d_library_cases.py: ``h<h>_mu<m>``,
+    then ``_beta<b>`` / ``_st<St>`` for the physics, then ``_<role>`` for a check of one setting)."""
+    extra = [t for t in group.split("_")[2:] if not (t.startswith("beta") or t.startswith("st"))]
+    return "_".join(extra) or "library"
+
+
+def acceptance_cases() -> list[Case]:
+    """The reference cases of the variant fit and its acceptance (:attr:`Case.is_reference`)."""
+    return [c for c in reference_cases() if c.is_reference]
 
 
 @lru_cache(maxsize=64)

@@ -1,6 +1,11 @@
 """Morphology variants (issue 22): the building blocks, names and families, and the acceptance
 criteria against the reference maps (noise-free A_up at the truth >= 1 with the matching family,
-robust over variants; leave one source out)."""
+robust over variants; leave one source out, noise-free here — with noise in
+``tests/inference/validation/test_robust_calibration.py``).
+
+The reference cases are ``fidelity.acceptance_cases()``: every wakeflow map, the two runs of
+``fargo3d_isothermal.h5`` and the library's finished ``role = library`` runs, each at every τ0 it
+was reduced for (library: 0.1, 0.3, 1, 3), against the generator of its own (M_p, H/r, τ0, β)."""
 
 from __future__ import annotations
 
@@ -22,16 +27,19 @@ from tests.templates import fidelity as F  # noqa: E402
 from tests.templates import variant_fit as VF  # noqa: E402
 
 SMALL = dict(n_x=120, n_phi=360)
-CASES = {c.label: c for c in F.reference_cases()}
+CASES = {c.label: c for c in F.acceptance_cases()}
+GRID_CASES = [(label, t) for label, c in CASES.items() for t in c.taus]
 
 
-def test_a_variant_is_scale_times_the_generator_plus_the_near_planet_peak():
+@pytest.mark.parametrize("mass", [1.0, 3.0])
+def test_a_variant_is_scale_times_the_generator_plus_the_near_planet_peak(mass):
     v = VARIANTS["hydro"]
-    t = variant_template(1.0, 0.3, 0.0, "R", "hydro", h_p=0.07, **SMALL)
-    base = make_template(1.0, 0.3, 0.0, "R", h_p=0.07, **SMALL)
-    blob = blob_template(1.0, 0.3, 0.0, "R", h_p=0.07, width=v.blob_width, **SMALL)
-    np.testing.assert_allclose(t.delta, v.scale * base.delta + v.blob * blob.delta, rtol=1e-5, atol=1e-7)
-    np.testing.assert_array_equal(variant_template(1.0, 0.3, 0.0, "R", "compromise", h_p=0.07, **SMALL).delta,
+    t = variant_template(mass, 0.3, 0.0, "R", "hydro", h_p=0.07, **SMALL)
+    base = make_template(mass, 0.3, 0.0, "R", h_p=0.07, **SMALL)
+    blob = blob_template(mass, 0.3, 0.0, "R", h_p=0.07, width=v.blob_width, **SMALL)
+    scale, peak = v.scale * mass**v.scale_slope, v.blob * mass**v.blob_slope  # the docstring's law, by hand
+    np.testing.assert_allclose(t.delta, scale * base.delta + peak * blob.delta, rtol=1e-5, atol=1e-7)
+    np.testing.assert_array_equal(variant_template(mass, 0.3, 0.0, "R", "compromise", h_p=0.07, **SMALL).delta,
                                   base.delta)
     # the peak sits at the planet: its largest |delta| lies within one H_p of (x, phi) = (1, 0)
     i, j = np.unravel_index(np.argmax(np.abs(blob.delta)), blob.delta.shape)
@@ -81,27 +89,31 @@ def robust_upper_limits(label: str, tau0: float, variants=DEFAULT_VARIANTS) -> d
     """Noise-free A_up at the truth of each variant's true-mass template (matching family)."""
     case = CASES[label]
     ref = F.reference_template(case, tau0)
-    temps = [variant_template(case.mu, tau0, 0.0, "R", v, h_p=case.h_p) for v in variants]
+    temps = [variant_template(case.mu, tau0, case.beta, "R", v, h_p=case.h_p) for v in variants]
     cross, power = VF.truth_products(ref, temps, tau0)
     a_up = cross[1:] / power[1:] + VF.Z95 / np.sqrt(power[1:])
     return dict(zip(variants, a_up))
 
 
-BEFORE_FAILING = [("fargo3d:h0.07_mu1", 0.3), ("fargo3d:h0.07_mu1", 3.0), ("wakeflow:h0.07_mu1", 3.0)]
+BEFORE_FAILING = [("fargo3d:h0.07_mu1", 0.3), ("fargo3d:h0.07_mu1", 3.0), ("wakeflow:h0.07_mu1", 3.0),
+                  ("fargo3dlib:h0.07_mu3", 0.3), ("fargo3dlib:h0.07_mu1_beta10", 0.3),
+                  ("fargo3dlib:h0.07_mu1_st0.03", 0.3)]
+"""One case per source that the single (compromise) template excludes without noise."""
 
 
 @pytest.mark.parametrize("label,tau0", BEFORE_FAILING, ids=[f"{c}-tau{t:g}" for c, t in BEFORE_FAILING])
 def test_reference_spirals_wrongly_excluded_by_one_template_are_not_by_the_variants(label, tau0):
-    """Measured: compromise A_up 0.558 / 0.961 / 0.949; robust (max over variants) 1.35 / 2.03 / 1.75."""
+    """Measured: compromise A_up 0.56 / 0.96 / 0.95 / 0.21 / 0.64 / 0.63; robust (max over
+    variants, the hydro variant each time) 1.55 / 2.62 / 2.52 / 1.54 / 1.71 / 1.72."""
     ups = robust_upper_limits(label, tau0)
     assert ups["compromise"] < 1.0, ups  # the single-template limit excludes the planet that is there
     assert max(ups.values()) >= 1.0, ups
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("label", sorted(CASES))
-@pytest.mark.parametrize("tau0", F.TAUS)
+@pytest.mark.parametrize("label,tau0", GRID_CASES, ids=[f"{c}-tau{t:g}" for c, t in GRID_CASES])
 def test_no_reference_spiral_is_excluded_without_noise(label, tau0):
+    """Every reference case × τ0 (docs/templates.md lists the minimum per source)."""
     ups = robust_upper_limits(label, tau0)
     print(label, tau0, {k: round(float(v), 3) for k, v in ups.items()})
     assert max(ups.values()) >= 1.0, ups
@@ -109,39 +121,56 @@ def test_no_reference_spiral_is_excluded_without_noise(label, tau0):
 
 def _refit_and_plant(fit_rows, planted_rows):
     """Variants refitted to ``fit_rows`` (plus the compromise): robust A_up of each planted row."""
-    fit = VF.fit_source(fit_rows)
+    fits = VF.fit_variants(fit_rows)
     out = []
     for case, tau0, g in planted_rows:
-        ups = [VF.upper_limit(g, 1.0, 0.0)[1],
-               VF.upper_limit(g, fit["scale_final"], fit["blob_final"] * case.mu ** fit["slope"])[1]]
-        out.append((case.label, tau0, max(ups)))
+        ups = [VF.upper_limit(g, 1.0, 0.0)[1]] + [VF.upper_limit(g, *VF.fitted_amplitudes(f, case.mu))[1]
+                                                    for f in fits.values()]
+        out.append((case.label, tau0, round(max(ups), 3)))
     return out
 
 
 def test_leave_one_source_out_fast():
-    """Variants built from FARGO3D's τ0 = 0.3 maps only, planted: wakeflow's worst case before."""
-    fit_rows = [(CASES[c], 0.3, VF.case_gram(CASES[c], 0.3)) for c in ("fargo3d:h0.07_mu0.3", "fargo3d:h0.07_mu1")]
-    held = CASES["wakeflow:h0.07_mu1"]
-    result = _refit_and_plant(fit_rows, [(held, 3.0, VF.case_gram(held, 3.0))])
-    assert result[0][2] >= 1.0, result
-
-
-@pytest.mark.slow
-def test_leave_wakeflow_out():
-    rows = [(c, t, VF.case_gram(c, t)) for c in CASES.values() for t in F.TAUS]
-    result = _refit_and_plant([r for r in rows if r[0].source == "fargo3d"], [r for r in rows if r[0].source == "wakeflow"])
-    print(result)
+    """Variants built from the library's three H/r 0.07 isothermal maps at τ0 0.3 only, planted:
+    the old FARGO3D 1 M_th run and the dust run (compromise A_up 0.56 and 0.63; measured 1.17 and 1.30)."""
+    fit_rows = [(CASES[c], 0.3, VF.case_gram(CASES[c], 0.3))
+                for c in ("fargo3dlib:h0.07_mu0.3", "fargo3dlib:h0.07_mu1", "fargo3dlib:h0.07_mu3")]
+    held = [(CASES[c], 0.3, VF.case_gram(CASES[c], 0.3)) for c in ("fargo3d:h0.07_mu1", "fargo3dlib:h0.07_mu1_st0.03")]
+    result = _refit_and_plant(fit_rows, held)
     assert all(a >= 1.0 for _, _, a in result), result
 
 
+LOSO_KNOWN_SHORT = {"library_gas": "the library's 3 M_th run is the only 3 M_th reference: without it the hydro "
+                                   "variant is fitted at 0.3-1 M_th and the 3 M_th maps get robust A_up 0.28-0.48 "
+                                   "(A_hat 0.24-0.44; docs/limits.md section 4d)"}
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="known (issue 22 report): variants fitted to wakeflow alone do not cover "
-                   "the FARGO3D 1 M_th spiral at tau0 0.3 (robust A_up 0.74)")
-def test_leave_fargo3d_out():
-    rows = [(c, t, VF.case_gram(c, t)) for c in CASES.values() for t in F.TAUS]
-    result = _refit_and_plant([r for r in rows if r[0].source == "wakeflow"], [r for r in rows if r[0].source == "fargo3d"])
-    print(result)
-    assert all(a >= 1.0 for _, _, a in result), result
+@pytest.mark.parametrize("source", [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=LOSO_KNOWN_SHORT[s]))
+                                    if s in LOSO_KNOWN_SHORT else s for s in VF.SOURCES])
+def test_leave_one_source_out(source):
+    """Variants refitted without ``source``; every map of ``source`` at every τ0 has robust A_up >= 1."""
+    rows = VF.reference_rows()
+    result = _refit_and_plant([r for r in rows if VF.calibration_source(r[0]) != source],
+                              [r for r in rows if VF.calibration_source(r[0]) == source])
+    print(source, result)
+    assert result and all(a >= 1.0 for _, _, a in result), result
+
+
+@pytest.mark.slow
+def test_the_hydro_and_wakeflow_constants_are_the_fit_to_the_current_references():
+    """tools/fit_variants.py on today's references reproduces the constants (a library that gained
+    cases fails here: refit and update VARIANTS and docs/templates.md)."""
+    fits = VF.fit_variants(VF.reference_rows())
+    for name, f in fits.items():
+        v = VARIANTS[name]
+        assert f["scale_slope"] == pytest.approx(v.scale_slope) and f["slope"] == pytest.approx(v.blob_slope)
+        assert f["scale_final"] == pytest.approx(v.scale, rel=2e-3)
+        assert f["blob_final"] == pytest.approx(v.blob, rel=2e-3)
+        binding = f["binding"].split()[0]
+        assert binding.split(":")[1] in v.note
+    hydro_refs = {f"{c.file}:{c.group}" for c in CASES.values() if c.source != "wakeflow"}
+    assert set(VARIANTS["hydro"].fitted_to) == hydro_refs
 
 
 def test_compute_limits_is_robust_over_variants_for_a_planted_hydro_spiral():

@@ -88,7 +88,7 @@ class PlantedExclusion:
 def planted_exclusion_rate(vis, axisymmetric, family_templates, planted, r_p: float, phi_p: float,
                            true_mass: float, *, n_realisations: int = 50, cl: float = 0.95, method: str = "all_phi",
                            hand: str = "both", n_phi_p: int = 90, geometry=None, seed: int = 0,
-                           amplitude: float = 1.0) -> PlantedExclusion:
+                           amplitude: float = 1.0, robust: bool = False) -> PlantedExclusion:
     """Plant ``planted`` at ``(r_p, phi_p)`` into noise realisations and count wrong exclusions.
 
     Parameters
@@ -107,6 +107,11 @@ def planted_exclusion_rate(vis, axisymmetric, family_templates, planted, r_p: fl
         The planted planet's mass [M_th]: "wrongly excluded" means ``M_lim(r_p) <= true_mass``.
     n_realisations : int
         Noise realisations (seeds ``seed ... seed + n - 1``).
+    robust : bool
+        ``family_templates`` may hold several families (e.g. the morphology variants of one
+        (τ0, β, h_p), :mod:`spiralbayes.templates.variants`): the limit is then the robust one over
+        all of them (:meth:`ExclusionLimits.robust_m_lim`), and ``details["m_lim_by_family"]``
+        keeps each family's own limit from the same realisations (the single-template "before").
     """
     if n_realisations < 1:
         raise InputError(f"n_realisations must be >= 1, got {n_realisations}")
@@ -124,6 +129,7 @@ def planted_exclusion_rate(vis, axisymmetric, family_templates, planted, r_p: fl
     m_lim = np.full(n_realisations, np.nan)
     wrong = np.zeros(n_realisations, dtype=bool)
     label = ""
+    by_family: dict = {}
     for j in range(n_realisations):
         rng = np.random.default_rng(seed + j)
         noise = sigma * (rng.standard_normal(vis.n) + 1j * rng.standard_normal(vis.n))
@@ -131,11 +137,21 @@ def planted_exclusion_rate(vis, axisymmetric, family_templates, planted, r_p: fl
         cross = cross_planet + np.array([cross_template(noisy, t) for t in templates])
         result = ScanResult(meta, context.r_p, phi_grid, cross, power, 0.0, vis.n, geometry)
         limits = compute_limits(result, cl=cl, method=method, hand=hand, resolution=0.0, bright_radius=np.inf)
-        label = limits.families[0].label
-        status = limits.m_lim_status[0, 0]
+        if robust:
+            label = "robust over " + "; ".join(f.label for f in limits.families)
+            value, stat = limits.robust_m_lim()
+            value, status = value[0], stat[0]
+            for fi, fam in enumerate(limits.families):
+                ok = limits.m_lim_status[fi, 0] in ("limit", "below_bank")
+                row = by_family.setdefault(fam.label, np.full(n_realisations, np.nan))
+                row[j] = limits.m_lim[fi, 0] if ok else np.nan
+        else:
+            label = limits.families[0].label
+            value, status = limits.m_lim[0, 0], limits.m_lim_status[0, 0]
         if status in ("limit", "below_bank"):
-            m_lim[j] = limits.m_lim[0, 0]
+            m_lim[j] = value
             wrong[j] = m_lim[j] <= true_mass * (1 + 1e-9)
     planted_power = float(np.real(np.sum(vis.weights * np.abs(dv) ** 2)))
     return PlantedExclusion(getattr(planted, "name", "planted"), label, float(true_mass), float(r_p), float(phi_p),
-                            m_lim, wrong, float(cl), {"method": method, "hand": hand, "planted_power": planted_power})
+                            m_lim, wrong, float(cl), {"method": method, "hand": hand, "planted_power": planted_power,
+                             "m_lim_by_family": by_family})

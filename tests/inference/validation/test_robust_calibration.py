@@ -1,0 +1,88 @@
+"""Leave-one-source-out calibration of the robust limits over morphology variants (issue 22;
+docs/limits.md §4d). The machinery is in ``robust_calibration.py`` next to this file."""
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+pytest.importorskip("h5py")
+
+from tests.inference.validation import robust_calibration as RC  # noqa: E402
+from tests.templates import fidelity as F  # noqa: E402
+from tests.templates import variant_fit as VF  # noqa: E402
+
+CASES = {c.label: c for c in F.acceptance_cases()}
+
+
+def test_truth_instance_rate_of_the_bank_template_is_the_nominal_one():
+    """Closed form: one template planted as itself has A_up < 1 with probability Φ(−z_95) = 5 %;
+    a template with half the overlap, P = Φ(−z − (Â − 1)/σ) with Â = 1/2 and σ = 1/√power."""
+    g = {"SS": 1.0, "ST": 1.0, "SB": 0.0, "TT": 1.0, "BB": 1.0, "TB": 0.3}
+    robust, single = RC.truth_instance_rates(g, [(1.0, 0.0)], power=100.0, n=40000, seed=3, control=True)
+    assert robust == single and abs(single - 0.05) < 3 * np.sqrt(0.05 * 0.95 / 40000)
+    half = dict(g, ST=0.5)
+    expected = norm.cdf(-VF.Z95 + 0.5 * np.sqrt(100.0))
+    _, single = RC.truth_instance_rates(half, [(1.0, 0.0)], power=100.0, n=40000, seed=4)
+    assert abs(single - expected) < 4 * np.sqrt(expected * (1 - expected) / 40000)
+    # two variants: excluded only where both exclude, so never more often than either alone
+    robust, single = RC.truth_instance_rates(half, [(1.0, 0.0), (0.4, 0.0)], power=100.0, n=40000, seed=4)
+    assert robust <= single and robust < 0.01
+
+
+def test_held_out_hydro_run_is_not_wrongly_excluded_in_the_fiducial_set_up():
+    """Variants fitted to the library's four H/r 0.07 isothermal maps at τ0 0.3 only; the older
+    FARGO3D 1 M_th run planted (τ0 0.3, bank power 400): the compromise alone excludes it in 100 %
+    of the realisations, the variants in <= 5 % (binomial; measured 1.75 %: Â 1.07 for the hydro variant)."""
+    fit_rows = [(CASES[c], 0.3, VF.case_gram(CASES[c], 0.3))
+                for c in ("fargo3dlib:h0.07_mu0.1", "fargo3dlib:h0.07_mu0.3", "fargo3dlib:h0.07_mu1",
+                          "fargo3dlib:h0.07_mu3")]
+    fits = VF.fit_variants(fit_rows)
+    case = CASES["fargo3d:h0.07_mu1"]
+    g = VF.case_gram(case, 0.3)
+    amps = [(1.0, 0.0)] + [VF.fitted_amplitudes(f, case.mu) for f in fits.values()]
+    robust, single = RC.truth_instance_rates(g, amps, power=400.0, n=400, seed=11)
+    assert single > 0.9
+    assert robust <= RC.allowed_wrong(400), robust
+
+
+LOSO_KNOWN_SHORT = {"library_gas": "the library's 3 M_th run is the only 3 M_th reference: held out, it is wrongly "
+                                   "excluded in 99.5-100 % (tau0 0.3 and 3, bank power 100 and 400); every other "
+                                   "map of the source in 0 % (docs/limits.md section 4d)"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("source", [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=LOSO_KNOWN_SHORT[s]))
+                                    if s in LOSO_KNOWN_SHORT else s for s in VF.SOURCES])
+def test_leave_one_source_out_calibration(source):
+    """Every map of ``source`` (τ0 0.3 and 3), bank power 100 and 400, 1000 realisations each: the
+    robust limit of the variants refitted without ``source`` wrongly excludes <= 5 % (binomial);
+    the control (the bank's template planted) stays at or below nominal."""
+    rows = [r for r in RC.loso_table(n=1000) if r["source"] == source]
+    for r in rows:
+        print(f"{r['case']:34s} tau0 {r['tau0']:g} power {r['power']:g}: robust {r['robust']:.3f} "
+              f"(compromise alone {r['single']:.3f}); control {r['control_robust']:.3f} / {r['control_single']:.3f}")
+    assert rows
+    assert all(r["control_robust"] <= RC.allowed_wrong(r["n"]) for r in rows)
+    assert all(r["control_single"] <= RC.allowed_wrong(r["n"]) for r in rows)
+    bad = [(r["case"], r["tau0"], r["power"], r["robust"]) for r in rows if r["robust"] > RC.allowed_wrong(r["n"])]
+    assert not bad, bad
+
+
+MACHINERY_CASES = [("fargo3d:h0.07_mu1", 0.3), ("fargo3dlib:h0.07_mu1_beta10", 0.3),
+                   ("fargo3dlib:h0.07_mu1_st0.03", 0.3), ("wakeflow:h0.07_mu1", 3.0)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("label,tau0", MACHINERY_CASES, ids=[f"{c}-tau{t:g}" for c, t in MACHINERY_CASES])
+def test_limit_machinery_with_variants_held_out_source(label, tau0):
+    """§4c's machinery (``planted_exclusion_rate``, robust over the variant families: M_lim over
+    every azimuth and the neighbouring bank masses) in the resolved fiducial set-up, bank power 400,
+    100 realisations, the variants refitted without the case's source (docs/limits.md §4d)."""
+    case = CASES[label]
+    variants = RC.loso_variants(VF.calibration_source(case))
+    planted = RC.calibrate_fiducial(case, tau0, 400.0, variants, 100)
+    control = RC.calibrate_fiducial(case, tau0, 400.0, variants, 100, control=True)
+    print(planted.summary(), "compromise alone:", RC.single_rate(planted))
+    print("control:", control.summary())
+    assert planted.rate <= RC.allowed_wrong(planted.n)
+    assert control.rate <= RC.allowed_wrong(control.n)
