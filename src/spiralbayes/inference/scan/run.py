@@ -24,7 +24,7 @@ Every template's ``cross`` and ``power`` come with error estimates (``cross_erro
 combines them and :func:`scan` raises an :class:`~spiralbayes.exceptions.AccuracyWarning` where
 the estimate exceeds ``0.05 + 1e-4 |Δχ²|`` (:mod:`.scan_accuracy`).
 
-Why this module is long: the result class (with its checksummed persistence and the error
+Why this module is long: the result class (with its best instance, format-1 reader and the error
 estimates), the runner and the resume key with its readable differences share one set of
 fields; split apart, each would have to know the others' layout. The numerics live elsewhere
 (:mod:`.scan_engine`, :mod:`.uv_levels`, :mod:`.scan_accuracy`).
