@@ -76,7 +76,7 @@ def cases():
 
 
 def _row(case, verdict, alts) -> str:
-    best = alts.best() if alts is not None else None
+    best = alts.best if alts is not None else None
     alt = f"{best.name} ({verdict.alternative_delta_bic:.0f})" if best else "-"
     cand = verdict.candidate
     cand_text = f"{cand['r_p'] * DISTANCE:.0f} au, {cand['phi_p_deg']:.0f} deg" if cand else "-"

@@ -188,7 +188,7 @@ def bench_converge(args) -> dict:
     plot_corner(result, truths=truths, distance=140.0).savefig(corner, dpi=100)
     print(f"  corner plot: {corner}")
     return {"wall_s": wall, "diagnostics": {k: d[k] for k in ("tau", "ess", "n_steps", "converged", "acceptance")},
-            "summary": run.summary(), "verdict": result.verdict, "corner": str(corner)}
+            "percentiles": run.percentiles(), "verdict": result.verdict, "corner": str(corner)}
 
 
 def main(argv=None):

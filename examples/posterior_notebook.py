@@ -43,7 +43,7 @@ print(axisym.geometry)
 # %% Grid scan over the planet position for the true template and its mirror image
 templates = [planet, planet.mirror()]
 result_scan = scan(vis, axisym, templates, r_p=np.linspace(0.05, 0.6, 23))
-print(result_scan.best())
+print(result_scan.best)
 
 # %% Posterior: r_p, phi_p, the amplitude A and the geometry nuisances, the frank profile integrated
 # out; "no planet" competes with every template (weighted by their evidences)

@@ -4,7 +4,7 @@ Every ``import`` of a spiralbayes module is read from the source (top level and 
 relative and absolute), so a lazy import cannot hide a circle. Layers, lowest first — a module may
 import its own layer and the ones below it, never one above:
 
-0. base: ``exceptions``, ``units``, ``_version``, ``_provenance``, ``_hdf5``, ``_casa``
+0. base: ``exceptions``, ``units``, ``_version``, ``_provenance``, ``_hdf5``, ``results``, ``_casa``
 1. data: ``geometry``, ``layout``, ``visibilities``, ``fourier``, ``io``
 2. models: ``axisymmetric``, ``templates``, ``quadrature``, ``model``
 3. synthetic data: ``simulate``
@@ -26,7 +26,7 @@ import spiralbayes
 
 PACKAGE = Path(spiralbayes.__file__).parent
 LAYERS = {
-    "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "_casa": 0,
+    "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "results": 0, "_casa": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
     "axisymmetric": 2, "templates": 2, "model": 2, "asymmetries": 2, "quadrature": 2,
     "simulate": 3,
@@ -248,3 +248,58 @@ def test_angles_are_wrapped_by_the_one_helper():
     found = [f"{name}:{i}: {line.strip()}" for name, path in modules().items() if name != "spiralbayes.units"
              for i, line in enumerate(path.read_text().split("\n"), 1) if pattern.search(line)]
     assert not found, "hand-written angle wraps (use spiralbayes.units.wrap_angle):\n" + "\n".join(found)
+
+
+# HDF5 is opened and written in these modules only: the result helper, and the file formats that
+# are not results (visibility files, the kill-safe chain files emcee's HDFBackend also reads, the
+# template bank with its per-template groups, the frank model). Every result class is saved and
+# loaded by spiralbayes._hdf5.save_dataclass / load_dataclass through spiralbayes.results.ResultMixin.
+HDF5_WRITERS = {"spiralbayes._hdf5", "spiralbayes.io.hdf5", "spiralbayes.inference.posterior.chains",
+                "spiralbayes.templates.bank", "spiralbayes.templates.template", "spiralbayes.axisymmetric.model"}
+HDF5_CALLS = {"File", "write_file", "open_file", "checked_dataset", "create_dataset", "create_group",
+              "save_dataclass", "load_dataclass"}
+
+
+def hdf5_calls(path: Path) -> list[str]:
+    """``name (line)`` of every call of an HDF5-writing or -opening function in ``path``."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Call):
+            func = node.func
+            name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+            if name in HDF5_CALLS:
+                found.append(f"{name} (line {node.lineno})")
+    return found
+
+
+def own_save_load(path: Path) -> list[str]:
+    """Classes in ``path`` that define ``save`` or ``load`` themselves."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ClassDef):
+            methods = {n.name for n in node.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))}
+            if methods & {"save", "load"}:
+                found.append(f"{node.name} (line {node.lineno})")
+    return found
+
+
+def test_one_hdf5_helper_for_results():
+    offenders = []
+    for name, path in modules().items():
+        if name in HDF5_WRITERS or name == "spiralbayes.results":
+            continue
+        calls, classes = hdf5_calls(path), own_save_load(path)
+        if calls:
+            offenders.append(f"{name} calls {', '.join(calls)}")
+        if classes:
+            offenders.append(f"{name} defines save/load in {', '.join(classes)}")
+    assert not offenders, ("hand-written HDF5 save/load outside spiralbayes._hdf5 (use spiralbayes.results."
+                           "ResultMixin):\n" + "\n".join(offenders))
+
+
+def test_the_hdf5_rule_can_fail(tmp_path):
+    sample = tmp_path / "sample.py"
+    sample.write_text("import h5py\nclass R:\n    def save(self, path):\n        with h5py.File(path, 'w') as f:\n"
+                      "            f.create_dataset('x', data=[1])\n")
+    assert hdf5_calls(sample) == ["File (line 4)", "create_dataset (line 5)"]
+    assert own_save_load(sample) == ["R (line 2)"]

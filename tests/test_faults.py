@@ -429,7 +429,8 @@ def test_fargo3d_like_template_with_nan_beta_is_detected_and_verdict_is_strict_j
     loaded = ScanResult.load(tmp_path / "scan.h5")
     assert loaded.templates == result.templates  # equal after a round trip (NaN would not be)
     lonely = dataclasses.replace(result, templates=result.templates[:1], cross=result.cross[:1],
-                                 power=result.power[:1])  # no mirror scanned: the ratio is unknown
+                                 power=result.power[:1], cross_error=result.cross_error[:1],
+                                 power_error=result.power_error[:1])  # no mirror scanned: the ratio is unknown
     alone = json.loads(json.dumps(detect(lonely).to_dict(), allow_nan=False))
     assert alone["handedness_ratio"] is None and alone["test2_passed"] is False
 

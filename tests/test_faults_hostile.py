@@ -422,7 +422,8 @@ def test_scan_file_datasets_carry_units(setup, tmp_path):
     import h5py
 
     with h5py.File(setup.result.save(tmp_path / "scan.h5"), "r") as f:
-        units = {name: f[name].attrs["units"] for name in f}
+        units = {name: f[name].attrs["units"] for name in f if isinstance(f[name], h5py.Dataset)}
+        assert set(f) - set(units) == {"geometry"}  # the one group: the DiscGeometry's fields
     assert units["r_p"] == "arcsec" and units["phi_p"] == "rad" and units["cross"].startswith("dimensionless")
     assert set(units) == {"r_p", "phi_p", "cross", "power", "cross_error", "power_error"}
 

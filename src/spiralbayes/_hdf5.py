@@ -6,18 +6,38 @@ renamed into place (:func:`~spiralbayes._provenance.atomic_path`); :func:`open_f
 path, the HDF5 signature and the kind, and turns each failure into one line that names the file —
 also failures while reading inside the ``with`` block (a truncated file often opens but cannot
 give its datasets back; a missing attribute or an unparsable JSON attribute means the same).
+
+Result classes are written and read by one routine, :func:`save_dataclass` / :func:`load_dataclass`,
+which walks the dataclass's fields (layout version :data:`RESULT_LAYOUT_VERSION`):
+
+* a NumPy array becomes a dataset with a Fletcher-32 checksum (strings as UTF-8 bytes, marked by
+  the dataset attribute ``text = True``; a field's ``metadata["units"]`` becomes its ``units``);
+* a nested dataclass becomes a group (attribute ``dataclass = "module:QualName"``), a list or a
+  dict of dataclasses a group of such groups (``container = "list"`` or ``"dict"``);
+* anything else (numbers, strings, None, dicts and lists of them) an attribute holding JSON
+  (Python's dialect, so NaN and infinities come back as they were).
+
+Files of an older layout are read by the reader the class names for that version (the
+``format_version`` root attribute says which); any other version is refused with a message that
+names it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import importlib
 import json
 from pathlib import Path
 
-from ._provenance import FORMAT_VERSION, atomic_path
+from ._provenance import FORMAT_VERSION, atomic_path, json_default
 from .exceptions import DataFileError, InputError, MissingFileError, SpiralbayesError
 
-__all__ = ["checked_dataset", "open_file", "read_kind", "refuse_other_kind", "require_file", "write_file"]
+__all__ = ["RESULT_LAYOUT_VERSION", "checked_dataset", "load_dataclass", "open_file", "read_kind",
+           "refuse_other_kind", "require_file", "save_dataclass", "write_file"]
+
+RESULT_LAYOUT_VERSION = 2
+"""``format_version`` of files written by :func:`save_dataclass` (1: the hand-written per-class layouts)."""
 
 
 def require_file(path, what: str, hint: str = "") -> Path:
@@ -127,3 +147,129 @@ def _reason(exc: Exception) -> str:
     text = text or exc.__class__.__name__
     return text if len(text) <= 200 else text[:197] + "..."
 
+
+# -- the dataclass-driven layout ------------------------------------------------------------------
+def save_dataclass(obj, path, kind: str) -> Path:
+    """Write the dataclass ``obj`` to ``path`` (atomically) in the layout of the module docstring."""
+    with write_file(path, kind) as f:
+        f.attrs["format_version"] = RESULT_LAYOUT_VERSION
+        _write_fields(f, obj)
+    return Path(path)
+
+
+def load_dataclass(cls, path, kind: str, what: str, legacy: dict | None = None):
+    """Read an instance of ``cls`` written by :func:`save_dataclass`.
+
+    Parameters
+    ----------
+    cls : type
+        The dataclass.
+    path : path
+    kind : str
+        The file's expected ``kind`` attribute.
+    what : str
+        What the file is, for messages ("scan result").
+    legacy : dict, optional
+        ``{format_version: reader}`` for older layouts; ``reader(f)`` gets the open file and
+        returns the instance.
+
+    Raises
+    ------
+    DataFileError
+        Missing, corrupt, of another kind, or of a layout version this spiralbayes cannot read.
+    """
+    legacy = legacy or {}
+    with open_file(path, kind, what) as f:
+        version = int(f.attrs.get("format_version", -1))
+        if version == RESULT_LAYOUT_VERSION:
+            return _read_fields(f, cls)
+        if version in legacy:
+            return legacy[version](f)
+        known = sorted({RESULT_LAYOUT_VERSION, *legacy})
+        newer = " (newer than this spiralbayes: upgrade it)" if version > RESULT_LAYOUT_VERSION else ""
+        raise DataFileError(f"{path} is a {what} of format_version {version}{newer}; this spiralbayes reads "
+                            f"format_version {', '.join(map(str, known))}: re-create the file")
+
+
+def _write_fields(group, obj) -> None:
+    cls = type(obj)
+    group.attrs["dataclass"] = f"{cls.__module__}:{cls.__qualname__}"
+    for fld in dataclasses.fields(obj):
+        _write_value(group, fld.name, getattr(obj, fld.name), fld.metadata)
+
+
+def _write_value(group, name: str, value, metadata=None) -> None:
+    import numpy as np
+
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        _write_fields(group.create_group(name), value)
+    elif isinstance(value, np.ndarray):
+        text = value.dtype.kind in "UO"
+        data = np.char.encode(value.astype(str), "utf-8") if text else value
+        ds = checked_dataset(group, name, data)
+        if text:
+            ds.attrs["text"] = True
+        if metadata and "units" in metadata:
+            ds.attrs["units"] = metadata["units"]
+    elif _holds_dataclasses(value):
+        sub = group.create_group(name)
+        items = list(value.items() if isinstance(value, dict) else enumerate(value))
+        sub.attrs["container"] = "dict" if isinstance(value, dict) else "list"
+        sub.attrs["order"] = json.dumps([str(k) for k, _ in items])
+        for key, item in items:
+            _write_fields(sub.create_group(str(key)), item)
+    else:
+        group.attrs[name] = json.dumps(value, default=json_default)
+
+
+def _holds_dataclasses(value) -> bool:
+    items = value.values() if isinstance(value, dict) else value if isinstance(value, (list, tuple)) else ()
+    items = list(items)
+    return bool(items) and all(dataclasses.is_dataclass(v) and not isinstance(v, type) for v in items)
+
+
+def _read_fields(group, cls=None):
+    cls = cls or _resolve(group.attrs["dataclass"])
+    kwargs = {}
+    for fld in dataclasses.fields(cls):
+        if not fld.init:
+            continue
+        if fld.name in group:
+            kwargs[fld.name] = _read_item(group[fld.name])
+        elif fld.name in group.attrs:
+            kwargs[fld.name] = json.loads(group.attrs[fld.name])
+        elif fld.default is dataclasses.MISSING and fld.default_factory is dataclasses.MISSING:
+            raise KeyError(f"{cls.__name__}.{fld.name} is missing")
+    return cls(**kwargs)
+
+
+def _read_item(item):
+    import h5py
+    import numpy as np
+
+    if isinstance(item, h5py.Dataset):
+        data = item[()]
+        if item.attrs.get("text", False):
+            data = np.char.decode(np.asarray(data), "utf-8")
+        return data
+    container = item.attrs.get("container")
+    if container is None:
+        return _read_fields(item)
+    keys = json.loads(item.attrs["order"])
+    if container == "dict":
+        return {k: _read_fields(item[k]) for k in keys}
+    return [_read_fields(item[k]) for k in keys]
+
+
+def _resolve(name) -> type:
+    """The dataclass named ``"module:QualName"``; only spiralbayes' own classes are accepted."""
+    name = name.decode() if isinstance(name, bytes) else str(name)
+    module, _, qualname = name.partition(":")
+    if module.split(".")[0] != "spiralbayes":
+        raise InputError(f"group of class {name!r}: only spiralbayes classes are read back")
+    obj = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    if not dataclasses.is_dataclass(obj):
+        raise InputError(f"group of class {name!r}: not a dataclass")
+    return obj

@@ -27,6 +27,6 @@ def test_residual_comparison_shares_one_scale_and_adds_up(planet_observation, pl
     np.testing.assert_allclose(data, dirty_image(vis.u, vis.v, vis.V - V_A, vis.weights, (n, n), pixel),
                                atol=1e-9 * np.max(np.abs(data)))
     titles = " ".join(ax.get_title() for ax in fig.axes)
-    assert "wake_m1_tau3_b10_h0.07_R" in titles and planet_alternatives.best().label in titles
+    assert "wake_m1_tau3_b10_h0.07_R" in titles and planet_alternatives.best.label in titles
     # the spiral explains the residual: what it leaves is much fainter than the data residual
     assert np.std(left_after_spiral) < 0.8 * np.std(data)

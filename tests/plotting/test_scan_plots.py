@@ -27,9 +27,9 @@ def test_heatmap_marks_best_instance_in_au(planet_scan):
     fig = plot_heatmap(planet_scan, 0, unit="au")
     ax = fig.axes[0]
     x, y = ax.lines[0].get_data()
-    best = planet_scan.best(0)
-    r = best["r_p"] * DISTANCE
-    assert x[0] == pytest.approx(r * np.cos(best["phi_p"])) and y[0] == pytest.approx(r * np.sin(best["phi_p"]))
+    best = planet_scan.peak(0)
+    r = best.r_p * DISTANCE
+    assert x[0] == pytest.approx(r * np.cos(best.phi_p)) and y[0] == pytest.approx(r * np.sin(best.phi_p))
     assert "au" in ax.get_xlabel() and "minor axis" in ax.get_xlabel()
 
 

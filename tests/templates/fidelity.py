@@ -230,14 +230,14 @@ def scan_metrics(result, i_rp: int, i_phi: int, masses, true_mass: float) -> dic
     d = result.delta_chi2()  # (template, r_p, phi_p)
     ref_truth = float(d[0, i_rp, i_phi])
     k_true = 1 + int(np.argmin(np.abs(np.asarray(masses) - true_mass)))
-    best = result.best(k_true)
+    best = result.peak(k_true)
     peaks = [float(d[1 + k].max()) for k in range(len(masses))]
-    dphi = np.degrees(abs(np.angle(np.exp(1j * (best["phi_p"] - result.phi_p[i_phi])))))
+    dphi = np.degrees(abs(np.angle(np.exp(1j * (best.phi_p - result.phi_p[i_phi])))))
     return {
         "ref_dchi2": ref_truth,
         "gen_dchi2": float(d[k_true, i_rp, i_phi]),
         "recovery": float(d[k_true, i_rp, i_phi]) / ref_truth,
-        "dr_steps": float(abs(best["r_p"] - result.r_p[i_rp]) / RP_STEP),
+        "dr_steps": float(abs(best.r_p - result.r_p[i_rp]) / RP_STEP),
         "dphi_deg": float(dphi),
         "best_mass": float(masses[int(np.argmax(peaks))]),
         "peaks": peaks,

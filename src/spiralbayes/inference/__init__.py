@@ -24,6 +24,7 @@ from .scan import (  # not ``scan``: that name is the subpackage
     EXACT_EPSILON,
     N_SPIRAL_PARAMETERS,
     ScanContext,
+    ScanPeak,
     ScanResult,
     ScanSettings,
     TOLERANCE,

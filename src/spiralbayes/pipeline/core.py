@@ -401,7 +401,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
                               processes=s["processes"] if s["processes"] > 1 else None,
                               mcmc_templates=s["mcmc_templates"] or None, progress=progress, **sampler)
     result.save(out_dir / f"{run_name}_posterior.h5")
-    summary = {**result.to_json(), "summary": _summary_with_units(result.summary())}
+    summary = {**result.to_dict(), "summary": _summary_with_units(result.percentiles())}
     _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))
     _save_figure(plot_corner(result, distance=config["geometry"]["distance"]), out_dir / f"{run_name}_corner.png")
     _save_figure(plot_hypotheses(result), out_dir / f"{run_name}_hypotheses.png")

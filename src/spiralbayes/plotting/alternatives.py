@@ -32,16 +32,16 @@ def spiral_visibilities(vis, axisymmetric, scan_result, templates, amplitude=Non
 
     With ``amplitude="free"`` the template is scaled by its best amplitude there.
     """
-    best = scan_result.best(amplitude=amplitude)
-    template = _find_template(templates, best["template"])
+    best = scan_result.peak(amplitude=amplitude)
+    template = _find_template(templates, best.template)
     scale = 1.0
     if amplitude == "free":
-        t, i, j = best["template_index"], best["i_rp"], best["i_phi"]
+        t, i, j = best.template_index, best.i_rp, best.i_phi
         power = scan_result.power[t, i, j]
         scale = max(scan_result.cross[t, i, j] / power, 0.0) if power > 0 else 0.0
     dV = perturbation_visibilities(vis.u, vis.v, scan_result.geometry, axisymmetric.brightness, template,
-                                   best["r_p"], best["phi_p"])
-    label = f"{best['template']} at r_p = {best['r_p']:.3f}\", phi_p = {np.degrees(best['phi_p']):.0f} deg"
+                                   best.r_p, best.phi_p)
+    label = f"{best.template} at r_p = {best.r_p:.3f}\", phi_p = {np.degrees(best.phi_p):.0f} deg"
     return scale * dV, label
 
 
@@ -75,7 +75,7 @@ def plot_residual_comparison(vis, axisymmetric, scan_result, alternatives, templ
     V_A = axisymmetric.visibilities(vis.u, vis.v, geometry)
     residual = vis.V - V_A
     dV_spiral, spiral_label = spiral_visibilities(vis, axisymmetric, scan_result, templates, amplitude)
-    alt = alternatives.best()
+    alt = alternatives.best
     dV_alt = alternatives.model_visibilities(alt.name, vis, axisymmetric)
     uv_max = float(np.max(np.hypot(vis.u, vis.v)))
     pixel = pixel_size or 1.0 / (3.0 * uv_max) / ARCSEC
@@ -110,8 +110,8 @@ def plot_residual_comparison(vis, axisymmetric, scan_result, alternatives, templ
 
 
 def _score_text(scan_result, alternatives, amplitude) -> str:
-    best = scan_result.best(amplitude=amplitude)
-    lines = [f"{'model':<16}{'dBIC':>9}", f"{'spiral':<16}{best['delta_bic']:>9.1f}"]
+    best = scan_result.peak(amplitude=amplitude)
+    lines = [f"{'model':<16}{'dBIC':>9}", f"{'spiral':<16}{best.delta_bic:>9.1f}"]
     for name, value in sorted(alternatives.delta_bic().items(), key=lambda kv: -kv[1]):
         lines.append(f"{name:<16}{value:>9.1f}")
     return "Delta BIC against the\naxisymmetric model\n\n" + "\n".join(lines)

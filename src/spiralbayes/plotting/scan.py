@@ -51,10 +51,10 @@ def _draw(ax, result, values, norm, unit: str, cmap: str):
 
 
 def _mark_best(ax, result, t_index, amplitude, unit):
-    best = result.best(t_index, amplitude)
+    best = result.peak(t_index, amplitude)
     scale = result.distance if (unit == "au" and result.distance) else 1.0
-    r = best["r_p"] * scale
-    ax.plot(r * np.cos(best["phi_p"]), r * np.sin(best["phi_p"]), "x", color="k", ms=8, mew=2)
+    r = best.r_p * scale
+    ax.plot(r * np.cos(best.phi_p), r * np.sin(best.phi_p), "x", color="k", ms=8, mew=2)
 
 
 def plot_heatmap(result, template=0, *, amplitude=None, unit: str = "au", vmin=None, vmax=None,

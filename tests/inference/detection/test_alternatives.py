@@ -51,7 +51,7 @@ def arc_fit(disc):
 def test_injected_arc_is_recovered_and_named(arc_fit, disc):
     model, u, v = disc
     vis, result = arc_fit
-    assert result.best().name == "arc"
+    assert result.best.name == "arc"
     p = result.fits["arc"].params
     assert p["r_c"] == pytest.approx(ARC[1], abs=0.005)
     assert p["phi_c_deg"] == pytest.approx(np.degrees(ARC[2]), abs=3.0)
@@ -83,7 +83,7 @@ def test_injected_geometry_error_is_recovered(disc):
     result = fit_alternatives(vis, model, models=["geometry", "lopsided"])
     fit = result.fits["geometry"]
     assert np.all(np.abs(np.subtract(fit.theta, truth)) < [0.1, 0.3, 0.5, 0.5])
-    assert result.best().name == "geometry"
+    assert result.best.name == "geometry"
     assert fit.delta_chi2 == pytest.approx(delta_chi2_direct(result, "geometry", vis, model), rel=1e-9)
     got = result.fitted_geometry()
     assert got.dRA == pytest.approx(0.012, abs=5e-4) and got.inc == pytest.approx(40.8, abs=0.1)

@@ -11,11 +11,11 @@ from tests._support.helpers import DISTANCE, GEOMETRY, R_P_TRUE, SCAN_RP
 
 
 def test_injected_planet_is_recovered(planet_scan):
-    best = planet_scan.best(0)
-    assert abs(best["r_p"] - R_P_TRUE) <= SCAN_RP[1] - SCAN_RP[0]
-    assert np.degrees(abs(np.angle(np.exp(1j * best["phi_p"])))) <= 4.0
+    best = planet_scan.peak(0)
+    assert abs(best.r_p - R_P_TRUE) <= SCAN_RP[1] - SCAN_RP[0]
+    assert np.degrees(abs(np.angle(np.exp(1j * best.phi_p)))) <= 4.0
     assert planet_scan.delta_bic()[0] > 10
-    assert planet_scan.best(1)["delta_chi2"] < 0.2 * best["delta_chi2"]  # left hand clearly lower
+    assert planet_scan.peak(1).delta_chi2 < 0.2 * best.delta_chi2  # left hand clearly lower
     verdict = detect(planet_scan)
     assert verdict.detected and verdict.template == "wake_m1_tau3_b10_h0.07_R"
     assert verdict.r_p_au == pytest.approx(50.0, abs=7)
@@ -47,8 +47,8 @@ def test_phase_centre_error_gives_one_sided_false_fit_that_fails_handedness(smal
     assert verdict.test1_passed  # a large, spurious improvement
     assert not verdict.test2_passed and not verdict.detected
     assert verdict.handedness_ratio > 0.5
-    best = result.best()
-    assert one_sidedness(result, best["template_index"]) > 0.5
+    best = result.best
+    assert one_sidedness(result, best.template_index) > 0.5
 
 
 # --- test 3 and the handed candidate, on scans and fits built by hand --------------------------

@@ -56,7 +56,7 @@ def test_injected_delta_chi2_equals_brute_force_scan(engine, limits_case):
                                   n_phi_p=result.phi_p.size, progress=False)
     fast = result.dchi2 + 2 * engine.cross([inj])[0]
     assert np.max(np.abs(fast - brute.dchi2)) <= 1e-3 * np.max(np.abs(brute.dchi2))
-    assert brute.best()["template"] == templates[2].name
+    assert brute.best.template == templates[2].name
 
 
 def test_injection_beyond_the_grid_is_refused(engine, limits_case):

@@ -62,13 +62,13 @@ def test_wrong_inclination_start_recovers_a_weak_planet(weak_run):
     assert result.verdict.startswith("planet preferred")
     run = result.best
     assert run.name == weak_template().name
-    summary = run.summary()
+    summary = run.percentiles()
     for name in SAMPLE_NAMES:
         s = summary[name]
         assert _inside(WEAK_TRUTH[name], s["lo95"], s["hi95"], phi=name == "phi_p"), (name, s, WEAK_TRUTH[name])
     # the geometry left the frank fit's 43 deg: the profile is refitted with the geometry
     assert summary["inc"]["hi95"] < 42.0
-    assert result.null.summary()["inc"]["hi95"] < 42.0
+    assert result.null.percentiles()["inc"]["hi95"] < 42.0
     # phi_p: the chain lives on [0, 2 pi); samples are reported around the circular mean, next to 0
     chain = run.chain(discard=0, thin=1)
     assert chain[..., 1].min() >= 0 and chain[..., 1].max() < 2 * np.pi
@@ -110,7 +110,7 @@ def test_planet_free_data_prefer_no_planet(tmp_path):
     assert result.verdict.startswith("no planet preferred")
     assert result.hypothesis_probabilities["no planet"] > 0.5
     assert np.isfinite(result.best.ln_evidence) and np.isfinite(result.null.ln_evidence)
-    assert result.best.summary()["A"]["median"] < 0.5 * WEAK_TRUTH["A"] + 0.3
+    assert result.best.percentiles()["A"]["median"] < 0.5 * WEAK_TRUTH["A"] + 0.3
     chain = result.best.chain(discard=0, thin=1)
     assert chain[..., 1].min() >= 0 and chain[..., 1].max() < 2 * np.pi  # no drift along the flat phi_p
     other = Priors.default(model, r_p=R_RANGE, widths={"inc": 4.0})

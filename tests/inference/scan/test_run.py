@@ -111,7 +111,7 @@ def test_save_load_round_trip(tmp_path, planet_scan):
     np.testing.assert_array_equal(loaded.dchi2, planet_scan.dchi2)
     assert loaded.templates == planet_scan.templates
     assert loaded.geometry == planet_scan.geometry and loaded.distance == DISTANCE
-    assert loaded.best() == planet_scan.best()
+    assert loaded.best == planet_scan.best
 
 
 def test_bad_inputs(planet_observation, small_bank):

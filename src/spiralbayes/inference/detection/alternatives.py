@@ -27,13 +27,11 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..._hdf5 import open_file, write_file
-from ..._provenance import data_hash, json_default, provenance_record
+from ..._provenance import data_hash, json_safe, provenance_record
 from ...asymmetries import (
     ALTERNATIVE_LABELS,
     ALTERNATIVE_MODELS,
@@ -49,6 +47,7 @@ from ...asymmetries import (
     offset_geometry,
 )
 from ...exceptions import InputError
+from ...results import ResultMixin, fields_dict
 from ...geometry import DiscGeometry
 from ...units import ARCSEC
 from .starts import candidate_starts
@@ -102,9 +101,27 @@ class AlternativeFit:
         return self.delta_chi2 - bic_threshold(n_data, self.n_params)
 
 
-@dataclass
-class AlternativesResult:
-    """Every alternative's best fit to one data set, with what is needed to rebuild the models."""
+@dataclass(repr=False)
+class AlternativesResult(ResultMixin):
+    """Every alternative's best fit to one data set, with what is needed to rebuild the models.
+
+    Attributes
+    ----------
+    fits : dict
+        ``name -> AlternativeFit``.
+    n_data : int
+        Number of visibilities N.
+    chi2_AO : float
+        χ² of the axisymmetric model.
+    geometry : DiscGeometry
+        The geometry the models are placed at.
+    grid : DiscGrid
+        The cells of the field models.
+    provenance : dict
+    """
+
+    KIND = ALTERNATIVES_KIND
+    WHAT = "alternatives result"
 
     fits: dict
     n_data: int
@@ -117,6 +134,7 @@ class AlternativesResult:
         """ΔBIC of each alternative against the axisymmetric model."""
         return {name: fit.delta_bic(self.n_data) for name, fit in self.fits.items()}
 
+    @property
     def best(self) -> AlternativeFit:
         """The alternative with the largest ΔBIC."""
         if not self.fits:
@@ -145,30 +163,39 @@ class AlternativesResult:
             rows.append(f"{name:<16}{fit.n_params:>3}{fit.delta_chi2:>11.1f}{fit.delta_bic(self.n_data):>11.1f}  {pars}")
         return "\n".join(rows)
 
+    def summary(self) -> str:
+        """The best alternative in words, then :meth:`table`."""
+        if not self.fits:
+            return "No alternative asymmetry model was fitted."
+        b = self.best
+        return (f"Best competing asymmetry model: {b.label} (Delta chi2 = {b.delta_chi2:.1f}, Delta BIC = "
+                f"{b.delta_bic(self.n_data):.1f} against the axisymmetric model, N = {self.n_data}).\n" + self.table())
+
     def to_dict(self) -> dict:
-        """JSON-able summary (every fit with its ΔBIC)."""
-        return {"n_data": self.n_data, "chi2_AO": self.chi2_AO, "geometry": self.geometry.to_dict(),
-                "grid": asdict(self.grid),
-                "fits": {n: {**asdict(f), "delta_bic": f.delta_bic(self.n_data)} for n, f in self.fits.items()}}
+        """The fields as JSON-safe values, each fit with its ΔBIC."""
+        out = fields_dict(self)
+        for name, fit in self.fits.items():
+            out["fits"][name]["delta_bic"] = json_safe(fit.delta_bic(self.n_data))
+        return out
 
-    def save(self, path) -> Path:
-        """Write to HDF5 (atomically)."""
-        with write_file(path, ALTERNATIVES_KIND) as f:
-            f.attrs["result"] = json.dumps(self.to_dict(), default=json_default)
-            f.attrs["provenance"] = json.dumps(self.provenance, default=json_default)
-        return Path(path)
+    def __repr__(self) -> str:
+        best = f", best {self.best.name} (Delta BIC = {self.best.delta_bic(self.n_data):.1f})" if self.fits else ""
+        return f"AlternativesResult({len(self.fits)} models, N = {self.n_data}, chi2_AO = {self.chi2_AO:.6g}{best})"
 
-    @classmethod
-    def load(cls, path) -> "AlternativesResult":
-        with open_file(path, ALTERNATIVES_KIND, "alternatives result") as f:
-            d = json.loads(f.attrs["result"])
-            prov = json.loads(f.attrs["provenance"])
-        fits = {}
-        for name, item in d["fits"].items():
-            item.pop("delta_bic", None)
-            fits[name] = AlternativeFit(**item)
-        return cls(fits, int(d["n_data"]), float(d["chi2_AO"]), DiscGeometry(**d["geometry"]),
-                   DiscGrid(**d["grid"]), prov)
+
+def _read_format_1(f) -> AlternativesResult:
+    """Alternatives written before the dataclass layout (``format_version`` 1)."""
+    d = json.loads(f.attrs["result"])
+    prov = json.loads(f.attrs["provenance"])
+    fits = {}
+    for name, item in d["fits"].items():
+        item.pop("delta_bic", None)
+        fits[name] = AlternativeFit(**item)
+    return AlternativesResult(fits, int(d["n_data"]), float(d["chi2_AO"]), DiscGeometry(**d["geometry"]),
+                              DiscGrid(**d["grid"]), prov)
+
+
+AlternativesResult.LEGACY_READERS = {1: _read_format_1}
 
 
 # ------------------------------------------------------------------------------------------

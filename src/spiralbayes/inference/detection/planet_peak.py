@@ -72,8 +72,8 @@ def spiral_with_planet_peak(result, vis, axisymmetric, templates, geometry, *, t
     from ...model import perturbation_visibilities
     from ..scan.engine import ScanContext
 
-    best = result.best(template)
-    k = best["template_index"]
+    best = result.peak(template)
+    k = best.template_index
     t = templates[k]
     v_a = axisymmetric.visibilities(vis.u, vis.v, geometry)
     resid = vis.V - v_a
@@ -81,13 +81,13 @@ def spiral_with_planet_peak(result, vis, axisymmetric, templates, geometry, *, t
     h_p = t.h_p if np.isfinite(t.h_p) else 0.07
     n_phi = len(result.phi_p)
     out = None
-    for i in range(max(0, best["i_rp"] - d_rp), min(len(result.r_p), best["i_rp"] + d_rp + 1)):
+    for i in range(max(0, best.i_rp - d_rp), min(len(result.r_p), best.i_rp + d_rp + 1)):
         r_p = float(result.r_p[i])
         ctx = ScanContext.build(vis, axisymmetric, geometry, [r_p], 8)
         quad = ctx.quadrature(t, r_p)
         width = max(float(h_p) * r_p, min_width)
         for dj in range(-d_phi, d_phi + 1):
-            phi_p = float(result.phi_p[(best["i_phi"] + dj) % n_phi])
+            phi_p = float(result.phi_p[(best.i_phi + dj) % n_phi])
             dv = perturbation_visibilities(vis.u, vis.v, geometry, ctx.profile, t, r_p, phi_p, quad=quad)
             rest = resid - dv
             spiral = chi2_ao - float(np.sum(vis.weights * np.abs(rest) ** 2))
@@ -98,7 +98,7 @@ def spiral_with_planet_peak(result, vis, axisymmetric, templates, geometry, *, t
             if out is None or total > out["delta_chi2"]:
                 out = {"delta_chi2": float(total), "delta_bic": float(total - bic_threshold(result.n_data, 7)),
                        "spiral_delta_chi2": float(spiral), "peak_flux": float(rp / pp if pp > 0 else 0.0),
-                       "width": width, "template": best["template"], "r_p": r_p, "phi_p": phi_p}
+                       "width": width, "template": best.template, "r_p": r_p, "phi_p": phi_p}
     return out
 
 

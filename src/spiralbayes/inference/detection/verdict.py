@@ -35,12 +35,12 @@ peak of a map with one peak this equals the paper's measure above).
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..._provenance import json_safe
 from ...exceptions import InputError
+from ...results import ResultMixin, fields_dict
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "localisation", "mirror_index",
            "one_sidedness"]
@@ -154,8 +154,8 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max
     (:func:`peak_region_fraction`) is smaller than ``max_localisation`` of the scanned area.
     """
     dchi2 = result.delta_chi2(amplitude)
-    threshold = result.best(amplitude=amplitude)
-    offset = threshold["delta_chi2"] - threshold["delta_bic"]
+    threshold = result.peak(amplitude=amplitude)
+    offset = threshold.delta_chi2 - threshold.delta_bic
     best = None
     for t in range(len(result.templates)):
         if mirror_index(result, t) is None or not np.all(np.isfinite(dchi2[t])):
@@ -183,8 +183,8 @@ def _alternatives_summary(alternatives, spiral_delta_bic: float) -> dict:
             for name, f in alternatives.fits.items()}
 
 
-@dataclass
-class Verdict:
+@dataclass(repr=False)
+class Verdict(ResultMixin):
     """Outcome of :func:`detect`: tests 1 and 2 of the paper and test 3 (competing models).
 
     ``test3_passed`` is None when no alternatives were given; ``delta_bic_vs_alternative`` is
@@ -217,13 +217,23 @@ class Verdict:
     test3_spiral_model: str | None = None
     planet_peak: dict | None = None
 
+    KIND = "spiralbayes.Verdict"
+    WHAT = "verdict"
+
     @property
     def r_p_au(self) -> float | None:
         return None if self.distance is None else self.r_p * self.distance
 
     def to_dict(self) -> dict:
         """The fields as strict-JSON values (NaN, e.g. no mirror template scanned, becomes None)."""
-        return json_safe(asdict(self))
+        return fields_dict(self)
+
+    def __repr__(self) -> str:
+        test3 = "" if self.test3_passed is None else f", test 3 {'passed' if self.test3_passed else 'failed'}"
+        return (f"Verdict({'detected' if self.detected else 'not detected'}: {self.template} at r_p = {self.r_p:.3g} "
+                f"arcsec, phi_p = {self.phi_p_deg:.0f} deg, Delta BIC = {self.delta_bic:.1f}, test 1 "
+                f"{'passed' if self.test1_passed else 'failed'}, test 2 {'passed' if self.test2_passed else 'failed'}"
+                f"{test3})")
 
     def _where(self, r_p: float, phi_deg: float) -> str:
         where = f"r_p = {r_p:.3f} arcsec" + (f" ({r_p * self.distance:.0f} au)" if self.distance else "")
@@ -314,22 +324,22 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
     alternative_threshold : float
         Test 3: smallest ``ΔBIC_spiral − ΔBIC_best alternative`` that prefers the spiral.
     """
-    best = result.best(amplitude=amplitude)
-    t = best["template_index"]
-    ratio = handedness_ratio(result, t, best["i_rp"], best["i_phi"], neighbourhood, amplitude)
+    best = result.peak(amplitude=amplitude)
+    t = best.template_index
+    ratio = handedness_ratio(result, t, best.i_rp, best.i_phi, neighbourhood, amplitude)
     loc = localisation(result, t, amplitude)
-    test1 = bool(best["delta_bic"] > bic_threshold_value)
+    test1 = bool(best.delta_bic > bic_threshold_value)
     test2 = bool(np.isfinite(ratio) and ratio < max_handedness_ratio and loc < max_localisation)
     extra = {"alternative_threshold": float(alternative_threshold)}
     if alternatives is not None:
         _check_same_data(result, alternatives)
-        alt = alternatives.best()
+        alt = alternatives.best
         alt_bic = float(alt.delta_bic(alternatives.n_data))
-        margin = float(best["delta_bic"]) - alt_bic
+        margin = float(best.delta_bic) - alt_bic
         extra.update(test3_passed=bool(margin > alternative_threshold), best_alternative=alt.name,
                      best_alternative_label=alt.label, alternative_delta_bic=alt_bic,
                      delta_bic_vs_alternative=margin,
-                     alternatives=_alternatives_summary(alternatives, float(best["delta_bic"])))
+                     alternatives=_alternatives_summary(alternatives, float(best.delta_bic)))
     if not test2:
         extra["candidate"] = best_handed_candidate(result, amplitude, neighbourhood=neighbourhood,
                                                    max_handedness_ratio=max_handedness_ratio,
@@ -337,7 +347,7 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
                                                    min_delta_bic=bic_threshold_value)
     detected = test1 and test2 and extra.get("test3_passed") is not False
     return Verdict(
-        detected=bool(detected), delta_bic=best["delta_bic"], test1_passed=test1,
-        handedness_ratio=ratio, localisation=loc, test2_passed=test2, template=best["template"],
-        r_p=best["r_p"], phi_p_deg=float(np.degrees(best["phi_p"])), delta_chi2=best["delta_chi2"],
-        threshold_6lnN=best["delta_chi2"] - best["delta_bic"], distance=result.distance, **extra)
+        detected=bool(detected), delta_bic=best.delta_bic, test1_passed=test1,
+        handedness_ratio=ratio, localisation=loc, test2_passed=test2, template=best.template,
+        r_p=best.r_p, phi_p_deg=float(np.degrees(best.phi_p)), delta_chi2=best.delta_chi2,
+        threshold_6lnN=best.delta_chi2 - best.delta_bic, distance=result.distance, **extra)

@@ -42,13 +42,12 @@ from __future__ import annotations
 import json
 import logging
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from ..._hdf5 import open_file, write_file
-from ..._provenance import json_default, provenance_record
+from ..._provenance import provenance_record
 from ...exceptions import InputError
+from ...results import ResultMixin
 from ...units import mth_to_mjup
 from .families import Family, select_family, template_families
 from .table import describe_family_limits, runs
@@ -140,8 +139,8 @@ def bright_extent(axisymmetric, fraction: float = 0.95) -> float:
     return float(axisymmetric.R_eff(fraction))
 
 
-@dataclass
-class ExclusionLimits:
+@dataclass(repr=False)
+class ExclusionLimits(ResultMixin):
     """Exclusion limits of one scan (see the module docstring for the definitions).
 
     Attributes
@@ -193,6 +192,9 @@ class ExclusionLimits:
     bright_radius: float = np.inf
     resolution_factor: float = 1.0
     provenance: dict = field(default_factory=dict)
+
+    KIND = LIMITS_KIND
+    WHAT = "exclusion-limits file"
 
     # -- queries ---------------------------------------------------------------------------------
     def family(self, family=None) -> Family:
@@ -289,34 +291,27 @@ class ExclusionLimits:
             return describe_over_families(self)
         return describe_family_limits(self, family)
 
-    # -- persistence -----------------------------------------------------------------------------
-    def save(self, path) -> Path:
-        with write_file(path, LIMITS_KIND) as f:
-            for name in ("r_p", "phi_p", "upper_limit", "excluded_fraction", "m_lim"):
-                f.create_dataset(name, data=getattr(self, name))
-            f.create_dataset("flags", data=np.array(self.flags, dtype="S32"))
-            f.create_dataset("m_lim_status", data=np.array(self.m_lim_status, dtype="S16"))
-            meta = {"templates": self.templates, "cl": self.cl, "method": self.method, "hand": self.hand,
-                    "families": [fam.to_dict() for fam in self.families], "distance": self.distance,
-                    "disc": self.disc, "resolution": self.resolution,
-                    "bright_radius": None if not np.isfinite(self.bright_radius) else self.bright_radius,
-                    "resolution_factor": self.resolution_factor, "provenance": self.provenance}
-            f.attrs["meta"] = json.dumps(meta, default=json_default)
-        return Path(path)
+    def __repr__(self) -> str:
+        flagged = int(np.count_nonzero(self.flags != ""))
+        return (f"ExclusionLimits({len(self.templates)} templates in {len(self.families)} families, {self.r_p.size} r_p "
+                f"({flagged} flagged), CL = {self.cl:g}, method = {self.method!r}, hand = {self.hand!r})")
 
-    @classmethod
-    def load(cls, path) -> "ExclusionLimits":
-        with open_file(path, LIMITS_KIND, "exclusion-limits file") as f:
-            meta = json.loads(f.attrs["meta"])
-            arrays = {n: f[n][()] for n in ("r_p", "phi_p", "upper_limit", "excluded_fraction", "m_lim")}
-            flags = np.array([s.decode() for s in f["flags"][()]])
-            status = np.array([[s.decode() for s in row] for row in f["m_lim_status"][()]]).reshape(arrays["m_lim"].shape)
-        bright = meta["bright_radius"]
-        return cls(meta["templates"], arrays["r_p"], arrays["phi_p"], meta["cl"], meta["method"], meta["hand"],
-                   arrays["upper_limit"], arrays["excluded_fraction"], flags,
-                   [Family.from_dict(d) for d in meta["families"]], arrays["m_lim"], status, meta["distance"],
-                   meta["disc"], meta["resolution"], np.inf if bright is None else bright,
-                   meta["resolution_factor"], meta["provenance"])
+
+def _read_format_1(f) -> ExclusionLimits:
+    """Limits written before the dataclass layout (``format_version`` 1)."""
+    meta = json.loads(f.attrs["meta"])
+    arrays = {n: f[n][()] for n in ("r_p", "phi_p", "upper_limit", "excluded_fraction", "m_lim")}
+    flags = np.array([s.decode() for s in f["flags"][()]])
+    status = np.array([[s.decode() for s in row] for row in f["m_lim_status"][()]]).reshape(arrays["m_lim"].shape)
+    bright = meta["bright_radius"]
+    return ExclusionLimits(meta["templates"], arrays["r_p"], arrays["phi_p"], meta["cl"], meta["method"], meta["hand"],
+                           arrays["upper_limit"], arrays["excluded_fraction"], flags,
+                           [Family.from_dict(d) for d in meta["families"]], arrays["m_lim"], status, meta["distance"],
+                           meta["disc"], meta["resolution"], np.inf if bright is None else bright,
+                           meta["resolution_factor"], meta["provenance"])
+
+
+ExclusionLimits.LEGACY_READERS = {1: _read_format_1}
 
 
 def _planet_radii(planets) -> list[float]:

@@ -37,7 +37,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..._provenance import json_safe
 from ...exceptions import DataWarning, InputError
+from ...results import ResultMixin, fields_dict
 from ...geometry import DiscGeometry
 from ...simulate import DiscModel, Preset, get_preset
 from ...simulate.noise import sigma_for_sensitivity
@@ -79,8 +81,8 @@ def _profile(disc, wavelength: float):
     raise InputError("disc must be a DiscModel, an AxisymmetricModel or a brightness callable I(r [arcsec]) [Jy/sr]")
 
 
-@dataclass
-class Forecast:
+@dataclass(repr=False)
+class Forecast(ResultMixin):
     """Expected detectability of one planet with one set-up (see the module docstring).
 
     Attributes
@@ -116,6 +118,9 @@ class Forecast:
     bic_threshold: float = DELTA_BIC_THRESHOLD
     n_params: int = N_SPIRAL_PARAMETERS
     distance: float | None = None
+
+    KIND = "spiralbayes.Forecast"
+    WHAT = "forecast"
 
     def threshold(self, time: float | None = None) -> float:
         """Δχ² a detection needs, ``k ln N + ΔBIC_min``, at ``time`` [min] (N ∝ time)."""
@@ -174,11 +179,18 @@ class Forecast:
                 f"{100 * probability:g} % needs {needed} on source (linear scaling, fixed uv coverage).")
 
     def to_dict(self) -> dict:
-        return {"template": self.template, "r_p": self.r_p, "n_data": self.n_data,
-                "time_on_source_min": self.time_on_source, "setup": self.setup,
-                "expected_mean": float(self.expected.mean()), "expected_min": float(self.expected.min()),
-                "expected_max": float(self.expected.max()), "threshold": self.threshold(),
-                "probability": self.probability(), "time_for_90_percent_min": self.time_for_probability(0.9)}
+        """The fields as JSON-safe values, with the expectation's range, the threshold, P(ΔBIC > 10)
+        and the time for 90 % (``inf`` becomes None)."""
+        return {**fields_dict(self), "time_on_source_min": self.time_on_source,
+                **json_safe({"expected_mean": float(self.expected.mean()), "expected_min": float(self.expected.min()),
+                             "expected_max": float(self.expected.max()), "threshold": self.threshold(),
+                             "probability": self.probability(),
+                             "time_for_90_percent_min": self.time_for_probability(0.9)})}
+
+    def __repr__(self) -> str:
+        return (f"Forecast({self.template.get('name', 'planet')} at r_p = {self.r_p:.3g} arcsec, "
+                f"{self.setup.get('name', 'set-up')} {self.time_on_source:.0f} min, N = {self.n_data}, "
+                f"E[dchi2] = {float(self.expected.mean()):.1f}, P = {self.probability():.2f})")
 
 
 def forecast(disc, template, r_p: float, setup="fiducial", *, geometry: DiscGeometry | None = None,

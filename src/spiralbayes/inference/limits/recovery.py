@@ -24,13 +24,12 @@ import json
 import logging
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from ..._hdf5 import open_file, write_file
-from ..._provenance import json_default, provenance_record
+from ..._provenance import provenance_record
 from ...exceptions import InputError
+from ...results import ResultMixin
 from ...units import wrap_angle
 from ..detection.verdict import detect
 from .families import Family, select_family, template_families
@@ -45,8 +44,8 @@ COMPLETENESS_KIND = "spiralbayes.CompletenessResult"
 log = logging.getLogger(__name__)
 
 
-@dataclass
-class CompletenessResult:
+@dataclass(repr=False)
+class CompletenessResult(ResultMixin):
     """Outcome of injection–recovery over masses × radii × azimuths (× hands).
 
     Attributes
@@ -85,6 +84,9 @@ class CompletenessResult:
     distance: float | None = None
     provenance: dict = field(default_factory=dict)
 
+    KIND = COMPLETENESS_KIND
+    WHAT = "completeness file"
+
     @property
     def n_trials(self) -> int:
         """Injections per (mass, radius) cell."""
@@ -117,23 +119,32 @@ class CompletenessResult:
                 out[i] = float(np.exp(np.log(self.masses[k]) + t * np.log(self.masses[k + 1] / self.masses[k])))
         return out
 
-    def save(self, path) -> Path:
-        with write_file(path, COMPLETENESS_KIND) as f:
-            for name in ("masses", "r_p", "phi_p", "detected", "recovered", "delta_bic"):
-                f.create_dataset(name, data=getattr(self, name))
-            meta = {"family": self.family.to_dict(), "hands": self.hands, "criteria": self.criteria,
-                    "distance": self.distance, "provenance": self.provenance}
-            f.attrs["meta"] = json.dumps(meta, default=json_default)
-        return Path(path)
+    def summary(self, level: float = 0.5) -> str:
+        """Completeness over the grid and the minimum detectable mass at ``level``, in words."""
+        m_det = self.m_det(level)
+        ok = np.isfinite(m_det)
+        where = (f"M_det({100 * level:g} %) from {np.nanmin(m_det):.3g} to {np.nanmax(m_det):.3g} M_th at "
+                 f"{int(ok.sum())} of {self.r_p.size} radii" if ok.any() else
+                 f"no bank mass reaches {100 * level:g} % completeness at any radius")
+        return (f"Injection-recovery of the family {self.family.label} ({', '.join(self.hands)}-handed): "
+                f"{self.masses.size} masses x {self.r_p.size} radii x {self.n_trials} trials per cell; mean "
+                f"completeness {100 * float(self.probability.mean()):.1f} %; {where}.")
 
-    @classmethod
-    def load(cls, path) -> "CompletenessResult":
-        with open_file(path, COMPLETENESS_KIND, "completeness file") as f:
-            meta = json.loads(f.attrs["meta"])
-            arrays = {n: f[n][()] for n in ("masses", "r_p", "phi_p", "detected", "recovered", "delta_bic")}
-        return cls(Family.from_dict(meta["family"]), meta["hands"], arrays["masses"], arrays["r_p"],
-                   arrays["phi_p"], arrays["detected"].astype(bool), arrays["recovered"].astype(bool),
-                   arrays["delta_bic"], meta["criteria"], meta["distance"], meta["provenance"])
+    def __repr__(self) -> str:
+        return (f"CompletenessResult({self.family.label}, hands {self.hands}, {self.masses.size} masses x "
+                f"{self.r_p.size} r_p x {self.phi_p.size} phi_p, mean P = {float(self.probability.mean()):.3g})")
+
+
+def _read_format_1(f) -> CompletenessResult:
+    """Completeness written before the dataclass layout (``format_version`` 1)."""
+    meta = json.loads(f.attrs["meta"])
+    arrays = {n: f[n][()] for n in ("masses", "r_p", "phi_p", "detected", "recovered", "delta_bic")}
+    return CompletenessResult(Family.from_dict(meta["family"]), meta["hands"], arrays["masses"], arrays["r_p"],
+                              arrays["phi_p"], arrays["detected"].astype(bool), arrays["recovered"].astype(bool),
+                              arrays["delta_bic"], meta["criteria"], meta["distance"], meta["provenance"])
+
+
+CompletenessResult.LEGACY_READERS = {1: _read_format_1}
 
 
 # --------------------------------------------------------------------------------------------
@@ -173,20 +184,20 @@ def injection_plan(scan_result, family=None, *, masses=None, radii=None, n_azimu
     return {"family": fam, "hands": hands, "masses": np.array(sorted(masses)), "i_r": i_r, "i_phi": i_phi}
 
 
-def _recovered(verdict, best, meta_inj, i_r, phi, criteria) -> bool:
+def _recovered(verdict, best, best_meta, meta_inj, i_r, phi, criteria) -> bool:
     if not verdict.detected:
         return False
-    if best["template_meta"].get("hand") != meta_inj.get("hand"):
+    if best_meta.get("hand") != meta_inj.get("hand"):
         return False
-    dphi = np.degrees(abs(wrap_angle(best["phi_p"] - phi)))
-    return abs(best["i_rp"] - i_r) <= criteria["max_rp_steps"] and dphi <= criteria["max_phi_deg"]
+    dphi = np.degrees(abs(wrap_angle(best.phi_p - phi)))
+    return abs(best.i_rp - i_r) <= criteria["max_rp_steps"] and dphi <= criteria["max_phi_deg"]
 
 
 def _judge(result: ScanResult, meta_inj, i_r, phi, criteria, amplitude, detect_kwargs):
     verdict = detect(result, amplitude, **detect_kwargs)
-    best = result.best(amplitude=amplitude)
-    best["template_meta"] = result.templates[best["template_index"]]
-    return verdict.detected, _recovered(verdict, best, meta_inj, i_r, phi, criteria), verdict.delta_bic
+    best = result.peak(amplitude=amplitude)
+    recovered = _recovered(verdict, best, result.templates[best.template_index], meta_inj, i_r, phi, criteria)
+    return verdict.detected, recovered, verdict.delta_bic
 
 
 def _criteria(amplitude, max_rp_steps, max_phi_deg, detect_kwargs) -> dict:

@@ -6,7 +6,7 @@
 * :mod:`.tables`, :mod:`.perturbation` — the fast perturbation tables;
 * :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
 * :mod:`.sampler` — :func:`sample_posterior`; :mod:`.moves` — the wrapped DE move;
-* :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files and the chain loop;
+* :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files (an emcee backend) and the chain loop;
 * :mod:`.diagnostics` — convergence; :mod:`.results` — :class:`PosteriorResult` and its runs.
 """
 
@@ -22,10 +22,10 @@ from .tables import AxisymmetricTable, PerturbationTable
 from .perturbation import FastPerturbation
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 from .moves import WrappedDEMove, default_moves
-from .diagnostics import TAU_FACTOR, arviz_diagnostics, convergence_diagnostics
+from .diagnostics import TAU_FACTOR, arviz_diagnostics, chain_inference_data, convergence_diagnostics
 from .results import SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun, wrap_phi
-from .chains import CHAIN_KIND, ChainState, ChainStore
-from .chain_runner import initial_walkers, make_pool, run_chain, streams
+from .chains import CHAIN_KIND, ChainBackend, ChainState, ChainStore
+from .chain_runner import WalkerPool, initial_walkers, make_pool, run_chain, streams, walker_pool
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .optimise import find_map, fit_null_geometry
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
@@ -33,6 +33,7 @@ from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_
 __all__ = [
     "AxisymmetricTable",
     "CHAIN_KIND",
+    "ChainBackend",
     "ChainState",
     "ChainStore",
     "DEFAULT_AMPLITUDE_MAX",
@@ -55,8 +56,10 @@ __all__ = [
     "SpiralLikelihood",
     "TAU_FACTOR",
     "TemplateRun",
+    "WalkerPool",
     "WrappedDEMove",
     "arviz_diagnostics",
+    "chain_inference_data",
     "convergence_diagnostics",
     "default_moves",
     "draw_amplitude",
@@ -73,5 +76,6 @@ __all__ = [
     "sample_posterior",
     "savage_dickey_log_bayes",
     "streams",
+    "walker_pool",
     "wrap_phi",
 ]

@@ -1,7 +1,8 @@
 """Running emcee in flushed batches: pools, random streams, initial walkers, the chain loop.
 
-:func:`run_chain` advances an ensemble ``flush_every`` steps at a time and writes the whole chain
-with emcee's random state through :class:`.chains.ChainStore` after every batch, so a killed run
+:func:`run_chain` advances an ensemble ``flush_every`` steps at a time, storing its steps in a
+:class:`.chains.ChainBackend` (an emcee backend) that writes the whole chain with emcee's random
+state to the chain file after every batch, so a killed run
 loses at most one batch and continues exactly where it stopped; convergence is checked every
 ``check_every`` steps (:func:`.diagnostics.convergence_diagnostics`). Every template (and the
 no-planet run) has its own random streams (:func:`streams`). Pools: ``processes=k`` runs walkers
@@ -15,19 +16,19 @@ import contextlib
 import logging
 import os
 import zlib
+from dataclasses import dataclass
 
 import numpy as np
 
 from ...exceptions import InputError
 from ...units import wrap_angle
-from .chains import ChainState
+from .chains import ChainBackend
 from .diagnostics import convergence_diagnostics
 from .conditional import PARAMETER_NAMES
 from .moves import default_moves
 from .priors import N_DIM
-from .results import wrap_phi
 
-__all__ = ["initial_walkers", "make_pool", "run_chain", "streams"]
+__all__ = ["WalkerPool", "initial_walkers", "make_pool", "run_chain", "streams", "walker_pool"]
 
 log = logging.getLogger(__name__)
 
@@ -143,63 +144,86 @@ def _value(out) -> float:
     return float(out[0] if isinstance(out, tuple) else out)
 
 
-def run_chain(store, saved, inputs, logpost, theta_map, cov, priors, *, n_walkers, n_steps, max_steps,
-               check_every, flush_every, min_ess, pool, processes, moves, progress, streams, initial, name):
-    """Sample in batches, flushing each to ``store``.
+@dataclass
+class WalkerPool:
+    """Where the walkers' log posteriors are evaluated (see :func:`walker_pool`).
 
-    Returns ``(chain, log_prob, blobs, accepted, mapper, owned pool or None, log-prob function)``,
-    or None on an MPI worker rank.
+    Attributes
+    ----------
+    pool : object or None
+        The pool emcee maps over (None: serial).
+    log_prob : callable
+        The function emcee calls (the log posterior, or its worker-side proxy).
+    is_worker : bool
+        True on an MPI worker rank, which only serves the master and runs nothing itself.
+    """
+
+    pool: object
+    log_prob: object
+    is_worker: bool = False
+
+    @property
+    def map(self):
+        return self.pool.map if self.pool is not None else map
+
+
+@contextlib.contextmanager
+def walker_pool(pool, processes, logpost):
+    """A :class:`WalkerPool`; a pool made here is closed on exit (terminated on an error)."""
+    pool_obj, owned, fn, is_worker = make_pool(pool, processes, logpost)
+    try:
+        yield WalkerPool(pool_obj, fn, is_worker)
+    except BaseException:
+        if owned:
+            getattr(pool_obj, "terminate", pool_obj.close)()
+        raise
+    if owned:
+        pool_obj.close()
+
+
+def run_chain(backend: ChainBackend, saved, walkers: WalkerPool, theta_map, cov, priors, *, n_walkers, n_steps,
+              max_steps, check_every, flush_every, min_ess, moves, progress, streams, initial, name,
+              logpost) -> ChainBackend:
+    """Sample in batches of ``flush_every`` steps, flushing ``backend`` after each; returns it.
+
+    ``saved`` (a :class:`~.chains.ChainState` with steps) is continued exactly; otherwise walkers
+    start around ``theta_map`` (:func:`initial_walkers`). With ``n_steps`` None the chain runs
+    until converged (checked every ``check_every`` steps) or ``max_steps``.
     """
     import emcee
     from emcee.state import State
 
     rng_init, emcee_seed, _, _ = streams
-    pool_obj, owned, fn, is_worker = make_pool(pool, processes, logpost)
-    if is_worker:
-        return None
-    sampler = emcee.EnsembleSampler(n_walkers, N_DIM, fn, pool=pool_obj,
-                                    moves=moves if moves is not None else default_moves())
     if saved is not None and saved.iteration > 0:
-        chain, log_prob, blobs, accepted = saved.chain, saved.log_prob, saved.blobs, saved.accepted.astype(float)
-        state = State(chain[-1], log_prob=log_prob[-1], blobs=None if blobs is None else blobs[-1],
-                      random_state=saved.random_state)
-        log.info("%s: resuming %s at step %d", name, store.path, saved.iteration)
+        backend.restore(saved)
+        state = backend.get_last_sample()
+        log.info("%s: resuming %s at step %d", name, backend.store.path, saved.iteration)
     else:
+        backend.reset(n_walkers, N_DIM)
         p0 = initial_walkers(_as_scalar(logpost), theta_map, cov, priors, n_walkers, rng_init, initial)
-        chain = np.empty((0, n_walkers, N_DIM))
-        log_prob = np.empty((0, n_walkers))
-        blobs = np.empty((0, n_walkers, 2))
-        accepted = np.zeros(n_walkers)
         state = State(p0, random_state=np.random.RandomState(emcee_seed).get_state())
+    sampler = emcee.EnsembleSampler(n_walkers, N_DIM, walkers.log_prob, pool=walkers.pool, backend=backend,
+                                    moves=moves if moves is not None else default_moves())
     target = n_steps if n_steps is not None else max_steps
-    bar = _bar(progress, target, chain.shape[0], name)
+    bar = _bar(progress, target, backend.iteration, name)
     try:
-        while chain.shape[0] < target:
-            stop = min(target, (chain.shape[0] // flush_every + 1) * flush_every)
+        while backend.iteration < target:
+            done = backend.iteration
+            stop = min(target, (done // flush_every + 1) * flush_every)
             if n_steps is None:  # convergence checks land on multiples of check_every
-                stop = min(stop, (chain.shape[0] // check_every + 1) * check_every)
-            sampler.reset()
-            state = sampler.run_mcmc(state, stop - chain.shape[0], progress=False)
-            chain = np.concatenate([chain, sampler.get_chain()])
-            log_prob = np.concatenate([log_prob, sampler.get_log_prob()])
-            blobs = np.concatenate([blobs, sampler.get_blobs()])
-            accepted = accepted + sampler.backend.accepted
-            store.write(ChainState(chain, log_prob, blobs, accepted, state.random_state, inputs))
+                stop = min(stop, (done // check_every + 1) * check_every)
+            state = sampler.run_mcmc(state, stop - done, progress=False)
+            backend.flush()
             bar.update(stop - bar.n)
-            if n_steps is None and chain.shape[0] % check_every == 0 and chain.shape[0] >= 2 * check_every:
-                diag = convergence_diagnostics(chain, min_ess=min_ess)
-                log.info("%s: %d steps, max tau %.1f, min ESS %.0f", name, chain.shape[0], diag["tau_max"],
+            if n_steps is None and stop % check_every == 0 and stop >= 2 * check_every:
+                diag = convergence_diagnostics(backend.get_chain(), min_ess=min_ess)
+                log.info("%s: %d steps, max tau %.1f, min ESS %.0f", name, stop, diag["tau_max"],
                          min(diag["ess"].values()))
                 if diag["converged"]:
                     break
-    except BaseException:
-        if owned:
-            getattr(pool_obj, "terminate", pool_obj.close)()
-        raise
     finally:
         bar.close()
-    mapper = pool_obj.map if pool_obj is not None else map
-    return chain, log_prob, blobs, accepted, mapper, (pool_obj if owned else None), fn
+    return backend
 
 
 def _as_scalar(logpost):
@@ -211,21 +235,3 @@ def _bar(enabled: bool, total: int, initial: int, name: str):
 
     return tqdm(total=total, initial=initial, desc=f"{name}: steps", unit="step", disable=not enabled,
                 leave=False, mininterval=1.0)
-
-
-class _ChainData:
-    """arviz view of an in-memory chain (phi_p wrapped around its circular mean)."""
-
-    def __init__(self, chain):
-        self.chain = wrap_phi(chain)[0]
-
-    def inference_data(self):
-        import warnings
-
-        from .diagnostics import _ChainView, _import_arviz
-
-        az = _import_arviz()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            return az.from_emcee(_ChainView(self.chain, np.zeros(self.chain.shape[:2])),
-                                 var_names=list(PARAMETER_NAMES))

@@ -8,13 +8,17 @@ reads it. spiralbayes adds, per group, ``spiralbayes_inputs`` (JSON: everything 
 the result, checked on resume), and once the template is finished ``result`` (JSON) and
 ``samples``.
 
-Why not emcee's own backend: it writes every step into the file in place, so a kill during a
-write can leave a damaged file, and it restores emcee's random state but not the other streams
-of a run. Here the sampler runs ``flush_every`` steps in memory, then the whole file is copied,
-updated and renamed into place (:func:`spiralbayes._provenance.atomic_path`): a kill loses at
-most the current batch, and the file on disk is always a consistent snapshot that holds the
-random state at its last step. A resumed run therefore continues exactly as the uninterrupted
-one would have (tested by killing a subprocess, ``tests/test_faults_sampling.py``).
+The sampler stores its steps in a :class:`ChainBackend`, an ``emcee.backends.Backend`` (emcee's
+in-memory storage interface: ``reset``, ``grow``, ``save_step``, ``get_chain``, ``get_log_prob``,
+``get_blobs``, ``iteration``, ``accepted``, ``random_state``) whose :meth:`ChainBackend.flush`
+writes everything so far to the chain file. Why not emcee's own ``HDFBackend``: it writes every
+step into the file in place, so a kill during a write can leave a damaged file, and it restores
+emcee's random state but not the other streams of a run. Here the sampler runs ``flush_every``
+steps in memory, then the whole file is copied, updated and renamed into place
+(:func:`spiralbayes._provenance.atomic_path`): a kill loses at most the current batch, and the
+file on disk is always a consistent snapshot that holds the random state at its last step. A
+resumed run (:meth:`ChainBackend.restore`) therefore continues exactly as the uninterrupted one
+would have (tested by killing a subprocess, ``tests/test_faults_sampling.py``).
 """
 
 from __future__ import annotations
@@ -26,12 +30,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from emcee.backends import Backend
 
 from ..._hdf5 import refuse_other_kind
 from ..._provenance import FORMAT_VERSION, atomic_path, json_default
 from ...exceptions import DataFileError, ResumeMismatchError
 
-__all__ = ["CHAIN_KIND", "ChainState", "ChainStore"]
+__all__ = ["CHAIN_KIND", "ChainBackend", "ChainState", "ChainStore"]
 
 CHAIN_KIND = "spiralbayes.PosteriorRun"
 
@@ -128,6 +133,66 @@ class ChainStore:
         with self._rewrite() as f:
             for key, value in items.items():
                 f.attrs[key] = json.dumps(value, default=json_default)
+
+
+class ChainBackend(Backend):
+    """emcee's in-memory backend, grown geometrically and flushed to a :class:`ChainStore`.
+
+    Parameters
+    ----------
+    store : ChainStore
+        The chain file and group written by :meth:`flush`.
+    inputs : dict
+        What the chain was run for (checked on resume), stored with every flush.
+    """
+
+    def __init__(self, store: ChainStore, inputs: dict):
+        super().__init__()
+        self.store = store
+        self.inputs = inputs
+
+    def restore(self, saved: ChainState) -> None:
+        """Continue from a stored chain: its steps, log posteriors, blobs, acceptances and random state."""
+        n, walkers, ndim = saved.chain.shape
+        self.reset(walkers, ndim)
+        self.chain = np.array(saved.chain, dtype=self.dtype)
+        self.log_prob = np.array(saved.log_prob, dtype=self.dtype)
+        self.blobs = None if saved.blobs is None else np.array(saved.blobs)
+        self.accepted = np.asarray(saved.accepted, dtype=self.dtype).copy()
+        self.random_state = saved.random_state
+        self.iteration = n
+
+    def grow(self, ngrow, blobs):
+        """Room for ``ngrow`` more steps; capacity doubles, so a long run copies its chain O(log n) times."""
+        self._check_blobs(blobs)
+        need = self.iteration + int(ngrow)
+        if need <= len(self.chain):
+            return
+        size = max(need, 2 * len(self.chain))
+        self.chain = _resized(self.chain, size)
+        self.log_prob = _resized(self.log_prob, size)
+        if blobs is not None:
+            blobs = np.asarray(blobs)
+            if self.blobs is None:
+                self.blobs = np.empty((0, self.nwalkers) + blobs.shape[1:], dtype=blobs.dtype)
+            self.blobs = _resized(self.blobs, size)
+
+    def state(self) -> ChainState:
+        """The steps so far (copies trimmed to :attr:`iteration`) as a :class:`ChainState`."""
+        n = self.iteration
+        return ChainState(self.chain[:n].copy(), self.log_prob[:n].copy(),
+                          None if self.blobs is None else self.blobs[:n].copy(), self.accepted.copy(),
+                          self.random_state, self.inputs)
+
+    def flush(self) -> None:
+        """Write the chain so far to the store (atomically: the whole file is replaced)."""
+        self.store.write(self.state())
+
+
+def _resized(a: np.ndarray, size: int) -> np.ndarray:
+    out = np.empty((size,) + a.shape[1:], dtype=a.dtype)
+    out[:len(a)] = a
+    return out
 
 
 def _write_group(g, s: ChainState) -> None:

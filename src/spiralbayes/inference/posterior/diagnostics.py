@@ -16,7 +16,7 @@ import numpy as np
 from ...exceptions import ConvergenceError, ConvergenceWarning
 from .conditional import PARAMETER_NAMES
 
-__all__ = ["TAU_FACTOR", "arviz_diagnostics", "convergence_diagnostics"]
+__all__ = ["TAU_FACTOR", "arviz_diagnostics", "chain_inference_data", "convergence_diagnostics"]
 
 log = logging.getLogger(__name__)
 
@@ -79,26 +79,20 @@ def _apply_policy(policy: str, message: str) -> None:
         log.info(message)
 
 
-class _ChainView:
-    """The minimal emcee-sampler interface ``arviz.from_emcee`` reads (post-burn-in, thinned)."""
+def chain_inference_data(chain: np.ndarray, log_prob: np.ndarray | None = None, names=PARAMETER_NAMES):
+    """arviz ``InferenceData`` of an emcee chain of shape (n_steps, n_walkers, n_dim).
 
-    def __init__(self, chain, log_prob):
-        self._chain, self._log_prob = chain, log_prob
-
-        class _Fn:
-            args: list = []
-            kwargs: dict = {}
-
-        self.log_prob_fn = _Fn()
-
-    def get_chain(self, **kwargs):
-        return self._chain
-
-    def get_log_prob(self, **kwargs):
-        return self._log_prob
-
-    def get_blobs(self, **kwargs):
-        return None
+    Walkers become arviz chains and steps draws (as ``arviz.from_emcee`` lays them out); the log
+    posterior, when given (n_steps, n_walkers), is ``sample_stats.lp``. Caveat: emcee's walkers are
+    not independent chains.
+    """
+    az = _import_arviz()
+    chain = np.asarray(chain)
+    posterior = {name: chain[:, :, j].T for j, name in enumerate(list(names)[:chain.shape[2]])}
+    stats = None if log_prob is None else {"lp": np.asarray(log_prob).T}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "more chains than draws" on short runs
+        return az.from_dict(posterior=posterior, sample_stats=stats)
 
 
 def _import_arviz():

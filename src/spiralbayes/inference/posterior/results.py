@@ -21,22 +21,19 @@ mean], ``A`` (drawn exactly from its conditional posterior for each sample), ``i
 from __future__ import annotations
 
 import json
-import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from ..._hdf5 import open_file, write_file
-from ..._provenance import json_default
+from ..._provenance import json_safe
 from ...exceptions import InputError
+from ...results import ResultMixin
 from ...units import wrap_angle
+from .diagnostics import chain_inference_data
+from .priors import GEOMETRY_NAMES, Priors
 
 INCONCLUSIVE_LN_B = 1.0
 """|ln B(planet : none)| below this is "inconclusive" (Jeffreys scale: B < e either way)."""
-from .diagnostics import _ChainView, _import_arviz
-from .conditional import PARAMETER_NAMES
-from .priors import GEOMETRY_NAMES, Priors
 
 __all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
 
@@ -54,14 +51,22 @@ def wrap_phi(samples: np.ndarray, column: int = 1) -> tuple[np.ndarray, float]:
     return out, mu
 
 
+def _format_stats(stats: dict) -> str:
+    """One line per parameter: median, 16-84 % and 2.5-97.5 % intervals."""
+    rows = [f"{'':<6}{'median':>11}{'16%':>11}{'84%':>11}{'2.5%':>11}{'97.5%':>11}"]
+    for name, s in stats.items():
+        rows.append(f"{name:<6}" + "".join(f"{s[k]:>11.5g}" for k in ("median", "lo", "hi", "lo95", "hi95")))
+    return "\n".join(rows)
+
+
 def _stats(samples: np.ndarray, names) -> dict:
     q = np.percentile(samples, [2.5, 16, 50, 84, 97.5], axis=0)
     return {n: {"median": float(q[2, j]), "lo": float(q[1, j]), "hi": float(q[3, j]), "lo95": float(q[0, j]),
                 "hi95": float(q[4, j]), "std": float(np.std(samples[:, j]))} for j, n in enumerate(names)}
 
 
-@dataclass
-class TemplateRun:
+@dataclass(repr=False)
+class TemplateRun(ResultMixin):
     """The posterior of one template.
 
     Attributes
@@ -101,9 +106,22 @@ class TemplateRun:
     chain_path: str | None = None
     group: str | None = None
 
-    def summary(self) -> dict:
+    KIND = "spiralbayes.TemplateRun"
+    WHAT = "template posterior"
+
+    def percentiles(self) -> dict:
         """Median, 16/84 and 2.5/97.5 percentiles and std of each of :data:`SAMPLE_NAMES`."""
         return _stats(self.samples, SAMPLE_NAMES)
+
+    def summary(self) -> str:
+        """The template, how it was sampled, ln Z, and the percentiles of every parameter."""
+        return (f"Template {self.name} ({self.mode}, {len(self.samples)} samples): ln Z = {self.ln_evidence:.2f} "
+                f"+- {self.ln_evidence_err:.2f} (Laplace {self.ln_evidence_laplace:.2f}); r_p [arcsec], phi_p [rad], "
+                f"inc, PA [deg], dRA, dDec [arcsec]:\n" + _format_stats(self.percentiles()))
+
+    def __repr__(self) -> str:
+        return (f"TemplateRun({self.name!r}, {self.mode}, {len(self.samples)} samples, "
+                f"ln Z = {self.ln_evidence:.2f} +- {self.ln_evidence_err:.2f})")
 
     def chain(self, discard: int | None = None, thin: int | None = None) -> np.ndarray:
         """The stored chain (n_steps, n_walkers, 6) of ``(r_p, phi_p, inc, PA, dRA, dDec)`` as sampled."""
@@ -120,17 +138,19 @@ class TemplateRun:
         """arviz ``InferenceData`` (walkers as chains; caveat: emcee walkers are not independent)."""
         import emcee
 
-        az = _import_arviz()
         backend = emcee.backends.HDFBackend(self.chain_path, name=self.group, read_only=True)
         d = self.diagnostics
         chain = backend.get_chain(discard=d.get("burn_in", 0), thin=d.get("thin", 1))
-        chain, _ = wrap_phi(chain)
         lp = backend.get_log_prob(discard=d.get("burn_in", 0), thin=d.get("thin", 1))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # "more chains than draws" on short runs
-            return az.from_emcee(_ChainView(chain, lp), var_names=list(PARAMETER_NAMES))
+        return chain_inference_data(wrap_phi(chain)[0], lp)
 
-    def to_json(self) -> dict:
+    def to_dict(self) -> dict:
+        """Everything but the samples (which stay in the HDF5 file) as JSON-safe values, with the
+        percentiles of every parameter."""
+        return {**json_safe(self.record()), "percentiles": json_safe(self.percentiles())}
+
+    def record(self) -> dict:
+        """The fields but the samples, as stored beside them in a chain file (NaN kept)."""
         return {"name": self.name, "metadata": self.metadata, "mode": self.mode,
                 "theta_map": self.theta_map.tolist(), "covariance": self.covariance.tolist(),
                 "ln_evidence": self.ln_evidence, "ln_evidence_err": self.ln_evidence_err,
@@ -138,14 +158,15 @@ class TemplateRun:
                 "chain_path": self.chain_path, "group": self.group}
 
     @classmethod
-    def from_json(cls, d: dict, samples: np.ndarray) -> "TemplateRun":
+    def from_record(cls, d: dict, samples: np.ndarray) -> "TemplateRun":
+        """The run from :meth:`record` and its samples."""
         return cls(d["name"], d["metadata"], d["mode"], np.asarray(samples), np.array(d["theta_map"]),
                    np.array(d["covariance"]), d["ln_evidence"], d["ln_evidence_err"], d["ln_evidence_laplace"],
                    d["diagnostics"], d["chain_path"], d["group"])
 
 
-@dataclass
-class NullRun:
+@dataclass(repr=False)
+class NullRun(ResultMixin):
     """The no-planet hypothesis: the disc alone, its profile integrated out.
 
     Attributes
@@ -171,23 +192,42 @@ class NullRun:
     profile: dict = field(default_factory=dict)
     diagnostics: dict = field(default_factory=dict)
 
-    def summary(self) -> dict:
+    KIND = "spiralbayes.NullRun"
+    WHAT = "no-planet posterior"
+
+    def percentiles(self) -> dict:
+        """Median, 16/84 and 2.5/97.5 percentiles and std of ``inc``, ``PA`` [deg], ``dRA``, ``dDec`` [arcsec]."""
         return _stats(self.samples, GEOMETRY_NAMES)
 
-    def to_json(self) -> dict:
+    def summary(self) -> str:
+        """ln Z_0 and the percentiles of the geometry."""
+        return (f"No planet ({len(self.samples)} samples): ln Z0 = {self.ln_evidence:.2f} +- {self.ln_evidence_err:.2f} "
+                f"(Laplace {self.ln_evidence_laplace:.2f}); inc, PA [deg], dRA, dDec [arcsec]:\n"
+                + _format_stats(self.percentiles()))
+
+    def __repr__(self) -> str:
+        return f"NullRun({len(self.samples)} samples, ln Z0 = {self.ln_evidence:.2f} +- {self.ln_evidence_err:.2f})"
+
+    def to_dict(self) -> dict:
+        """Everything but the samples as JSON-safe values, with the geometry's percentiles."""
+        return {**json_safe(self.record()), "percentiles": json_safe(self.percentiles())}
+
+    def record(self) -> dict:
+        """The fields but the samples, as stored beside them in a chain file (NaN kept)."""
         return {"geometry_map": self.geometry_map.tolist(), "covariance": self.covariance.tolist(),
                 "ln_evidence": self.ln_evidence, "ln_evidence_err": self.ln_evidence_err,
                 "ln_evidence_laplace": self.ln_evidence_laplace, "profile": self.profile,
                 "diagnostics": self.diagnostics}
 
     @classmethod
-    def from_json(cls, d: dict, samples: np.ndarray) -> "NullRun":
+    def from_record(cls, d: dict, samples: np.ndarray) -> "NullRun":
+        """The run from :meth:`record` and its samples."""
         return cls(np.asarray(samples), np.array(d["geometry_map"]), np.array(d["covariance"]), d["ln_evidence"],
                    d["ln_evidence_err"], d["ln_evidence_laplace"], d.get("profile", {}), d.get("diagnostics", {}))
 
 
-@dataclass
-class PosteriorResult:
+@dataclass(repr=False)
+class PosteriorResult(ResultMixin):
     """Per-template posteriors, the no-planet hypothesis, and the posterior over hypotheses.
 
     Attributes
@@ -213,6 +253,9 @@ class PosteriorResult:
     provenance: dict = field(default_factory=dict)
     null: NullRun | None = None
     planet_prior: float = 0.5
+
+    KIND = RESULT_KIND
+    WHAT = "posterior result"
 
     @property
     def names(self) -> list[str]:
@@ -266,7 +309,7 @@ class PosteriorResult:
 
     def amplitude(self, template=None) -> dict:
         """The amplitude's posterior (median, 16/84, 2.5/97.5) for a template (default: most probable)."""
-        return self.run(template).summary()["A"]
+        return self.run(template).percentiles()["A"]
 
     @property
     def verdict(self) -> str:
@@ -281,7 +324,7 @@ class PosteriorResult:
         if p < 0.5:
             return (f"no planet preferred: P(planet | data) = {p:.3g}, ln B(planet : none) = {lnb:.2f} "
                     f"(prior P(planet) = {self.planet_prior:g})")
-        s = self.best.summary()
+        s = self.best.percentiles()
         return (f"planet preferred: P(planet | data) = {p:.4g}, ln B = {lnb:.2f}; most probable template "
                 f"{self.best.name} (P = {self.template_probabilities[self.best.name]:.3g} given a planet): "
                 f"r_p = {s['r_p']['median']:.4f} (+{s['r_p']['hi'] - s['r_p']['median']:.4f} "
@@ -290,15 +333,16 @@ class PosteriorResult:
                 f"(+{s['A']['hi'] - s['A']['median']:.2f} -{s['A']['median'] - s['A']['lo']:.2f})")
 
     def marginals(self) -> dict:
-        """``P(value | data, planet)`` of each value of hand, mass, beta, tau0 and h_p (summed over templates)."""
+        """``P(value | data, planet)`` of each value of hand, mass, beta, tau0 and h_p (summed over templates;
+        templates whose value is unknown are left out of that parameter's table)."""
         probs = self.template_probabilities
         out: dict = {}
         for key in ("hand", "mass", "beta", "tau0", "h_p"):
             table: dict = {}
             for r in self.runs:
                 value = r.metadata.get(key)
-                if value is None:
-                    continue
+                if value is None or (isinstance(value, float) and np.isnan(value)):
+                    continue  # unknown (a FARGO3D run's beta): NaN keys would not sum, as NaN != NaN
                 table[value] = table.get(value, 0.0) + probs[r.name]
             out[key] = dict(sorted(table.items(), key=lambda kv: str(kv[0])))
         return out
@@ -322,44 +366,44 @@ class PosteriorResult:
 
     @property
     def best(self) -> TemplateRun:
+        """The most probable template's run."""
         return self.run()
 
-    def summary(self, template=None) -> dict:
-        return self.run(template).summary()
+    def percentiles(self, template=None) -> dict:
+        """Percentiles of every parameter of a template's posterior (default: the most probable);
+        see :meth:`TemplateRun.percentiles`."""
+        return self.run(template).percentiles()
+
+    def summary(self, template=None) -> str:
+        """The verdict, then the percentiles of ``template`` (default: the most probable)."""
+        return self.verdict + "\n" + self.run(template).summary()
 
     def to_inference_data(self, template=None):
         return self.run(template).inference_data()
 
-    # -- persistence -------------------------------------------------------------------------
-    def to_json(self) -> dict:
-        return {"run_name": self.run_name, "priors": self.priors.to_dict(), "template_prior": self.template_prior.tolist(),
-                "chain_path": self.chain_path, "provenance": self.provenance, "planet_prior": self.planet_prior,
-                "verdict": self.verdict, "p_planet": self.p_planet, "ln_bayes_factor": self.ln_bayes_factor,
-                "template_probabilities": self.template_probabilities, "marginals": _json_keys(self.marginals()),
-                "null": None if self.null is None else self.null.to_json(),
-                "runs": [r.to_json() for r in self.runs]}
+    def to_dict(self) -> dict:
+        """The run's settings, hypothesis probabilities, verdict and each template's record and
+        percentiles (samples stay in the HDF5 file), JSON-safe."""
+        return json_safe({"run_name": self.run_name, "priors": self.priors.to_dict(),
+                          "template_prior": self.template_prior, "chain_path": self.chain_path,
+                          "provenance": self.provenance, "planet_prior": self.planet_prior, "verdict": self.verdict,
+                          "p_planet": self.p_planet, "ln_bayes_factor": self.ln_bayes_factor,
+                          "template_probabilities": self.template_probabilities, "marginals": self.marginals(),
+                          "null": None if self.null is None else self.null.to_dict(),
+                          "runs": [r.to_dict() for r in self.runs]})
 
-    def save(self, path) -> Path:
-        """Write the result (with the samples) to HDF5, atomically."""
-        with write_file(path, RESULT_KIND) as f:
-            f.attrs["result"] = json.dumps(self.to_json(), default=json_default)
-            for r in self.runs:
-                f.create_dataset(f"samples/{r.name}", data=r.samples)
-            if self.null is not None:
-                f.create_dataset("null_samples", data=self.null.samples)
-        return Path(path)
-
-    @classmethod
-    def load(cls, path) -> "PosteriorResult":
-        with open_file(path, RESULT_KIND, "posterior result") as f:
-            d = json.loads(f.attrs["result"])
-            runs = [TemplateRun.from_json(r, f[f"samples/{r['name']}"][()]) for r in d["runs"]]
-            null = NullRun.from_json(d["null"], f["null_samples"][()]) if d.get("null") else None
-        return cls(runs, Priors.from_dict(d["priors"]), np.array(d["template_prior"]), d["run_name"],
-                   d["chain_path"], d["provenance"], null, float(d.get("planet_prior", 0.5)))
+    def __repr__(self) -> str:
+        return (f"PosteriorResult({self.run_name!r}, {len(self.runs)} templates, P(planet | data) = {self.p_planet:.3g}, "
+                f"ln B = {self.ln_bayes_factor:.2f}, best {self.best.name if self.runs else None})")
 
 
-def _json_keys(d):
-    if isinstance(d, dict):
-        return {str(k): _json_keys(v) for k, v in d.items()}
-    return d
+def _read_format_1(f) -> PosteriorResult:
+    """A posterior written before the dataclass layout (``format_version`` 1)."""
+    d = json.loads(f.attrs["result"])
+    runs = [TemplateRun.from_record(r, f[f"samples/{r['name']}"][()]) for r in d["runs"]]
+    null = NullRun.from_record(d["null"], f["null_samples"][()]) if d.get("null") else None
+    return PosteriorResult(runs, Priors.from_dict(d["priors"]), np.array(d["template_prior"]), d["run_name"],
+                           d["chain_path"], d["provenance"], null, float(d.get("planet_prior", 0.5)))
+
+
+PosteriorResult.LEGACY_READERS = {1: _read_format_1}

@@ -68,10 +68,16 @@ from ...exceptions import InputError
 from ...geometry import DiscGeometry
 from ...templates.template import template_metadata
 from ...units import wrap_angle
-from .chain_runner import _blas_single_thread, _ChainData, _set_mpi_rank, _writes_files, run_chain
+from .chain_runner import _blas_single_thread, _set_mpi_rank, _writes_files, run_chain, walker_pool
 from .chain_runner import streams as chain_streams
-from .chains import ChainState, ChainStore
-from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, convergence_diagnostics
+from .chains import ChainBackend, ChainState, ChainStore
+from .diagnostics import (
+    _apply_policy,
+    _convergence_message,
+    arviz_diagnostics,
+    chain_inference_data,
+    convergence_diagnostics,
+)
 from .evidence import (
     GaussianGeometry,
     StudentT,
@@ -143,7 +149,7 @@ def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed,
     saved = store.read()
     store.check_inputs(saved, inputs)
     if saved is not None and saved.result is not None:
-        null = NullRun.from_json(saved.result, saved.samples)
+        null = NullRun.from_record(saved.result, saved.samples)
         log.info("no planet: read back from %s (ln Z0 = %.2f)", store.path, null.ln_evidence)
         return null, base0.centred_at(DiscGeometry(*null.geometry_map))
     g_map, cov, lp_map = fit_null_geometry(base0.log_likelihood, priors)
@@ -164,7 +170,7 @@ def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed,
                    profile, {"evidence": ev, "time_s": time.perf_counter() - t0})
     if _writes_files():
         store.write(ChainState(np.empty((0, 0, 4)), np.empty((0, 0)), None, np.zeros(0), None, inputs,
-                               null.to_json(), samples))
+                               null.record(), samples))
     log.info("no planet: geometry mode inc %.4f PA %.4f dRA %.2f mas dDec %.2f mas; ln Z0 = %.2f +- %.2f (Laplace %.2f)",
              g_map[0], g_map[1], 1e3 * g_map[2], 1e3 * g_map[3], null.ln_evidence, null.ln_evidence_err,
              null.ln_evidence_laplace)
@@ -238,7 +244,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     store.check_inputs(saved, inputs)
     if saved is not None and saved.result is not None:
         log.info("%s: finished earlier, read back from %s", name, chain_path)
-        return TemplateRun.from_json(saved.result, saved.samples), None
+        return TemplateRun.from_record(saved.result, saved.samples), None
     likelihood = _build_likelihood(base, template, r_range, null, priors, s["likelihood_kwargs"], partners,
                                    s["progress"])
     logpost = LogPosterior(likelihood, priors)
@@ -258,15 +264,16 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         run = TemplateRun(name, meta, "laplace", samples, theta_map, cov, lnz_laplace, float("nan"), lnz_laplace,
                           {**info, "time_s": time.perf_counter() - t0}, str(chain_path), name)
         store.write(ChainState(np.empty((0, s["n_walkers"], N_DIM)), np.empty((0, s["n_walkers"])), None,
-                               np.zeros(s["n_walkers"]), None, inputs, run.to_json(), samples))
+                               np.zeros(s["n_walkers"]), None, inputs, run.record(), samples))
         return run, likelihood
-    out = run_chain(store, saved, inputs, logpost, theta_map, cov, priors, streams=streams, initial=s["initial"],
-                     name=name, **{k: s[k] for k in ("n_walkers", "n_steps", "max_steps", "check_every", "flush_every",
-                                                    "min_ess", "pool", "processes", "moves", "progress")})
-    if out is None:  # an MPI worker rank
-        return None, likelihood
-    chain, log_prob, blobs, accepted, mapper, owned_pool, fn = out
-    try:
+    with walker_pool(s["pool"], s["processes"], logpost) as walkers:
+        if walkers.is_worker:  # an MPI worker rank
+            return None, likelihood
+        backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors, streams=streams,
+                            initial=s["initial"], name=name, logpost=logpost,
+                            **{k: s[k] for k in ("n_walkers", "n_steps", "max_steps", "check_every", "flush_every",
+                                                 "min_ess", "moves", "progress")})
+        chain, blobs, accepted = backend.get_chain(), backend.get_blobs(), backend.accepted
         diag = convergence_diagnostics(chain, min_ess=s["min_ess"])
         sl = slice(diag["burn_in"], None, diag["thin"])
         flat = chain[sl].reshape(-1, N_DIM)
@@ -276,10 +283,8 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         chain_t = StudentT(centred.mean(axis=0), np.cov(centred, rowvar=False) * 1.2 ** 2, _scales(priors, null)[1],
                            periodic=(1,))
         plateau = GaussianGeometry(null.geometry_map, null.covariance * 1.5 ** 2, priors.geometry_widths, priors.r_p)
-        ev = importance_evidence(fn, [chain_t, plateau], [0.7, 0.3], s["evidence_draws"], rng_evidence, mapper)
-    finally:
-        if owned_pool is not None:
-            owned_pool.close()
+        ev = importance_evidence(walkers.log_prob, [chain_t, plateau], [0.7, 0.3], s["evidence_draws"], rng_evidence,
+                                 walkers.map)
     sd = (savage_dickey_log_bayes(fb[:, 0], fb[:, 1], priors.amplitude_max)
           if priors.amplitude_max is not None else float("nan"))
     diag = {**diag, **info, "evidence": ev, "acceptance": float(np.mean(accepted) / max(chain.shape[0], 1)),
@@ -287,7 +292,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     run = TemplateRun(name, meta, "mcmc", samples, theta_map, cov, ev["ln_evidence"], ev["ln_evidence_err"],
                       lnz_laplace, diag, str(chain_path), name)
     try:
-        run.diagnostics["arviz"] = arviz_diagnostics(_ChainData(chain[sl]).inference_data())
+        run.diagnostics["arviz"] = arviz_diagnostics(chain_inference_data(wrap_phi(chain[sl])[0]))
     except Exception as exc:  # pragma: no cover - diagnostics must not lose a run
         log.warning("arviz diagnostics failed: %s", exc)
     store.write(_final_state(store, run, samples))
@@ -299,7 +304,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
 def _final_state(store, run, samples):
     """The stored chain with the finished result added."""
     state = store.read()
-    state.result, state.samples = run.to_json(), samples
+    state.result, state.samples = run.record(), samples
     return state
 
 
@@ -414,7 +419,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
                              provenance_record(data_hash=common["data_hash"], geometry=axisymmetric.geometry.to_dict(),
                                                profile_prior=profile_prior.source),
                              null, float(planet_prior))
-    ChainStore(chain_path, NULL_GROUP).write_root(summary=result.to_json())
+    ChainStore(chain_path, NULL_GROUP).write_root(summary=result.to_dict())
     log.info("%s", result.verdict)
     return result
 
@@ -510,7 +515,7 @@ def refit_axisymmetric(vis, axisymmetric, result, template=None, *, progress: bo
         Which template's posterior gives the geometry (default: the most probable).
     """
     run = result.run(template) if hasattr(result, "run") else result
-    median = {name: stats["median"] for name, stats in run.summary().items()}
+    median = {name: stats["median"] for name, stats in run.percentiles().items()}
     geometry = DiscGeometry(median["inc"], median["PA"], median["dRA"], median["dDec"])
     hyper = {k: axisymmetric.hyperparameters.get(k, v) for k, v in DEFAULT_HYPERPARAMETERS.items()}
     log.info("refitting the frank profile at the posterior geometry %s", geometry)

@@ -28,13 +28,14 @@ from .engine import (
     with_residual,
 )
 from .accuracy import CHECK_AZIMUTHS, EXACT_EPSILON, TOLERANCE, check_terms, exact_terms, warn_if_inaccurate
-from .run import ScanResult, default_rp_grid, resume_key, scan
+from .run import ScanPeak, ScanResult, default_rp_grid, resume_key, scan
 
 __all__ = [
     "CHECK_AZIMUTHS",
     "EXACT_EPSILON",
     "N_SPIRAL_PARAMETERS",
     "ScanContext",
+    "ScanPeak",
     "ScanResult",
     "ScanSettings",
     "TOLERANCE",

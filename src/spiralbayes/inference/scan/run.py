@@ -24,7 +24,7 @@ Every template's ``cross`` and ``power`` come with error estimates (``cross_erro
 combines them and :func:`scan` raises an :class:`~spiralbayes.exceptions.AccuracyWarning` where
 the estimate exceeds ``0.05 + 1e-4 |Δχ²|`` (:mod:`.scan_accuracy`).
 
-Why this module is long: the result class (with its checksummed persistence and the error
+Why this module is long: the result class (with its best instance, format-1 reader and the error
 estimates), the runner and the resume key with its readable differences share one set of
 fields; split apart, each would have to know the others' layout. The numerics live elsewhere
 (:mod:`.scan_engine`, :mod:`.uv_levels`, :mod:`.scan_accuracy`).
@@ -41,8 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..._hdf5 import checked_dataset, open_file, write_file
-from ..._provenance import content_hash, data_hash, json_safe, provenance_record, to_json
+from ..._provenance import content_hash, data_hash, json_safe, provenance_record
+from ...results import ResultMixin, fields_dict
 from ..._version import __version__
 from ...exceptions import DataWarning, InputError, ResumeMismatchError
 from ...axisymmetric.provenance import check_fitted_to
@@ -54,7 +54,7 @@ from .accuracy import TOLERANCE, check_terms, warn_if_inaccurate
 from .engine import ScanContext, ScanSettings, scan_template
 from .statistics import bic_threshold, delta_chi2_from_terms
 
-__all__ = ["ScanResult", "default_rp_grid", "resume_key", "scan"]
+__all__ = ["ScanPeak", "ScanResult", "default_rp_grid", "resume_key", "scan"]
 
 SCAN_KIND = "spiralbayes.ScanResult"
 DATASET_UNITS = {"r_p": "arcsec", "phi_p": "rad", "cross": "dimensionless (chi^2 units)",
@@ -74,8 +74,37 @@ def default_rp_grid(r_max: float, n: int = 25, r_min: float | None = None) -> np
     return np.linspace(r_min, r_max, n)
 
 
-@dataclass
-class ScanResult:
+@dataclass(frozen=True)
+class ScanPeak:
+    """One scanned instance: the best of a template (or of the whole scan).
+
+    Attributes
+    ----------
+    template : str
+        Template name.
+    template_index, i_rp, i_phi : int
+        Indices into the scan's arrays.
+    r_p, phi_p : float
+        Planet position [arcsec, rad].
+    delta_chi2, delta_bic : float
+        Δχ² there and ``Δχ² − k ln N``.
+    """
+
+    template: str
+    template_index: int
+    r_p: float
+    phi_p: float
+    i_rp: int
+    i_phi: int
+    delta_chi2: float
+    delta_bic: float
+
+    def to_dict(self) -> dict:
+        return fields_dict(self)
+
+
+@dataclass(repr=False)
+class ScanResult(ResultMixin):
     """Δχ² over template × r_p × phi_p, with what is needed to reproduce it.
 
     Attributes
@@ -101,23 +130,30 @@ class ScanResult:
         rule, or a checkpoint written before they were recorded).
     """
 
+    KIND = SCAN_KIND
+    WHAT = "scan result"
+
     templates: list
-    r_p: np.ndarray
-    phi_p: np.ndarray
-    cross: np.ndarray
-    power: np.ndarray
+    r_p: np.ndarray = field(metadata={"units": DATASET_UNITS["r_p"]})
+    phi_p: np.ndarray = field(metadata={"units": DATASET_UNITS["phi_p"]})
+    cross: np.ndarray = field(metadata={"units": DATASET_UNITS["cross"]})
+    power: np.ndarray = field(metadata={"units": DATASET_UNITS["power"]})
     chi2_AO: float
     n_data: int
     geometry: DiscGeometry
     distance: float | None = None
     provenance: dict = field(default_factory=dict)
-    cross_error: np.ndarray | None = None
-    power_error: np.ndarray | None = None
+    cross_error: np.ndarray | None = field(default=None, metadata={"units": DATASET_UNITS["cross_error"]})
+    power_error: np.ndarray | None = field(default=None, metadata={"units": DATASET_UNITS["power_error"]})
 
     def __post_init__(self):
         for name in ("cross_error", "power_error"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(np.shape(self.cross), np.nan))
+        shape = (len(self.templates), np.size(self.r_p), np.size(self.phi_p))
+        if any(np.shape(a) != shape for a in (self.cross, self.power, self.cross_error, self.power_error)):
+            raise InputError(f"ScanResult: arrays of shape {np.shape(self.cross)} / {np.shape(self.power)} do not "
+                             f"match {shape[0]} templates x {shape[1]} radii x {shape[2]} azimuths")
 
     def delta_chi2_error(self) -> np.ndarray:
         """Error estimate of :meth:`delta_chi2` (the paper's fixed amplitude): ``2 cross_error + power_error``."""
@@ -148,8 +184,13 @@ class ScanResult:
         peak = np.nanmax(self.delta_chi2(amplitude), axis=(1, 2))
         return peak - bic_threshold(self.n_data, self.n_params(amplitude))
 
-    def best(self, template: int | str | None = None, amplitude=None) -> dict:
-        """The best instance of one template (or overall): indices, position and Δχ²."""
+    @property
+    def best(self) -> ScanPeak:
+        """The scan's best instance (largest Δχ², the paper's fixed amplitude)."""
+        return self.peak()
+
+    def peak(self, template: int | str | None = None, amplitude=None) -> ScanPeak:
+        """The best instance of one template (default: of the whole scan), for ``amplitude``."""
         dchi2 = self.delta_chi2(amplitude)
         t_index = self.template_index(template) if template is not None else None
         if t_index is None:
@@ -157,10 +198,8 @@ class ScanResult:
         else:
             i, j = np.unravel_index(np.nanargmax(dchi2[t_index]), dchi2.shape[1:])
         value = float(dchi2[t_index, i, j])
-        return {"template": self.templates[t_index]["name"], "template_index": int(t_index),
-                "r_p": float(self.r_p[i]), "phi_p": float(self.phi_p[j]), "i_rp": int(i), "i_phi": int(j),
-                "delta_chi2": value,
-                "delta_bic": value - bic_threshold(self.n_data, self.n_params(amplitude))}
+        return ScanPeak(self.templates[t_index]["name"], int(t_index), float(self.r_p[i]), float(self.phi_p[j]),
+                        int(i), int(j), value, value - bic_threshold(self.n_data, self.n_params(amplitude)))
 
     def template_index(self, template: int | str) -> int:
         if isinstance(template, (int, np.integer)):
@@ -170,39 +209,24 @@ class ScanResult:
             raise KeyError(f"no template named {template!r}; have {names}")
         return names.index(template)
 
-    # -- persistence ------------------------------------------------------------------------
-    def save(self, path) -> Path:
-        """Write to HDF5 (atomically)."""
-        with write_file(path, SCAN_KIND) as f:
-            for name in ("r_p", "phi_p", "cross", "power", "cross_error", "power_error"):
-                checked_dataset(f, name, getattr(self, name)).attrs["units"] = DATASET_UNITS[name]
-            f.attrs["chi2_AO"] = self.chi2_AO
-            f.attrs["n_data"] = self.n_data
-            f.attrs["geometry"] = json.dumps(self.geometry.to_dict())
-            f.attrs["distance"] = -1.0 if self.distance is None else self.distance
-            f.attrs["templates"] = to_json(self.templates)
-            f.attrs["provenance"] = to_json(self.provenance)
-        return Path(path)
+    def summary(self) -> str:
+        """The grid scanned and the best instance, in words."""
+        done = int(self.completed.sum())
+        text = (f"Scan of {len(self.templates)} templates ({done} done) over {self.r_p.size} radii "
+                f"({self.r_p[0]:.3g}-{self.r_p[-1]:.3g} arcsec) x {self.phi_p.size} azimuths, N = {self.n_data} "
+                f"visibilities, chi2 of the axisymmetric model {self.chi2_AO:.6g}.")
+        if done:
+            b = self.best
+            au = f" ({b.r_p * self.distance:.0f} au)" if self.distance else ""
+            text += (f" Best: {b.template} at r_p = {b.r_p:.3f} arcsec{au}, phi_p = {np.degrees(b.phi_p):.0f} deg, "
+                     f"Delta chi2 = {b.delta_chi2:.1f}, Delta BIC = {b.delta_bic:.1f}.")
+        return text
 
-    @classmethod
-    def load(cls, path) -> "ScanResult":
-        """Read a result (or a checkpoint) written by :meth:`save`.
-
-        Raises :class:`~spiralbayes.exceptions.DataFileError` naming the file when it is
-        truncated, corrupt or inconsistent (array shapes that do not match the grid).
-        """
-        with open_file(path, SCAN_KIND, "scan result") as f:
-            distance = float(f.attrs["distance"])
-            result = cls(json.loads(f.attrs["templates"]), f["r_p"][()], f["phi_p"][()], f["cross"][()],
-                         f["power"][()], float(f.attrs["chi2_AO"]), int(f.attrs["n_data"]),
-                         DiscGeometry(**json.loads(f.attrs["geometry"])), None if distance < 0 else distance,
-                         json.loads(f.attrs["provenance"]),
-                         *(f[name][()] if name in f else None for name in ("cross_error", "power_error")))
-            shape = (len(result.templates), result.r_p.size, result.phi_p.size)
-            if any(np.shape(a) != shape for a in (result.cross, result.power, result.cross_error, result.power_error)):
-                raise InputError(f"arrays of shape {result.cross.shape} / {result.power.shape} do not match "
-                                 f"{shape[0]} templates x {shape[1]} radii x {shape[2]} azimuths")
-            return result
+    def to_dict(self) -> dict:
+        """The fields as JSON-safe values, with ``best`` (the best instance) when any template is done."""
+        out = fields_dict(self)
+        out["best"] = self.best.to_dict() if self.completed.any() else None
+        return out
 
     def __repr__(self) -> str:
         done = int(self.completed.sum())
@@ -210,9 +234,22 @@ class ScanResult:
                 f"{self.r_p[0]:.3g} to {self.r_p[-1]:.3g} arcsec x {self.phi_p.size} phi_p, N = {self.n_data}, "
                 f"chi2_AO = {self.chi2_AO:.6g}")
         if done:
-            best = self.best()
-            head += f"; best {best['template']}: Delta chi2 = {best['delta_chi2']:.1f} at r_p = {best['r_p']:.3g}"
+            best = self.best
+            head += f"; best {best.template}: Delta chi2 = {best.delta_chi2:.1f} at r_p = {best.r_p:.3g}"
         return head + ")"
+
+
+def _read_format_1(f) -> ScanResult:
+    """A scan written before the dataclass layout (``format_version`` 1)."""
+    distance = float(f.attrs["distance"])
+    return ScanResult(json.loads(f.attrs["templates"]), f["r_p"][()], f["phi_p"][()], f["cross"][()],
+                      f["power"][()], float(f.attrs["chi2_AO"]), int(f.attrs["n_data"]),
+                      DiscGeometry(**json.loads(f.attrs["geometry"])), None if distance < 0 else distance,
+                      json.loads(f.attrs["provenance"]),
+                      *(f[name][()] if name in f else None for name in ("cross_error", "power_error")))
+
+
+ScanResult.LEGACY_READERS = {1: _read_format_1}
 
 
 # --------------------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...exceptions import InputError
+from ...results import ResultMixin, fields_dict
 from ...model import perturbation_visibilities
 from ...templates.template import template_metadata
 from ..limits.exclusion import compute_limits
@@ -31,8 +32,8 @@ from ..scan.engine import ScanContext, cross_template, scan_template, with_resid
 __all__ = ["PlantedExclusion", "planted_exclusion_rate"]
 
 
-@dataclass
-class PlantedExclusion:
+@dataclass(repr=False)
+class PlantedExclusion(ResultMixin):
     """How often a planted planet was excluded.
 
     Attributes
@@ -64,6 +65,9 @@ class PlantedExclusion:
     cl: float
     details: dict = field(default_factory=dict)
 
+    KIND = "spiralbayes.PlantedExclusion"
+    WHAT = "planted-exclusion result"
+
     @property
     def n(self) -> int:
         return int(self.wrongly_excluded.size)
@@ -83,6 +87,14 @@ class PlantedExclusion:
                 f"excluded in {self.wrongly_excluded.sum()} of {self.n} noise realisations "
                 f"({100 * self.rate:.1f} %, nominal {100 * (1 - self.cl):.0f} % +- {100 * self.rate_error:.1f} %) "
                 f"by the limit of the template family {self.family}.")
+
+    def to_dict(self) -> dict:
+        """The fields as JSON-safe values, with the rate and its error."""
+        return {**fields_dict(self), "rate": self.rate, "rate_error": self.rate_error}
+
+    def __repr__(self) -> str:
+        return (f"PlantedExclusion({self.planted} at r_p = {self.r_p:.3g} arcsec, {self.true_mass:.3g} M_th: "
+                f"wrongly excluded {self.wrongly_excluded.sum()} of {self.n}, CL = {self.cl:g})")
 
 
 def planted_exclusion_rate(vis, axisymmetric, family_templates, planted, r_p: float, phi_p: float,

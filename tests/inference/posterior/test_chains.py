@@ -1,0 +1,90 @@
+"""The chain backend: batches flushed to the chain file give emcee's own uninterrupted chain, bit for bit.
+
+Reference: ``emcee.EnsembleSampler`` with its default in-memory backend, run in one go from the
+same walkers and random state. :func:`run_chain` runs in batches of ``flush_every`` steps through
+:class:`ChainBackend`, writes each batch atomically, and a second call continues from the file.
+"""
+
+import emcee
+import numpy as np
+from emcee.state import State
+
+from spiralbayes.inference.posterior import (
+    ChainBackend,
+    ChainStore,
+    Priors,
+    WalkerPool,
+    chain_inference_data,
+    default_moves,
+    run_chain,
+    streams,
+)
+
+N_WALKERS, N_DIM = 14, 6
+CENTRE = np.array([0.3, 1.0, 30.0, 60.0, 0.0, 0.0])
+WIDTH = np.array([0.02, 0.3, 0.5, 0.5, 0.01, 0.01])
+
+
+def log_prob(theta):
+    """A Gaussian with two blobs (as the sampled likelihood returns its amplitude terms)."""
+    z = (np.asarray(theta) - CENTRE) / WIDTH
+    return -0.5 * float(z @ z), float(z[0]), float(z[1] ** 2)
+
+
+PRIORS = Priors((0.1, 0.6), (30.0, 1.0), (60.0, 1.0), (0.0, 0.01), (0.0, 0.01))
+
+
+def _initial():
+    return CENTRE + WIDTH * np.random.default_rng(5).normal(size=(N_WALKERS, N_DIM)) * 0.1
+
+
+def _run(store, saved, n_steps, flush_every):
+    return run_chain(ChainBackend(store, {"test": 1}), saved, WalkerPool(None, log_prob), CENTRE, np.diag(WIDTH ** 2),
+                     PRIORS, n_walkers=N_WALKERS, n_steps=n_steps, max_steps=n_steps, check_every=10,
+                     flush_every=flush_every, min_ess=0, moves=None, progress=False, streams=streams(3, "t"),
+                     initial=_initial(), name="t", logpost=log_prob)
+
+
+def test_batches_and_resume_give_emcees_uninterrupted_chain(tmp_path):
+    store = ChainStore(tmp_path / "chains.h5", "t")
+    _run(store, None, 23, 7)  # stops after 23 steps: batches of 7, 7, 7, 2
+    first = store.read()
+    assert first.iteration == 23 and first.inputs == {"test": 1}
+    backend = _run(store, first, 40, 7)  # continues from the file to 40
+    stored = store.read()
+
+    _, seed, _, _ = streams(3, "t")
+    reference = emcee.EnsembleSampler(N_WALKERS, N_DIM, log_prob, moves=default_moves())
+    reference.run_mcmc(State(_initial(), random_state=np.random.RandomState(seed).get_state()), 40, progress=False)
+    np.testing.assert_array_equal(stored.chain, reference.get_chain())
+    np.testing.assert_array_equal(stored.log_prob, reference.get_log_prob())
+    np.testing.assert_array_equal(stored.blobs, reference.get_blobs())
+    np.testing.assert_array_equal(stored.accepted, reference.backend.accepted)
+    np.testing.assert_array_equal(backend.get_chain(discard=5, thin=3), reference.get_chain(discard=5, thin=3))
+    # the file is emcee's HDFBackend layout: emcee reads it back itself
+    hdf = emcee.backends.HDFBackend(store.path, name="t", read_only=True)
+    np.testing.assert_array_equal(hdf.get_chain(), reference.get_chain())
+    assert hdf.iteration == 40
+
+
+def test_the_backend_grows_geometrically():
+    backend = ChainBackend(None, {})
+    backend.reset(3, 2)
+    sizes = []
+    for _ in range(40):
+        backend.grow(1, np.zeros((3, 2)))
+        sizes.append(len(backend.chain))
+        backend.save_step(State(np.ones((3, 2)), log_prob=np.zeros(3), blobs=np.zeros((3, 2))), np.ones(3, bool))
+    assert backend.iteration == 40 and len(set(sizes)) == 7  # 1, 2, 4, ..., 64: seven allocations
+    assert backend.get_chain().shape == (40, 3, 2) and backend.get_blobs().shape == (40, 3, 2)
+
+
+def test_inference_data_lays_walkers_out_as_chains():
+    chain = np.arange(5 * 4 * 6, dtype=float).reshape(5, 4, 6)  # steps, walkers, parameters
+    lp = np.arange(20, dtype=float).reshape(5, 4)
+    idata = chain_inference_data(chain, lp)
+    r_p = idata.posterior["r_p"].values
+    assert r_p.shape == (4, 5)
+    np.testing.assert_array_equal(r_p, chain[:, :, 0].T)
+    np.testing.assert_array_equal(idata.posterior["dDec"].values, chain[:, :, 5].T)
+    np.testing.assert_array_equal(idata.sample_stats["lp"].values, lp.T)
