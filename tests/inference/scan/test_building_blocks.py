@@ -5,7 +5,7 @@ The reference is the plain per-template path of the same engine (every template 
 quadrature. Every template, every position of a whole small grid, both power paths, on synthetic
 data with a planted variant spiral (so large Δχ² are tested too): the two must agree within the
 engine's tolerance ``0.05 + 1e-4 |Δχ²|``, each term within 1e-6 (cross relative to
-``max(|cross|, sqrt(power))``), the generator templates bit for bit, and the two paths' error
+``max(|cross|, sqrt(power))``), the generator templates' cross terms bit for bit, and the two paths' error
 estimates must cover the difference but for the templates' float32 storage (the building blocks
 scan ``s T + a B`` in double precision, the plain path its float32 rounding).
 """
@@ -105,8 +105,12 @@ def test_building_blocks_match_the_plain_scan_on_a_whole_grid(data, bank, power_
     assert not fast.accuracy_violations().any()
 
     generators = [i for i, t in enumerate(bank) if t.provenance["variant"] == "compromise"]
-    for name in ("cross", "power", "cross_error", "power_error"):
-        np.testing.assert_array_equal(getattr(fast, name)[generators], getattr(plain, name)[generators])
+    np.testing.assert_array_equal(fast.cross[generators], plain.cross[generators])  # the same calls
+    if power_path == "direct":  # the polar path sends two blocks through one transform
+        for name in ("power", "cross_error", "power_error"):
+            np.testing.assert_array_equal(getattr(fast, name)[generators], getattr(plain, name)[generators])
+    else:
+        assert 0 < fast.provenance["power_check"]["pairs"] < 1e-7
     # the building blocks' bound is subadditive: never below the plain bound (up to rounding)
     assert np.all(fast.delta_chi2_error() >= plain.delta_chi2_error() * (1 - 1e-9))
 

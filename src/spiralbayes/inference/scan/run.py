@@ -51,7 +51,7 @@ from ...io.data_checks import check_search_data
 from ...model import DEFAULT_CELL_FACTOR, DEFAULT_RULE
 from ...templates.template import template_metadata
 from .accuracy import TOLERANCE, check_terms, warn_if_inaccurate
-from .building_blocks import VariantGroup, describe, scan_group, variant_groups, work_units
+from .building_blocks import check_pairs, describe, scan_group, unit_rows, variant_groups, work_units
 from .engine import ScanContext, ScanSettings, scan_template
 from .statistics import bic_threshold, delta_chi2_from_terms
 
@@ -314,6 +314,8 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     todo = [i for i in range(len(templates)) if not result.completed[i]]
     if todo and settings.rule == "product":
         context.algorithm_error = check_terms(context, templates[0])
+        if groups:
+            check_pairs(context, groups[0])
         result.provenance["power_check"] = context.algorithm_error
     t1 = time.perf_counter()
     runner = _run_dask if client is not None else _run_serial
@@ -538,8 +540,8 @@ def store_template_terms(result: ScanResult, index: int, terms, checkpoint) -> N
 
 
 def run_unit(context: ScanContext, unit) -> dict:
-    """One unit of :func:`~.building_blocks.work_units`: a group of variants or ``(index, template)``."""
-    if isinstance(unit, VariantGroup):
+    """One unit of :func:`~.building_blocks.work_units`: groups of variants or ``(index, template)``."""
+    if isinstance(unit, list):
         return scan_group(context, unit)
     index, template = unit
     return {index: scan_template(context, template)}
@@ -564,7 +566,7 @@ def _progress(total: int, enabled: bool):
 
 
 def _todo_rows(result: ScanResult, units) -> int:
-    return sum(int(not result.completed[i]) for u in units for i in (u.indices if hasattr(u, "indices") else [u[0]]))
+    return sum(int(not result.completed[i]) for u in units for i in unit_rows(u))
 
 
 def _run_serial(context, units, result, checkpoint, progress, client=None) -> None:
