@@ -21,7 +21,7 @@ import pytest
 from spiralbayes import DiscGeometry
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.exceptions import AccuracyWarning, ResumeMismatchError
-from spiralbayes.inference.scan.building_blocks import variant_groups
+from spiralbayes.inference.scan.building_blocks import building_block_groups
 from spiralbayes.inference.scan.run import ScanResult, scan
 from spiralbayes.model import perturbation_visibilities
 from spiralbayes.templates.variants import DEFAULT_VARIANTS, variant_grid
@@ -72,7 +72,7 @@ def _scan(data, templates, **options):
 
 
 def test_the_default_variants_form_groups_sharing_one_peak(bank):
-    groups, plain = variant_groups(bank)
+    groups, plain = building_block_groups(bank)
     assert plain == []
     assert sorted(i for g in groups for i in g.indices) == list(range(len(bank)))
     # one near-planet peak per (mass, τ0, H/r): shared by both β and both hands
@@ -124,7 +124,7 @@ def test_a_template_that_is_not_its_variant_is_scanned_plainly(data, bank, varia
     delta = np.array(templates[k].delta)
     delta[40:60, 100:140] *= 1.01
     templates[k] = replace(templates[k], delta=delta)
-    groups, plain = variant_groups(templates)
+    groups, plain = building_block_groups(templates)
     others = [i for i, t in enumerate(templates) if t.provenance["variant"] != "compromise" and i != k]
     assert plain == ([k] if variant == "wakeflow" else others)
     fast = _scan(data, templates)

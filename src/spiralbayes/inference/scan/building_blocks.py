@@ -14,7 +14,11 @@ where ``power_TB = Re sum_k w_k ΔV_T,k conj(ΔV_B,k)`` comes from the same uv g
 so this is the plain path's arithmetic regrouped, not an approximation). A group (one ``B``, its
 generators, their variants) costs one plain scan per ``T`` and per ``B`` and one cross-power pass
 per ``T``, whatever the number of variants: the default variant bank (576 templates) scans
-192 ``T`` and 48 ``B``.
+192 ``T`` and 48 ``B``. On the polar path the blocks' fluxes (real) go through the type-3
+transform two at a time (:func:`pair_transforms`: one transform to ``±q`` for the price of 1.37),
+two groups together; the transform's change of the power is measured once per scan against the
+one-at-a-time transform (:func:`check_pairs`, ~1e-8 relative) and enters the error estimates like
+the power path's own check.
 
 The blocks come from the bank itself, not from the generators: ``T`` is the variant with
 ``s = 1, a = 0`` (the compromise, stored bit for bit as the generator's template) and ``B`` is
@@ -53,8 +57,7 @@ from .engine import (
 )
 from .uv_levels import power_all_phi
 
-__all__ = ["STRUCTURE_VERSION", "Generator", "VariantGroup", "check_pairs", "describe", "pair_transforms", "scan_group",
-           "unit_rows", "variant_groups", "work_units"]
+__all__ = ["VariantGroup", "scan_group", "building_block_groups"]
 
 log = logging.getLogger(__name__)
 
@@ -115,7 +118,7 @@ def _mirror_delta(template, delta: np.ndarray) -> np.ndarray:
     return np.asarray(replace(template, delta=delta, brightness=None).mirror().delta, dtype=float)
 
 
-def variant_groups(templates) -> tuple[list[VariantGroup], list[int]]:
+def building_block_groups(templates) -> tuple[list[VariantGroup], list[int]]:
     """Split ``templates`` into groups scanned through building blocks and the indices scanned plainly
     (module docstring)."""
     templates = list(templates)
@@ -189,8 +192,9 @@ def _build_groups(templates, gens, plain: list) -> list[VariantGroup]:
             b = blobs[hand]
             out[slot] = VariantGroup(replace(T, delta=b, brightness=None, name=f"blocks:{T.name}:B",
                                              provenance={"recovered_from": templates[k[0]].name}), [])
-        out[slot].generators.append(Generator(T, kept))
-    return list(out.values())
+        if kept:
+            out[slot].generators.append(Generator(T, kept))
+    return [g for g in out.values() if g.generators]
 
 
 # --- the scan of a group ------------------------------------------------------------------------------
@@ -359,7 +363,7 @@ def check_pairs(context: ScanContext, group: VariantGroup) -> float:
     return worst
 
 
-def describe(groups: list[VariantGroup]) -> dict | None:
+def describe_blocks(groups: list[VariantGroup]) -> dict | None:
     """The resume key's record of the building blocks (None without groups)."""
     if not groups:
         return None

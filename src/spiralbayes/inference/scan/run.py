@@ -12,8 +12,9 @@ a hash of the data, of the axisymmetric profile (its arrays, or the profile samp
 scanned radii) and frank's settings, each template's content hash (x, phi, δ) and metadata, the
 (r_p, phi_p) grid, the geometry, the quadrature settings (the rule, ``cell_factor`` for the
 midpoint rule, and the power path's settings, :class:`~.scan_engine.ScanSettings`) and
-spiralbayes' version; a checkpoint written with other settings, or before they were recorded, is
-refused. Any difference raises :class:`ResumeMismatchError` naming it; ``force_resume=True`` keeps
+spiralbayes' version, and, when morphology variants were scanned through their building blocks
+(:mod:`.building_blocks`), which; a checkpoint written with other settings, or before they were
+recorded, is refused. Any difference raises :class:`ResumeMismatchError` naming it; ``force_resume=True`` keeps
 the completed templates anyway (same grid required). The thread count is not part of the key: it
 changes the last digits only.
 
@@ -51,7 +52,7 @@ from ...io.data_checks import check_search_data
 from ...model import DEFAULT_CELL_FACTOR, DEFAULT_RULE
 from ...templates.template import template_metadata
 from .accuracy import TOLERANCE, check_terms, warn_if_inaccurate
-from .building_blocks import check_pairs, describe, scan_group, unit_rows, variant_groups, work_units
+from .building_blocks import check_pairs, describe_blocks, scan_group, unit_rows, building_block_groups, work_units
 from .engine import ScanContext, ScanSettings, scan_template
 from .statistics import bic_threshold, delta_chi2_from_terms
 
@@ -303,12 +304,12 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     _warn_if_weights_too_small(context.chi2_AO, vis.n)
     result = empty_result(context, templates, vis, distance)
     t_blocks = time.perf_counter()
-    groups, plain = variant_groups(templates) if building_blocks and settings.rule == "product" else ([], None)
+    groups, plain = building_block_groups(templates) if building_blocks and settings.rule == "product" else ([], None)
     t_blocks = time.perf_counter() - t_blocks
     if groups:
         log.info("%d templates scanned through %d groups of building blocks",
                  sum(len(g.indices) for g in groups), len(groups))
-    result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context, describe(groups))
+    result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context, describe_blocks(groups))
     if checkpoint is not None:
         result = resume_from_checkpoint(checkpoint, result, force_resume)
     todo = [i for i in range(len(templates)) if not result.completed[i]]
@@ -406,7 +407,7 @@ def resume_key(vis, axisymmetric, templates, context: ScanContext, structure: di
     """Everything a checkpoint's numbers depend on, as hashes and small dicts (JSON-able).
 
     Two scans with equal keys compute identical arrays (for the same thread count). ``structure``:
-    the building blocks used (:func:`.building_blocks.describe`), recorded only when there are some.
+    the building blocks used (:func:`.building_blocks.describe_blocks`), recorded only when there are some.
     """
     profile, settings = _axisymmetric_key(axisymmetric, context.r_p)
     key = {
