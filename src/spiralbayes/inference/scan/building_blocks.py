@@ -289,12 +289,13 @@ def _scan_groups(context: ScanContext, groups: list[VariantGroup]) -> dict[int, 
         quads = [context.quadrature(g.generators[0].template, r_p) for g in groups]
         if not all(isinstance(q, ProductQuadrature) for q in quads):
             raise TypeError("building blocks need the product rule (its error bound)")
-        blocks: list = [None] * len(groups)
+        blocks: list = [[None] * len(sp) for sp in spectra]
         for quad in {id(q): q for q in quads}.values():  # groups on one node set share transforms
-            which = [n for n, q in enumerate(quads) if q is quad]
-            done = iter(_blocks(context, quad, [sp for n in which for sp in spectra[n]]))
-            for n in which:
-                blocks[n] = [next(done) for _ in spectra[n]]
+            # peaks first, so that like is paired with like (a transform's error follows the larger flux)
+            slots = sorted(((n, j) for n, q in enumerate(quads) if q is quad for j in range(len(spectra[n]))),
+                           key=lambda nj: (nj[1] != 0 or groups[nj[0]].blob is None, nj))
+            for (n, j), block in zip(slots, _blocks(context, quad, [spectra[n][j] for n, j in slots])):
+                blocks[n][j] = block
         for group, quad, found in zip(groups, quads, blocks):
             b = None if group.blob is None else found[0]
             for gen, t in zip(group.generators, found[1:] if b is not None else found):
