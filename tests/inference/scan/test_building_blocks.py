@@ -145,3 +145,17 @@ def test_resume_keys_tell_the_paths_apart(tmp_path, data, bank):
     assert ScanResult.load(checkpoint).completed.all()
     with pytest.raises(ResumeMismatchError, match="building blocks"):
         scan(vis, model, templates, GEOMETRY, checkpoint=checkpoint, building_blocks=False, **kwargs)
+
+
+def test_dask_runs_the_groups_as_the_serial_scan(data, bank):
+    from dask.distributed import Client, LocalCluster
+
+    vis, model = data
+    templates = _one_mass(bank) + [t for t in bank if t.mass == 0.3 and t.beta == 10.0]  # two groups
+    kwargs = dict(r_p=R_P[1:3], n_phi_p=10, progress=False)
+    serial = scan(vis, model, templates, GEOMETRY, **kwargs)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        parallel = scan(vis, model, templates, GEOMETRY, client=client, **kwargs)
+    assert "structure" in parallel.provenance["resume_key"]
+    np.testing.assert_allclose(parallel.dchi2, serial.dchi2, rtol=1e-9, atol=1e-9)
