@@ -274,7 +274,7 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     building_blocks : bool
         Scan morphology variants (:func:`~spiralbayes.templates.variants.variant_bank`) through
         their generator templates and near-planet peaks (:mod:`.building_blocks`: the same numbers
-        to the templates' float32 rounding, for about the cost of the bank without variants);
+        to the templates' float32 rounding, for about 1.3 times the cost of their generator templates);
         False scans every template on its own. Needs the product rule.
 
     The result carries error estimates (:meth:`ScanResult.delta_chi2_error`); an
