@@ -33,7 +33,9 @@ differs from the plain scan of the stored templates only by their float32 roundi
 Error estimates: the quadrature's bound is subadditive in δ (an L1 norm and sums of ``|C|``
 against mean ``|δ|``), so ``|s| B_T + |a| B_B`` bounds the variant's; the power path's measured
 relative discrepancy multiplies ``(|s| sqrt(P_TT) + |a| sqrt(P_BB))^2 >= P`` (its error in each
-block is relative to that block's power). For ``a = 0`` both reduce to the plain scan's numbers.
+block is relative to that block's power), and the pairing's measured change adds to the power's.
+For ``a = 0`` the cross term and the bound are the plain scan's bit for bit (and, on the direct
+path, which transforms one at a time, every number).
 """
 
 from __future__ import annotations
