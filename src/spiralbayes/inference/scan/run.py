@@ -322,8 +322,8 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     runner = _run_dask if client is not None else _run_serial
     runner(context, work_units(templates, todo, groups, plain), result, checkpoint, progress, client)
     result.provenance["scan_time_s"] = time.perf_counter() - t0
-    result.provenance["timing_s"] = {"setup": setup_s, "building_blocks": t_blocks, "check": t1 - t0 - setup_s - t_blocks,
-                                     "templates": time.perf_counter() - t1}
+    result.provenance["timing_s"] = {"setup": setup_s, "building_blocks": t_blocks,
+                                     "check": t1 - t0 - setup_s - t_blocks, "templates": time.perf_counter() - t1}
     warn_if_inaccurate(result)
     return result
 
