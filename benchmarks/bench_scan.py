@@ -2,7 +2,9 @@
 
 ``bank``      ~1e5 visibilities (C-4 + C-7, 0.87 mm), the authors' grid of 25 r_p x 90 phi_p: the
               paper's 64-template bank and the 192-template bank (64 at h_p = 0.05, 0.07, 0.10),
-              serial on 2 threads and on a Dask LocalCluster (2 workers); the naive loop (image +
+              serial on 2 threads and on a Dask LocalCluster (2 workers), and the 192 with every
+              default morphology variant (576 templates, issue 22; scanned through their building
+              blocks), with its ratio to the 192; the naive loop (image +
               NUFFT + chi^2 per instance, as the authors' galario loop) timed on 20 instances in the
               same run, and the ratio.
 ``as209``     the real 196-visibility AS 209 sample (frank's geometry): frank with the sparse-data
@@ -91,11 +93,20 @@ def h_p_bank(n: int):
     return [bank.get(t.mass, t.tau0, t.beta, t.hand, h_p=h) for h in H_P for t in base]
 
 
+def variant_subset(big):
+    """The variant bank's templates (every default morphology) of the generator templates in ``big``."""
+    from spiralbayes.templates.variants import variant_bank
+
+    wanted = {(t.mass, t.tau0, t.beta, t.hand, t.h_p) for t in big}
+    return [t for t in variant_bank() if (t.mass, t.tau0, t.beta, t.hand, t.h_p) in wanted]
+
+
 # --- cases ----------------------------------------------------------------------------------------
 def case_bank(args) -> dict:
+    out0 = {"load_before": os.getloadavg()[0]}
     vis, axisym = observation()
     bank = list(default_bank().select(h_p=0.07))[: args.templates]  # the paper's 64
-    out = {"N_vis": vis.n, "templates": len(bank)}
+    out = {**out0, "N_vis": vis.n, "templates": len(bank)}
     t0 = time.perf_counter()
     serial = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
     out["serial_s"] = time.perf_counter() - t0
@@ -103,9 +114,20 @@ def case_bank(args) -> dict:
     out["max_error_estimate"] = float(np.nanmax(serial.delta_chi2_error()))
     out["power_check"] = serial.provenance.get("power_check", {}).get("power")
     big = h_p_bank(args.templates)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     scan(vis, axisym, big, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
     out["serial_3hp_s"], out["templates_3hp"] = time.perf_counter() - t0, len(big)
+    out["serial_3hp_cpu_s"] = time.process_time() - c0
+    if not args.no_variants:
+        variants = variant_subset(big)
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = scan(vis, axisym, variants, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
+        out["variants_s"], out["templates_variants"] = time.perf_counter() - t0, len(variants)
+        out["variants_cpu_s"] = time.process_time() - c0
+        out["variants_violations"] = int(res.accuracy_violations().sum())
+        out["variants_blocks_s"] = res.provenance["timing_s"]["building_blocks"]
+        out["variants_max_error_estimate"] = float(np.nanmax(res.delta_chi2_error()))
+        out["load_after_variants"] = os.getloadavg()[0]
     if not args.no_dask:
         from dask.distributed import Client, LocalCluster
 
@@ -212,11 +234,21 @@ def report(name: str, r: dict, n_inst_per_template: int = R_P.size * N_PHI) -> N
               f"{1e3 * naive:.1f} ms per instance")
         for label, key, n_t in (("paper's bank, serial (2 threads)", "serial_s", r["templates"]),
                                 ("paper's bank, Dask (2 workers)", "dask_s", r["templates"]),
-                                ("3 h_p x bank, serial (2 threads)", "serial_3hp_s", r["templates_3hp"])):
+                                ("3 h_p x bank, serial (2 threads)", "serial_3hp_s", r["templates_3hp"]),
+                                ("3 h_p x bank x variants, serial (2 threads)", "variants_s",
+                                 r.get("templates_variants", 0))):
             if key in r:
                 n_inst = n_t * n_inst_per_template
                 print(f"[bank] {label}: {n_t} templates in {r[key]:.1f} s, {1e6 * r[key] / n_inst:.0f} us per "
                       f"instance, naive would take {naive * n_inst / 60:.0f} min: x{naive * n_inst / r[key]:.0f}")
+        if "variants_s" in r:
+            print(f"[bank] variants: {r['templates_variants']} templates in {r['variants_s']:.1f} s "
+                  f"(grouping {r['variants_blocks_s']:.1f} s), {r['variants_s'] / r['serial_3hp_s']:.3f} x the "
+                  f"{r['templates_3hp']}-template scan of the same run; largest error estimate "
+                  f"{r['variants_max_error_estimate']:.2e}, over the tolerance at {r['variants_violations']} instances; "
+                  f"CPU time (all threads) {r['variants_cpu_s']:.1f} s vs {r['serial_3hp_cpu_s']:.1f} s: "
+                  f"{r['variants_cpu_s'] / r['serial_3hp_cpu_s']:.3f}; load average {r['load_before']:.1f} before the "
+                  f"case, {r['load_after_variants']:.1f} after the variants")
         print(f"[bank] peak memory after the serial scan {r['peak_after_serial_MB']:.0f} MB; Dask workers "
               f"{', '.join(f'{m:.0f}' for m in r.get('dask_worker_MB', []))} MB; serial vs Dask max |d dchi2| / "
               f"power {r.get('serial_vs_dask_max_rel', float('nan')):.1e}; largest error estimate "
@@ -246,6 +278,7 @@ def main() -> None:
     parser.add_argument("--templates", type=int, default=64)
     parser.add_argument("--naive", type=int, default=20, help="instances timed for the naive loop")
     parser.add_argument("--no-dask", action="store_true")
+    parser.add_argument("--no-variants", action="store_true", help="skip the variant bank (576 templates)")
     parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # child process output
     args = parser.parse_args()
     warnings.simplefilter("ignore")
@@ -259,7 +292,8 @@ def main() -> None:
     print(f"load before: {os.getloadavg()}")
     for name in CASES:
         cmd = [sys.executable, __file__, "--case", name, "--templates", str(args.templates), "--naive",
-               str(args.naive), "--json"] + (["--no-dask"] if args.no_dask else [])
+               str(args.naive), "--json"] + (["--no-dask"] if args.no_dask else []) \
+            + (["--no-variants"] if args.no_variants else [])
         proc = subprocess.run(cmd, capture_output=True, text=True)
         lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("JSON ")]
         if proc.returncode or not lines:

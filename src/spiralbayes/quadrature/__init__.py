@@ -53,6 +53,7 @@ the scan reports its own error estimate. The defaults keep ``B`` near 1e-11 of t
 both terms are good to ~1e-9 relative, well below the 1e-6 the scan's tolerance rule needs.
 """
 
+from .blas import one_blas_thread
 from .angular import PHI_TOLERANCE, TemplateSpectrum, angular_count, bessel_tail, bessel_tail_limit
 from .radial import (
     KERNEL_TOLERANCE,
@@ -80,5 +81,6 @@ __all__ = [
     "bessel_tail_limit",
     "gauss_interpolation_bound",
     "make_product_quadrature",
+    "one_blas_thread",
     "sinc_interpolation_error",
 ]

@@ -3,6 +3,8 @@
 * :mod:`.run` — :func:`scan`, its :class:`ScanResult`, checkpoints and resume;
 * :mod:`.engine` — one template at every position (:class:`ScanContext`, :class:`ScanSettings`);
 * :mod:`.uv_levels` — polar uv grids for the power term;
+* :mod:`.building_blocks` — morphology variants ``s T + a B`` scanned through their generator
+  templates and near-planet peaks;
 * :mod:`.accuracy` — the self-check against exact sums and the tolerance rule;
 * :mod:`.statistics` — χ², the Gaussian likelihood, ΔBIC.
 """
@@ -28,6 +30,7 @@ from .engine import (
     with_residual,
 )
 from .accuracy import CHECK_AZIMUTHS, EXACT_EPSILON, TOLERANCE, check_terms, exact_terms, warn_if_inaccurate
+from .building_blocks import VariantGroup, building_block_groups, scan_group
 from .run import ScanPeak, ScanResult, default_rp_grid, resume_key, scan
 
 __all__ = [
@@ -41,6 +44,7 @@ __all__ = [
     "TOLERANCE",
     "TemplateTerms",
     "UVLevel",
+    "VariantGroup",
     "bic_threshold",
     "build_level",
     "check_terms",
@@ -58,9 +62,11 @@ __all__ = [
     "profile_and_model_vis",
     "resume_key",
     "scan",
+    "scan_group",
     "scan_template",
     "theta_count",
     "uv_weight_coefficients",
+    "building_block_groups",
     "warn_if_inaccurate",
     "with_residual",
 ]

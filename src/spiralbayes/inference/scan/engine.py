@@ -68,7 +68,7 @@ from ...model import (
     profile_breaks,
     profile_support,
 )
-from ...quadrature import ProductQuadrature, TemplateSpectrum
+from ...quadrature import ProductQuadrature, TemplateSpectrum, one_blas_thread
 from ...units import ARCSEC
 from .statistics import chi2, delta_chi2_from_terms
 from .uv_levels import (
@@ -420,16 +420,22 @@ def _cross_all_phi(context: ScanContext, flux: np.ndarray, quad) -> np.ndarray:
     return context.geometry.cos_inc * out
 
 
+def _node_transform(context: ScanContext, flux: np.ndarray, quad) -> np.ndarray:
+    """The nodes' fluxes sent to the power path's points: ``P_hat`` at the uv nodes (polar path)
+    or ΔV at every rotated baseline, shape ``(n_phi_p, N)`` (direct path); face on."""
+    out = context.power_plan(quad).exec(forward=False, points_in=flux.astype(complex))
+    return out.reshape(context.n_phi_p, -1) if context.power_path == "direct" else out
+
+
 def _polar_power(context: ScanContext, flux: np.ndarray, quad) -> np.ndarray:
     """``sum_k w_k |ΔV_k|^2`` at the scan's planet azimuths, from the power spectrum on the uv grid."""
-    p_hat = context.power_plan(quad).exec(forward=False, points_in=flux.astype(complex))
+    p_hat = _node_transform(context, flux, quad)
     return context.geometry.cos_inc ** 2 * power_all_phi(context.level(quad), p_hat, context.n_phi_p)
 
 
 def _direct_terms(context: ScanContext, flux: np.ndarray, quad) -> tuple[np.ndarray, np.ndarray]:
     """``cross`` and ``power`` from ΔV at the data's baselines for every planet azimuth (small N)."""
-    dV = context.power_plan(quad).exec(forward=False, points_in=flux.astype(complex))
-    dV = dV.reshape(context.n_phi_p, -1)
+    dV = _node_transform(context, flux, quad)
     cross = context.geometry.cos_inc * ((dV.real * context.residual.real + dV.imag * context.residual.imag)
                                         @ context.weights)
     power = context.geometry.cos_inc ** 2 * ((dV.real ** 2 + dV.imag ** 2) @ context.weights)
@@ -450,9 +456,7 @@ def _terms_at(context: ScanContext, template, r_p: float) -> tuple[np.ndarray, n
 def _one_blas_thread():
     """BLAS on one thread: the small matrix products here ran 20x slower with OpenBLAS threads
     spinning on a busy 2-core machine (1.35 s instead of 0.06 s per template, measured)."""
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=1, user_api="blas")
+    return one_blas_thread()
 
 
 def scan_template(context: ScanContext, template) -> TemplateTerms:
@@ -471,14 +475,23 @@ def _scan_template(context: ScanContext, template) -> TemplateTerms:
         cross[i], power[i], quad, _ = _terms_at(context, template, r_p)
         if isinstance(quad, ProductQuadrature):
             B = ci * quad.error_bound(context.profile, context.spectrum(template))["total"]
-            P = np.maximum(power[i], 0.0)
-            cross_err[i] = B * context.weighted_abs_residual
-            power_err[i] = 2 * B * np.sqrt(context.weight_sum * P) + B * B * context.weight_sum
-            alg = context.algorithm_error
-            if alg:
-                cross_err[i] += CHECK_SAFETY * alg["cross"] * np.sqrt(context.chi2_AO * P)
-                power_err[i] += CHECK_SAFETY * alg["power"] * P
+            cross_err[i], power_err[i] = _error_estimates(context, B, power[i])
     return TemplateTerms(cross, power, cross_err, power_err)
+
+
+def _error_estimates(context: ScanContext, bound: float, power: np.ndarray, power_scale: np.ndarray | None = None):
+    """``cross_error`` and ``power_error`` at one radius (module docstring) from the quadrature's
+    bound on ``|δΔV|`` [Jy] (cos i included) and the power; ``power_scale`` (default the power)
+    is what the power path's measured relative discrepancy multiplies."""
+    P = np.maximum(power, 0.0)
+    scale = P if power_scale is None else power_scale
+    cross_err = bound * context.weighted_abs_residual
+    power_err = 2 * bound * np.sqrt(context.weight_sum * P) + bound * bound * context.weight_sum
+    alg = context.algorithm_error
+    if alg:
+        cross_err = cross_err + CHECK_SAFETY * alg["cross"] * np.sqrt(context.chi2_AO * scale)
+        power_err = power_err + CHECK_SAFETY * alg["power"] * scale
+    return cross_err, power_err
 
 
 def perturbation_spectrum(context: ScanContext, flux: np.ndarray, quad) -> np.ndarray:

@@ -12,8 +12,9 @@ a hash of the data, of the axisymmetric profile (its arrays, or the profile samp
 scanned radii) and frank's settings, each template's content hash (x, phi, δ) and metadata, the
 (r_p, phi_p) grid, the geometry, the quadrature settings (the rule, ``cell_factor`` for the
 midpoint rule, and the power path's settings, :class:`~.scan_engine.ScanSettings`) and
-spiralbayes' version; a checkpoint written with other settings, or before they were recorded, is
-refused. Any difference raises :class:`ResumeMismatchError` naming it; ``force_resume=True`` keeps
+spiralbayes' version, and, when morphology variants were scanned through their building blocks
+(:mod:`.building_blocks`), which; a checkpoint written with other settings, or before they were
+recorded, is refused. Any difference raises :class:`ResumeMismatchError` naming it; ``force_resume=True`` keeps
 the completed templates anyway (same grid required). The thread count is not part of the key: it
 changes the last digits only.
 
@@ -51,6 +52,7 @@ from ...io.data_checks import check_search_data
 from ...model import DEFAULT_CELL_FACTOR, DEFAULT_RULE
 from ...templates.template import template_metadata
 from .accuracy import TOLERANCE, check_terms, warn_if_inaccurate
+from .building_blocks import check_pairs, describe_blocks, scan_group, unit_rows, building_block_groups, work_units
 from .engine import ScanContext, ScanSettings, scan_template
 from .statistics import bic_threshold, delta_chi2_from_terms
 
@@ -256,7 +258,8 @@ ScanResult.LEGACY_READERS = {1: _read_format_1}
 def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, r_p=None, n_phi_p: int = 90,
          distance: float | None = None, checkpoint=None, client=None, progress: bool = True,
          cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1, force_resume: bool = False,
-         rule: str = DEFAULT_RULE, power_path: str = "auto", allow_other_data: bool = False) -> ScanResult:
+         rule: str = DEFAULT_RULE, power_path: str = "auto", allow_other_data: bool = False,
+         building_blocks: bool = True) -> ScanResult:
     """Δχ² of every template at every planet position.
 
     Parameters
@@ -305,6 +308,11 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     allow_other_data : bool
         Scan with an axisymmetric model whose recorded data hash is not that of ``vis`` (e.g.
         injected signals); by default such a model is refused (InputError).
+    building_blocks : bool
+        Scan morphology variants (:func:`~spiralbayes.templates.variants.variant_bank`) through
+        their generator templates and near-planet peaks (:mod:`.building_blocks`: the same numbers
+        to the templates' float32 rounding, for about 1.3 times the cost of their generator templates);
+        False scans every template on its own. Needs the product rule.
 
     The result carries error estimates (:meth:`ScanResult.delta_chi2_error`); an
     :class:`~spiralbayes.exceptions.AccuracyWarning` says where they exceed
@@ -332,18 +340,27 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     log.info("scan set-up (%s power path, %d uv grids): %.2f s", context.power_path, len(context.levels), setup_s)
     _warn_if_weights_too_small(context.chi2_AO, vis.n)
     result = empty_result(context, templates, vis, distance)
-    result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context)
+    t_blocks = time.perf_counter()
+    groups, plain = building_block_groups(templates) if building_blocks and settings.rule == "product" else ([], None)
+    t_blocks = time.perf_counter() - t_blocks
+    if groups:
+        log.info("%d templates scanned through %d groups of building blocks",
+                 sum(len(g.indices) for g in groups), len(groups))
+    result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context, describe_blocks(groups))
     if checkpoint is not None:
         result = resume_from_checkpoint(checkpoint, result, force_resume)
     todo = [i for i in range(len(templates)) if not result.completed[i]]
     if todo and settings.rule == "product":
         context.algorithm_error = check_terms(context, templates[0])
+        if groups:
+            check_pairs(context, groups[0])
         result.provenance["power_check"] = context.algorithm_error
     t1 = time.perf_counter()
     runner = _run_dask if client is not None else _run_serial
-    runner(context, templates, todo, result, checkpoint, progress, client)
+    runner(context, work_units(templates, todo, groups, plain), result, checkpoint, progress, client)
     result.provenance["scan_time_s"] = time.perf_counter() - t0
-    result.provenance["timing_s"] = {"setup": setup_s, "check": t1 - t0 - setup_s, "templates": time.perf_counter() - t1}
+    result.provenance["timing_s"] = {"setup": setup_s, "building_blocks": t_blocks,
+                                     "check": t1 - t0 - setup_s - t_blocks, "templates": time.perf_counter() - t1}
     warn_if_inaccurate(result)
     return result
 
@@ -423,13 +440,14 @@ def _axisymmetric_key(axisymmetric, r_p) -> tuple[str, dict]:
     return content_hash(*items), {}
 
 
-def resume_key(vis, axisymmetric, templates, context: ScanContext) -> dict:
+def resume_key(vis, axisymmetric, templates, context: ScanContext, structure: dict | None = None) -> dict:
     """Everything a checkpoint's numbers depend on, as hashes and small dicts (JSON-able).
 
-    Two scans with equal keys compute identical arrays (for the same thread count).
+    Two scans with equal keys compute identical arrays (for the same thread count). ``structure``:
+    the building blocks used (:func:`.building_blocks.describe_blocks`), recorded only when there are some.
     """
     profile, settings = _axisymmetric_key(axisymmetric, context.r_p)
-    return {
+    key = {
         "spiralbayes": __version__,
         "data": data_hash(vis.u, vis.v, vis.V, vis.weights) + ("*" if getattr(vis, "conjugated", False) else ""),
         "axisymmetric_profile": profile,
@@ -441,6 +459,9 @@ def resume_key(vis, axisymmetric, templates, context: ScanContext) -> dict:
         "geometry": context.geometry.to_dict(),
         "quadrature": context.settings.describe(),
     }
+    if structure is not None:
+        key["structure"] = structure
+    return key
 
 
 def _describe_differences(old: ScanResult, fresh: ScanResult) -> list[str]:
@@ -470,6 +491,8 @@ def _describe_differences(old: ScanResult, fresh: ScanResult) -> list[str]:
     quadrature = _changed(a.get("quadrature") or {}, b["quadrature"])
     if quadrature:
         diffs.append(f"quadrature settings ({quadrature})")
+    if a.get("structure") != b.get("structure"):
+        diffs.append("the building blocks of the variant templates (scanned through them or plainly)")
     return diffs
 
 
@@ -554,25 +577,48 @@ def store_template_terms(result: ScanResult, index: int, terms, checkpoint) -> N
         result.save(checkpoint)
 
 
+def run_unit(context: ScanContext, unit) -> dict:
+    """One unit of :func:`~.building_blocks.work_units`: groups of variants or ``(index, template)``."""
+    if isinstance(unit, list):
+        return scan_group(context, unit)
+    index, template = unit
+    return {index: scan_template(context, template)}
+
+
+def _store_unit(result: ScanResult, terms: dict, checkpoint) -> int:
+    """Keep the rows of one unit of work that are not done yet (a group may hold resumed rows); checkpoint once."""
+    stored = 0
+    for index, t in terms.items():
+        if not result.completed[index]:
+            store_template_terms(result, index, t, None)
+            stored += 1
+    if checkpoint is not None:
+        result.save(checkpoint)
+    return stored
+
+
 def _progress(total: int, enabled: bool):
     from tqdm.auto import tqdm
 
     return tqdm(total=total, desc="templates", unit="template", disable=not enabled)
 
 
-def _run_serial(context, templates, todo, result, checkpoint, progress, client=None) -> None:
-    with _progress(len(todo), progress) as bar:
-        for i in todo:
-            store_template_terms(result, i, scan_template(context, templates[i]), checkpoint)
-            bar.update()
+def _todo_rows(result: ScanResult, units) -> int:
+    return sum(int(not result.completed[i]) for u in units for i in unit_rows(u))
 
 
-def _run_dask(context, templates, todo, result, checkpoint, progress, client) -> None:
+def _run_serial(context, units, result, checkpoint, progress, client=None) -> None:
+    with _progress(_todo_rows(result, units), progress) as bar:
+        for unit in units:
+            bar.update(_store_unit(result, run_unit(context, unit), checkpoint))
+
+
+def _run_dask(context, units, result, checkpoint, progress, client) -> None:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
         log.warning("dask.distributed is not installed: scanning serially (pip install 'dask[distributed]')")
-        _run_serial(context, templates, todo, result, checkpoint, progress)
+        _run_serial(context, units, result, checkpoint, progress)
         return
 
     own = None
@@ -584,11 +630,10 @@ def _run_dask(context, templates, todo, result, checkpoint, progress, client) ->
         client = own
     try:
         shared = client.scatter(context, broadcast=True)
-        futures = {client.submit(scan_template, shared, templates[i], pure=False): i for i in todo}
-        with _progress(len(todo), progress) as bar:
+        futures = [client.submit(run_unit, shared, unit, pure=False) for unit in units]
+        with _progress(_todo_rows(result, units), progress) as bar:
             for future in as_completed(futures):
-                store_template_terms(result, futures[future], future.result(), checkpoint)
-                bar.update()
+                bar.update(_store_unit(result, future.result(), checkpoint))
     finally:
         if own is not None:
             own.close()

@@ -223,10 +223,14 @@ def build_level(rho_sorted, theta_sorted, weights_sorted, r_out: float, n_phi_p:
                    None if banded else np.array(rows))
 
 
-def power_all_phi(level: UVLevel, p_hat: np.ndarray, n_phi_p: int) -> np.ndarray:
+def power_all_phi(level: UVLevel, p_hat: np.ndarray, n_phi_p: int, other: np.ndarray | None = None) -> np.ndarray:
     """``sum_k w_k G(rho_k, theta_k - phi_p)`` at the scan's azimuths ``phi_p = 2 pi p / n_phi_p``.
 
-    ``p_hat``: ``P_hat`` at :meth:`UVLevel.nodes`. Per band, with ``g_{j, m'}`` the coefficients of
+    ``p_hat``: ``P_hat`` at :meth:`UVLevel.nodes`; with ``other`` (a second perturbation's
+    ``P_hat`` on the same nodes) ``G = Re(P_hat conj(other))``, the cross power
+    ``Re sum_k w_k ΔV_k conj(ΔV'_k)`` of two perturbations placed together (``G`` is linear in
+    it, so the power of ``s P + a P'`` is ``s^2 G_PP + 2 s a G_PP' + a^2 G_P'P'``, exactly as
+    the interpolation is linear in ``G``). Per band, with ``g_{j, m'}`` the coefficients of
     ``G(rho_j, .)`` at harmonic ``2 m'``, the power is ``sum_{m'} S_{m'} e^{-2 i m' phi}`` with
     ``S_{m'} = sum_j g_{j, m'} W[j, 2 m']`` and ``S_{-m'} = conj S_{m'}``: one inverse FFT, sampled at
     the scan's azimuths (period pi).
@@ -237,7 +241,11 @@ def power_all_phi(level: UVLevel, p_hat: np.ndarray, n_phi_p: int) -> np.ndarray
         n_half = band.n_theta // 2
         p = p_hat[offset: offset + band.size]
         offset += band.size
-        g = (p.real ** 2 + p.imag ** 2).reshape(band.stop - band.start, n_half)
+        if other is None:
+            g = (p.real ** 2 + p.imag ** 2).reshape(band.stop - band.start, n_half)
+        else:
+            q = other[offset - band.size: offset]
+            g = (p.real * q.real + p.imag * q.imag).reshape(band.stop - band.start, n_half)
         S = np.einsum("jm,jm->m", np.fft.rfft(g, axis=1), band.even) / n_half
         power = np.fft.irfft(np.conj(S), n=n_half) * n_half
         out += power[(np.arange(n_phi_p) * (band.n_theta // n_phi_p)) % n_half]
