@@ -144,8 +144,13 @@ def _value(out) -> float:
 
 
 def run_chain(store, saved, inputs, logpost, theta_map, cov, priors, *, n_walkers, n_steps, max_steps,
-               check_every, flush_every, min_ess, pool, processes, moves, progress, streams, initial, name):
+               check_every, flush_every, min_ess, pool, processes, moves, progress, streams, initial, name,
+              stop_check=None):
     """Sample in batches, flushing each to ``store``.
+
+    ``stop_check(chain, log_prob_fn, mapper)`` returns diagnostics whose ``converged`` stops the
+    run (default: every parameter's 50-tau / ESS test; the sampler passes a
+    :class:`.stopping.StoppingRule`).
 
     Returns ``(chain, log_prob, blobs, accepted, mapper, owned pool or None, log-prob function)``,
     or None on an MPI worker rank.
@@ -157,6 +162,9 @@ def run_chain(store, saved, inputs, logpost, theta_map, cov, priors, *, n_walker
     pool_obj, owned, fn, is_worker = make_pool(pool, processes, logpost)
     if is_worker:
         return None
+    if stop_check is None:
+        stop_check = lambda c, *_: convergence_diagnostics(c, min_ess=min_ess)  # noqa: E731
+    check_map = pool_obj.map if pool_obj is not None else map
     sampler = emcee.EnsembleSampler(n_walkers, N_DIM, fn, pool=pool_obj,
                                     moves=moves if moves is not None else default_moves())
     if saved is not None and saved.iteration > 0:
@@ -187,7 +195,7 @@ def run_chain(store, saved, inputs, logpost, theta_map, cov, priors, *, n_walker
             store.write(ChainState(chain, log_prob, blobs, accepted, state.random_state, inputs))
             bar.update(stop - bar.n)
             if n_steps is None and chain.shape[0] % check_every == 0 and chain.shape[0] >= 2 * check_every:
-                diag = convergence_diagnostics(chain, min_ess=min_ess)
+                diag = stop_check(chain, fn, check_map)
                 log.info("%s: %d steps, max tau %.1f, min ESS %.0f", name, chain.shape[0], diag["tau_max"],
                          min(diag["ess"].values()))
                 if diag["converged"]:
