@@ -97,3 +97,19 @@ def test_a_chain_converged_in_every_parameter_stops_on_rule_one():
     mixed = _chain(n_steps=1000, rho=0.0, seed=2)
     diag = _rule()(mixed, _log_post(5.0))
     assert diag["converged"] and diag["stopping_rule"] == "every parameter > 50 tau"
+
+
+def test_asking_again_for_the_same_chain_costs_no_second_evidence(flat_chain):
+    calls = []
+    f = _log_post(-3.0)
+
+    def counted(theta):
+        calls.append(1)
+        return f(theta)
+
+    rule = _rule()
+    first = rule(flat_chain, counted)
+    n = len(calls)
+    assert rule(flat_chain, counted) == first and len(calls) == n == 3000
+    rule(flat_chain[:-1], counted)  # another chain: a new check
+    assert len(calls) == 2 * n

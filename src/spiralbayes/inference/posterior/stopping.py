@@ -93,6 +93,14 @@ class StoppingRule:
         ``log_prob_fn`` only rule 1 is tested. Under rule 2 ``burn_in`` and ``thin`` follow the
         geometry's autocorrelation times.
         """
+        key = (chain.shape, log_prob_fn is None, chain[-1].tobytes() if chain.size else b"")
+        if getattr(self, "_last", (None,))[0] == key:  # the sampler asks again for the chain the loop stopped
+            return dict(self._last[1])
+        diag = self._diagnostics(chain, log_prob_fn, mapper)
+        self._last = (key, dict(diag))
+        return diag
+
+    def _diagnostics(self, chain, log_prob_fn, mapper) -> dict:
         diag = convergence_diagnostics(chain, min_ess=self.min_ess)
         diag["stopping_rule"] = "every parameter > 50 tau" if diag["converged"] else None
         if diag["converged"] or not self.planet_free_rule or log_prob_fn is None:
