@@ -13,7 +13,13 @@ a simulated fiducial observation with its frank fit — with their build time an
 the build of the mirror template (shared table). ``--converge`` runs
 :func:`spiralbayes.inference.posterior.sampler.sample_posterior` on the fiducial observation (frank fitted 3 deg
 off in inclination) with the default settings — until every parameter's chain is longer than
-50 tau and its ESS >= 400 — and reports the wall time.
+50 tau and its ESS >= 400 — and reports the wall time. ``--planet-free`` runs the default posterior
+on one synthetic set-up (``--pf-n-vis`` visibilities, start geometry 2 deg and 20 mas off) with
+and without the planet and prints wall time, steps, the stopping rule that ended each chain and
+P(planet) with its error (``--old-rule`` adds the planet-free run under the old rule, every
+parameter > 50 tau, for the cost and P(planet) it replaces):
+
+    python benchmarks/bench_sample.py --skip-likelihood --skip-build --planet-free [--old-rule]
 
 BLAS threads are pinned to one (emcee #199): numpy's BLAS calls with two threads on a loaded
 2-core machine were measured ~100x slower for these array sizes.
@@ -55,7 +61,9 @@ def profile(r):
     return 5e10 * np.exp(-r / 0.3 - (r / 0.8) ** 6)
 
 
-def synthetic(n_vis: int, uv_max: float, snr_planet: float, seed: int = 0):
+def synthetic(n_vis: int, uv_max: float, snr_planet: float, seed: int = 0, planet: bool = True):
+    """A smooth disc (+ a planet of sqrt(chi2) = ``snr_planet``, or the same noise without it) and a start
+    model 2 deg and 20 mas off."""
     template = make_template(1.0, 0.3, 0.0, "R")
     model = AxisymmetricModel.from_profile(profile, TRUE)
     rng = np.random.default_rng(seed)
@@ -64,7 +72,8 @@ def synthetic(n_vis: int, uv_max: float, snr_planet: float, seed: int = 0):
     u, v = q * np.cos(th), q * np.sin(th)
     dV = perturbation_visibilities(u, v, TRUE, model.brightness, template, R_P, PHI_P)
     sigma = np.sqrt(np.sum(np.abs(dV) ** 2) / snr_planet ** 2)
-    V = model.visibilities(u, v, TRUE) + dV + sigma * (rng.normal(size=n_vis) + 1j * rng.normal(size=n_vis))
+    V = model.visibilities(u, v, TRUE) + (dV if planet else 0.0) + sigma * (rng.normal(size=n_vis)
+                                                                            + 1j * rng.normal(size=n_vis))
     start = AxisymmetricModel.from_profile(profile, DiscGeometry(42.0, 70.0, 0.025, -0.01))
     return Visibilities(u, v, V, np.full(n_vis, sigma ** -2)), start, template
 
@@ -191,6 +200,53 @@ def bench_converge(args) -> dict:
             "percentiles": run.percentiles(), "verdict": result.verdict, "corner": str(corner)}
 
 
+def _ln_b_error(result) -> float:
+    """Standard error of ln B from the importance-sampling errors of every evidence (independent draws)."""
+    from scipy.special import softmax
+
+    w = softmax(np.array([r.ln_evidence for r in result.runs]) + np.log(result.template_prior))
+    err_planet = np.sqrt(np.sum((w * np.nan_to_num([r.ln_evidence_err for r in result.runs])) ** 2))
+    return float(np.hypot(err_planet, result.null.ln_evidence_err))
+
+
+def bench_planet_free(args) -> dict:
+    """The default run on one set-up with and without the planet: wall time, steps, stopping rule, P(planet)."""
+    from spiralbayes.inference.posterior.sampler import sample_posterior
+
+    out, record = Path(args.out), {}
+    cases = [("planet", True, True), ("planet-free", False, True)]
+    if args.old_rule:
+        cases.append(("planet-free, old rule (every parameter > 50 tau)", False, False))
+    print(f"\nplanet vs planet-free, {args.pf_n_vis} visibilities up to {args.uv_max:.3g} lambda, planet sqrt(chi2) = "
+          f"{args.snr:g}, start 2 deg / 20 mas off; {args.walkers} walkers, check every {args.check_every}, max "
+          f"{args.max_steps} steps, {args.processes} processes:")
+    for label, planet, rule in cases:
+        vis, model, template = synthetic(args.pf_n_vis, args.uv_max, args.snr, seed=3, planet=planet)
+        priors = Priors.default(model, r_p=(0.15, 0.6))
+        t0, c0 = time.perf_counter(), time.process_time()
+        result = sample_posterior(vis, model, [template], priors=priors, run_name=f"bench_pf_{planet}_{rule}",
+                                  chains_dir=out / "chains", n_walkers=args.walkers, max_steps=args.max_steps,
+                                  check_every=args.check_every, processes=args.processes, convergence="ignore",
+                                  progress=False, stop_when_planet_free=rule, seed=args.seed)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        d = result.runs[0].diagnostics
+        p, err = result.p_planet, _ln_b_error(result)
+        p_err = p * (1 - p) * err
+        print(f"  {label:50s} wall {wall / 60:5.1f} min (CPU of this process {cpu / 60:.1f} min), "
+              f"{d['n_steps']:5d} steps, P(planet) = {p:.4g} +- {p_err:.2g} "
+              f"(ln B = {result.ln_bayes_factor:.2f} +- {err:.2f}), tau r_p {d['tau']['r_p']:.0f}, max geometry tau "
+              f"{max(d['tau'][k] for k in ('inc', 'PA', 'dRA', 'dDec')):.0f}; stopped on: "
+              f"{d.get('stopping_rule') or 'max_steps'} (load average {os.getloadavg()[0]:.1f})")
+        record[label] = {"wall_s": wall, "cpu_s": cpu, "n_steps": d["n_steps"], "p_planet": p, "p_planet_err": p_err,
+                         "ln_b": result.ln_bayes_factor, "ln_b_err": err, "tau": d["tau"],
+                         "stopping_rule": d.get("stopping_rule"), "verdict": result.verdict}
+    ratio = record["planet-free"]["wall_s"] / record["planet"]["wall_s"]
+    cpu_ratio = record["planet-free"]["cpu_s"] / record["planet"]["cpu_s"]
+    print(f"  planet-free / planet: wall time {ratio:.2f}, CPU time {cpu_ratio:.2f} (CPU is the load-free figure "
+          "with --processes 1)")
+    return {**record, "wall_ratio": ratio, "cpu_ratio": cpu_ratio}
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--n-vis", type=int, default=100_000)
@@ -204,15 +260,26 @@ def main(argv=None):
     parser.add_argument("--walkers", type=int, default=32)
     parser.add_argument("--max-steps", type=int, default=20000)
     parser.add_argument("--check-every", type=int, default=500)
+    parser.add_argument("--planet-free", action="store_true",
+                        help="the default run with and without the planet on the same set-up (synthetic disc)")
+    parser.add_argument("--old-rule", action="store_true",
+                        help="with --planet-free: also the planet-free run under the old rule (every parameter)")
+    parser.add_argument("--pf-n-vis", type=int, default=20_000, help="visibilities of the --planet-free set-up")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--skip-likelihood", action="store_true", help="skip the likelihood timings")
     parser.add_argument("--out", default="bench_sample_output")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
     Path(args.out).mkdir(parents=True, exist_ok=True)
-    record = {"likelihood": bench_likelihood(args), "load_average": os.getloadavg()}
+    record = {"load_average": os.getloadavg()}
+    if not args.skip_likelihood:
+        record["likelihood"] = bench_likelihood(args)
     if not args.skip_build:
         record["default_prior_build"] = bench_default_build(args)
     if args.converge:
         record["converge"] = bench_converge(args)
+    if args.planet_free:
+        record["planet_free"] = bench_planet_free(args)
     with open(Path(args.out) / "bench_sample.json", "w") as f:
         json.dump(record, f, indent=2, default=str)
 

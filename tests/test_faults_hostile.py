@@ -483,3 +483,81 @@ def test_chi2_vs_rp_explains_chi2_sa_and_keeps_the_mirror_visible(setup):
     for meta in setup.result.templates:
         ls, lw = styles[meta["name"]]
         assert (ls, lw > 2) == (("--", False) if meta["hand"] == "L" else ("-", True))
+
+
+AS209 = Path(__file__).parent / "data" / "AS209_DSHARP_subsample_uvtable.txt"
+
+
+def test_frank_failures_name_our_options_and_print_no_array_or_source_line(capsys):
+    """frank prints its whole power spectrum, warns from ``return np.exp(tau)`` and names ``rout``, ``n``."""
+    from spiralbayes.axisymmetric import fit_axisymmetric
+
+    vis = load_visibilities(AS209)
+    geometry = GEOMETRY.replace(inc=34.97, PA=85.76)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(InputError, match=r"frank's power spectrum became NaN/inf fitting 196 visibilities.*"
+                                             r"\[frank\] Rmax = 1.2 arcsec .*p0 = 1e\+10 Jy\^2") as info:
+            fit_axisymmetric(vis, geometry, p0=1e10, progress=False)
+    assert capsys.readouterr().out == ""  # frank's print(p)
+    assert not [w for w in caught if "overflow" in str(w.message)]
+    assert "rout" not in str(info.value) and "`n`" not in str(info.value)
+
+
+def test_cli_errors_and_warnings_are_single_lines_of_ours(tmp_path):
+    """Through the real command: the DataWarning and frank's failure as one line each, nothing on stdout."""
+    import os
+    import subprocess
+    import sys
+
+    table = tmp_path / "heavy.txt"  # weights 1e12 too large: a DataWarning, then frank's spectrum overflows
+    vis = load_visibilities(AS209)
+    _table(table, vis.with_weights(vis.weights * 1e12, "heavy"))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[1] / "src"),
+                                                        os.environ.get("PYTHONPATH", "")])}
+    with Unchanged(tmp_path):
+        done = subprocess.run([sys.executable, "-m", "spiralbayes.cli", "-q", "axisym", str(table), "--inc", "35",
+                               "--pa", "86", "--out", str(tmp_path / "fit")], capture_output=True, text=True, env=env,
+                              timeout=300)
+    lines = done.stderr.splitlines()
+    assert done.returncode == 2 and done.stdout == ""
+    assert [line.split(":")[:2] for line in lines] == [["spiralbayes", " warning"], ["spiralbayes", " error"]]
+    assert "DataWarning: " in lines[0] and "estimate_weights = true" in lines[0]
+    assert "[frank] Rmax = 1.2 arcsec" in lines[1]
+    assert not any(word in done.stderr for word in ("rout", "`n`", "np.exp", "return ", "load_visibilities("))
+
+
+def test_the_sample_run_reports_its_overall_progress(tmp_path, caplog):
+    """Table builds and optimisation took 10 of 12 minutes without a word: every stage now says k/N."""
+    import logging
+
+    from tests._support import faults_sampling_job as job
+
+    with caplog.at_level(logging.INFO, logger="spiralbayes.inference.posterior.sampler"):
+        job.run(tmp_path)
+    stages = [r.getMessage() for r in caplog.records if r.getMessage().startswith("posterior ")]
+    assert [s.split(":")[0] for s in stages] == ["posterior 1/3", "posterior 2/3", "posterior 3/3"]
+    assert stages[0].startswith("posterior 1/3: no planet") and "min so far" in stages[0]
+    assert "wake_" in stages[1] and "tables, optimum, chain" in stages[1]  # the template given a chain
+    assert "Laplace evidence" in stages[2]  # its mirror: Laplace only
+    assert any(r.getMessage().startswith("posterior: 3 stages done in") for r in caplog.records)
+
+
+@pytest.mark.slow
+def test_the_readme_posterior_on_as209_is_not_called_a_planet(tmp_path):
+    """The README's notebook and posterior calls on the AS 209 sample (196 visibilities): before, "planet
+    preferred: P(planet | data) = 0.5035, ln B = 0.01". Chains shortened to 16 walkers x 100 steps (the
+    evidences come from importance sampling). Measured with these settings: "inconclusive: P(planet | data) =
+    0.602, ln B(planet : none) = 0.41", 44 min wall at load average ~12 on 2 cores (8 templates)."""
+    import spiralbayes as sb
+
+    vis = sb.load_visibilities(AS209)
+    disc = sb.fit_axisymmetric(vis, sb.DiscGeometry(inc=34.97, PA=85.76, dRA=-1.9e-3, dDec=2.5e-3), progress=False)
+    templates = sb.default_bank().select(tau0=3, beta=10, h_p=0.07)
+    result = sb.scan(vis, disc, templates, r_p=np.linspace(0.02, 0.5, 25), distance=121, progress=False)
+    post = sb.sample_posterior(vis, disc, templates, scan=result, chains_dir=tmp_path,
+                               priors=sb.Priors.default(disc, widths={"dRA": 0.02, "dDec": 0.02}),
+                               n_steps=100, n_walkers=16, convergence="ignore", progress=False)
+    assert not post.planet_preferred, post.verdict
+    assert post.verdict.startswith(("inconclusive:", "no planet preferred:")), post.verdict
+    assert "r_p =" not in post.verdict  # no position quoted

@@ -11,6 +11,7 @@ import argparse
 import logging
 import re
 import sys
+import warnings
 from pathlib import Path
 
 __all__ = ["main"]
@@ -388,6 +389,9 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(_join_negative_numbers(argv))
     level = logging.DEBUG if args.verbose else (logging.WARNING if args.quiet else logging.INFO)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    formatwarning = warnings.formatwarning
+    if not args.debug:  # a warning is one line of ours, not a source line of whichever module raised it
+        warnings.formatwarning = _one_line_warning
     try:
         return args.func(args)
     except KeyboardInterrupt:
@@ -402,6 +406,13 @@ def main(argv=None) -> int:
             raise
         print(f"spiralbayes: error: {_message(exc)} (--debug shows the traceback)", file=sys.stderr)
         return 2
+    finally:
+        warnings.formatwarning = formatwarning
+
+
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """``spiralbayes: warning: Category: message`` (``--debug`` shows the file, line and source)."""
+    return f"spiralbayes: warning: {category.__name__}: {' '.join(str(message).split())}\n"
 
 
 def _message(exc: Exception) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import io
 import logging
 import time
 import warnings
@@ -226,10 +227,13 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     fitter = FrankFitter(Rmax, int(N), _to_frank_geometry(geometry), alpha=alpha, p_0=p0,
                          weights_smooth=weights_smooth, method=method, max_iter=max_iter, tol=tol,
                          store_iteration_diagnostics=True, verbose=False, convergence_failure="ignore")
-    with _IterationProgress(fitter, progress), _blas_threads(blas_threads), warnings.catch_warnings():
-        # frank 1.2 hands scipy's spsolve a non-CSC matrix at every iteration: harmless, noisy
-        warnings.filterwarnings("ignore", message="spsolve requires A be CSC or CSR")
-        sol = fitter.fit(vis.u, vis.v, vis.V, vis.weights)
+    with _IterationProgress(fitter, progress), _blas_threads(blas_threads), _frank_quiet():
+        try:
+            sol = fitter.fit(vis.u, vis.v, vis.V, vis.weights)
+        except ValueError as exc:
+            if "power spectrum" not in str(exc):
+                raise
+            raise InputError(_bad_power_spectrum_message(vis, N, Rmax, p0)) from None
     n_iter = int(fitter.iteration_diagnostics["num_iterations"])
     converged = n_iter <= max_iter
     if not converged:
@@ -259,6 +263,28 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
                              frank_version=_frank_version(), fit_time_s=fit_time, provenance=provenance,
                              frank_solution=sol,
                              power_spectrum=_power_spectrum(sol) if method == "Normal" else None)
+
+
+@contextlib.contextmanager
+def _frank_quiet():
+    """frank's own output off: its messages name frank's options and source lines, not ours.
+
+    frank 1.2 hands scipy's spsolve a non-CSC matrix at every iteration (a harmless warning);
+    when its power spectrum overflows it warns from ``np.exp(tau)`` (printed with that source
+    line), prints the whole spectrum and raises naming its own options (``rout``, ``n``): the
+    caller turns that into one line naming ours (:func:`_bad_power_spectrum_message`).
+    """
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"), \
+            contextlib.redirect_stdout(io.StringIO()):
+        warnings.filterwarnings("ignore", message="spsolve requires A be CSC or CSR")
+        yield
+
+
+def _bad_power_spectrum_message(vis: Visibilities, N: int, Rmax: float, p0: float) -> str:
+    return (f"frank's power spectrum became NaN/inf fitting {vis.n} visibilities: check the data's units and "
+            "weights (V in Jy, weights 1/sigma^2 in Jy^-2; [data] estimate_weights = true re-estimates them), "
+            "the geometry and phase centre ([geometry] inc, PA, dRA, dDec), and [frank] Rmax = "
+            f"{Rmax:g} arcsec (larger than the disc), N = {N}, p0 = {p0:g} Jy^2 (default 1e-15)")
 
 
 def _power_spectrum(sol):

@@ -7,7 +7,9 @@
 * :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
 * :mod:`.sampler` — :func:`sample_posterior`; :mod:`.moves` — the wrapped DE move;
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files (an emcee backend) and the chain loop;
-* :mod:`.diagnostics` — convergence; :mod:`.results` — :class:`PosteriorResult` and its runs.
+* :mod:`.diagnostics` — convergence; :mod:`.stopping` — when a chain may stop (every parameter, or
+  the geometry and the evidence when the planet is not preferred);
+* :mod:`.results` — :class:`PosteriorResult` and its runs.
 """
 
 from .likelihood import (
@@ -28,6 +30,7 @@ from .chains import CHAIN_KIND, ChainBackend, ChainState, ChainStore
 from .chain_runner import WalkerPool, initial_walkers, make_pool, run_chain, streams, walker_pool
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .optimise import find_map, fit_null_geometry
+from .stopping import MAX_LN_B_ERROR, StoppingRule, template_evidence
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
@@ -42,6 +45,7 @@ __all__ = [
     "GEOMETRY_NAMES",
     "GaussianGeometry",
     "LogPosterior",
+    "MAX_LN_B_ERROR",
     "MarginalSpiralLikelihood",
     "N_DIM",
     "NullLogPosterior",
@@ -54,6 +58,7 @@ __all__ = [
     "ProfileMarginal",
     "SAMPLE_NAMES",
     "SpiralLikelihood",
+    "StoppingRule",
     "TAU_FACTOR",
     "TemplateRun",
     "WalkerPool",
@@ -76,6 +81,7 @@ __all__ = [
     "sample_posterior",
     "savage_dickey_log_bayes",
     "streams",
+    "template_evidence",
     "walker_pool",
     "wrap_phi",
 ]

@@ -183,17 +183,23 @@ def walker_pool(pool, processes, logpost):
 
 def run_chain(backend: ChainBackend, saved, walkers: WalkerPool, theta_map, cov, priors, *, n_walkers, n_steps,
               max_steps, check_every, flush_every, min_ess, moves, progress, streams, initial, name,
-              logpost) -> ChainBackend:
+              logpost, stop_check=None) -> ChainBackend:
     """Sample in batches of ``flush_every`` steps, flushing ``backend`` after each; returns it.
 
     ``saved`` (a :class:`~.chains.ChainState` with steps) is continued exactly; otherwise walkers
     start around ``theta_map`` (:func:`initial_walkers`). With ``n_steps`` None the chain runs
     until converged (checked every ``check_every`` steps) or ``max_steps``.
+
+    ``stop_check(chain, log_prob_fn, mapper)`` returns diagnostics whose ``converged`` stops the
+    run (default: every parameter's 50-tau / ESS test; the sampler passes a
+    :class:`.stopping.StoppingRule`).
     """
     import emcee
     from emcee.state import State
 
     rng_init, emcee_seed, _, _ = streams
+    if stop_check is None:
+        stop_check = lambda c, *_: convergence_diagnostics(c, min_ess=min_ess)  # noqa: E731
     if saved is not None and saved.iteration > 0:
         backend.restore(saved)
         state = backend.get_last_sample()
@@ -216,7 +222,7 @@ def run_chain(backend: ChainBackend, saved, walkers: WalkerPool, theta_map, cov,
             backend.flush()
             bar.update(stop - bar.n)
             if n_steps is None and stop % check_every == 0 and stop >= 2 * check_every:
-                diag = convergence_diagnostics(backend.get_chain(), min_ess=min_ess)
+                diag = stop_check(backend.get_chain(), walkers.log_prob, walkers.map)
                 log.info("%s: %d steps, max tau %.1f, min ESS %.0f", name, stop, diag["tau_max"],
                          min(diag["ess"].values()))
                 if diag["converged"]:

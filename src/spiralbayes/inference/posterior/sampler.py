@@ -34,8 +34,10 @@ discrete coordinate. Per-template runs are independent, resumable one by one, an
 own convergence test.
 
 Convergence: the default runs in chunks of ``check_every`` steps until every parameter's chain is
-longer than 50 autocorrelation times and its ESS reaches ``min_ess``, or ``max_steps``
-(:mod:`.diagnostics`); ``n_steps`` fixes the total instead.
+longer than 50 autocorrelation times and its ESS reaches ``min_ess`` — or, when the template's
+Bayes factor shows the planet is not preferred, until the geometry's chain is (:mod:`.stopping`:
+a flat, prior-dominated ``(r_p, phi_p)`` posterior would otherwise take hours to reach 50 tau) —
+or ``max_steps`` (:mod:`.diagnostics`); ``n_steps`` fixes the total instead.
 
 Chains and resume (:mod:`.chains`): ``<chains_dir>/<run_name>.h5``, one group per template plus
 ``__null__``, each rewritten atomically every ``flush_every`` steps with emcee's random state.
@@ -86,11 +88,13 @@ from .evidence import (
     laplace_evidence,
     savage_dickey_log_bayes,
 )
+from .stopping import StoppingRule, template_evidence
 from .likelihood import MarginalSpiralLikelihood, ProfileMarginal, draw_amplitude
 from .optimise import find_map, fit_null_geometry
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
 from .results import NullRun, PosteriorResult, TemplateRun, wrap_phi
+from .stopping import StoppingRule, template_evidence
 
 __all__ = ["LogPosterior", "NullLogPosterior", "refit_axisymmetric", "sample_posterior"]
 
@@ -266,25 +270,23 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         store.write(ChainState(np.empty((0, s["n_walkers"], N_DIM)), np.empty((0, s["n_walkers"])), None,
                                np.zeros(s["n_walkers"]), None, inputs, run.record(), samples))
         return run, likelihood
+    rule = StoppingRule(null, priors, _scales(priors, null)[1], min_ess=s["min_ess"], n_draws=s["evidence_draws"],
+                        seed=s["seed"], name=name, planet_free_rule=s["stop_when_planet_free"])
     with walker_pool(s["pool"], s["processes"], logpost) as walkers:
         if walkers.is_worker:  # an MPI worker rank
             return None, likelihood
         backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors, streams=streams,
-                            initial=s["initial"], name=name, logpost=logpost,
+                            initial=s["initial"], name=name, logpost=logpost, stop_check=rule,
                             **{k: s[k] for k in ("n_walkers", "n_steps", "max_steps", "check_every", "flush_every",
                                                  "min_ess", "moves", "progress")})
         chain, blobs, accepted = backend.get_chain(), backend.get_blobs(), backend.accepted
-        diag = convergence_diagnostics(chain, min_ess=s["min_ess"])
+        diag = rule(chain, walkers.log_prob, walkers.map)
         sl = slice(diag["burn_in"], None, diag["thin"])
         flat = chain[sl].reshape(-1, N_DIM)
         fb = blobs[sl].reshape(-1, 2)
         samples = _with_amplitude(flat, fb[:, 0], fb[:, 1], priors, rng_amp)
-        centred, mu = wrap_phi(flat)
-        chain_t = StudentT(centred.mean(axis=0), np.cov(centred, rowvar=False) * 1.2 ** 2, _scales(priors, null)[1],
-                           periodic=(1,))
-        plateau = GaussianGeometry(null.geometry_map, null.covariance * 1.5 ** 2, priors.geometry_widths, priors.r_p)
-        ev = importance_evidence(walkers.log_prob, [chain_t, plateau], [0.7, 0.3], s["evidence_draws"], rng_evidence,
-                                 walkers.map)
+        ev = template_evidence(walkers.log_prob, flat, null, priors, _scales(priors, null)[1], s["evidence_draws"],
+                               rng_evidence, walkers.map)
     sd = (savage_dickey_log_bayes(fb[:, 0], fb[:, 1], priors.amplitude_max)
           if priors.amplitude_max is not None else float("nan"))
     diag = {**diag, **info, "evidence": ev, "acceptance": float(np.mean(accepted) / max(chain.shape[0], 1)),
@@ -316,7 +318,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
                      processes: int | None = None, pool=None, seed: int = 0, moves=None, template_prior=None,
                      planet_prior: float = 0.5, mcmc_templates=None, prune_delta_lnL: float = 25.0,
                      evidence_draws: int = 2000, progress: bool = True, initial=None,
-                     likelihood_kwargs: dict | None = None) -> PosteriorResult:
+                     likelihood_kwargs: dict | None = None, stop_when_planet_free: bool = True) -> PosteriorResult:
     """Sample the posterior of every template, the no-planet hypothesis, and combine them.
 
     Parameters
@@ -340,7 +342,8 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
         emcee walkers (>= 2 x 6; default 32).
     n_steps : int, optional
         Total steps per walker. ``None``: run in chunks of ``check_every`` until converged
-        (> 50 tau and ESS >= ``min_ess`` for every parameter) or ``max_steps``.
+        (> 50 tau and ESS >= ``min_ess`` for every parameter, or — see ``stop_when_planet_free`` —
+        for the geometry when the planet is not preferred) or ``max_steps``.
     flush_every : int
         Steps between atomic writes of the chain file (a kill loses at most these).
     convergence : {'warn', 'raise', 'ignore'}
@@ -368,6 +371,12 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
         profile grid's ``tolerance``/``order`` (:mod:`.marginal`).
     progress : bool
         Progress bars for the table builds and the steps (default True).
+    stop_when_planet_free : bool
+        Also stop a template's chain when its geometry has converged (> 50 tau, ESS) and its
+        Bayes factor against no planet, estimated at the check, is below the "planet preferred"
+        threshold (``ln B + 2 sigma < 1``): on planet-free data ``(r_p, phi_p)`` wander over their
+        flat prior with a long autocorrelation time that nothing reported depends on
+        (:mod:`.stopping`). Default True; False waits for every parameter.
 
     Returns
     -------
@@ -396,15 +405,20 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
                 "n_walkers": n_walkers, "n_steps": n_steps, "max_steps": max_steps, "check_every": check_every,
                 "flush_every": flush_every, "min_ess": min_ess, "pool": pool, "processes": processes, "moves": moves,
                 "progress": progress, "seed": seed, "evidence_draws": evidence_draws, "initial": initial,
-                "convergence": convergence, "likelihood_kwargs": likelihood_kwargs}
+                "convergence": convergence, "likelihood_kwargs": likelihood_kwargs,
+                "stop_when_planet_free": bool(stop_when_planet_free)}
     _set_mpi_rank(pool)
+    overall = _Stages(len(templates) + 1, progress)
     with _blas_single_thread():
+        overall.start("no planet: geometry mode and evidence")
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
                                {**common, "evidence_draws": int(evidence_draws)}, seed, evidence_draws,
                                likelihood_kwargs)
         runs, partners = [], {}
         for template in templates:
             mode = "mcmc" if template.name in selected else "laplace"
+            steps = "tables, optimum, chain" if mode == "mcmc" else "tables, optimum, Laplace evidence"
+            overall.start(f"template {template.name} ({steps})")
             r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan, template.name)
             run, likelihood = _sample_one(vis, base, null, template, priors, scan=scan, chain_path=chain_path, mode=mode,
                                           r_range=r_range, partners=partners, settings=settings)
@@ -413,6 +427,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
                                                     _deferred_table(base, template, r_range, null, likelihood_kwargs))
             if run is not None:
                 runs.append(run)
+    overall.close()
     if pool == "mpi" and not runs:
         return None
     result = PosteriorResult(runs, priors, prior_t, run_name, str(chain_path),
@@ -422,6 +437,28 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
     ChainStore(chain_path, NULL_GROUP).write_root(summary=result.to_dict())
     log.info("%s", result.verdict)
     return result
+
+
+class _Stages:
+    """The run's overall progress: one log line per stage ("posterior 3/9: ...", with the time so far) and a
+    bar over the stages; table builds, optimisation and chains have their own bars within a stage."""
+
+    def __init__(self, total: int, progress: bool):
+        from tqdm.auto import tqdm
+
+        self.total, self.k, self.t0 = total, 0, time.perf_counter()
+        self.bar = tqdm(total=total, desc="posterior", unit="stage", disable=not progress, mininterval=1.0)
+
+    def start(self, what: str) -> None:
+        if self.k:
+            self.bar.update(1)
+        self.k += 1
+        log.info("posterior %d/%d: %s (%.1f min so far)", self.k, self.total, what, (time.perf_counter() - self.t0) / 60)
+
+    def close(self) -> None:
+        self.bar.update(self.total - self.bar.n)
+        self.bar.close()
+        log.info("posterior: %d stages done in %.1f min", self.total, (time.perf_counter() - self.t0) / 60)
 
 
 def _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, flush_every) -> list:
