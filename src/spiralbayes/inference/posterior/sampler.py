@@ -78,17 +78,8 @@ from .diagnostics import (
     _convergence_message,
     arviz_diagnostics,
     chain_inference_data,
-    convergence_diagnostics,
 )
-from .evidence import (
-    GaussianGeometry,
-    StudentT,
-    hessian_cov,
-    importance_evidence,
-    laplace_evidence,
-    savage_dickey_log_bayes,
-)
-from .stopping import StoppingRule, template_evidence
+from .evidence import StudentT, hessian_cov, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .likelihood import MarginalSpiralLikelihood, ProfileMarginal, draw_amplitude
 from .optimise import find_map, fit_null_geometry
 from .perturbation import FastPerturbation
