@@ -104,9 +104,10 @@ def _coefficients(template) -> tuple[float, float, float] | None:
     if not isinstance(c, dict):
         return None
     try:
-        v = Variant(str(prov.get("variant", "")), scale=float(c["scale"]), blob=float(c["blob"]),
+        v = Variant(str(prov.get("variant", "")), scale=float(c["scale"]),
+                    scale_slope=float(c.get("scale_slope", 0.0)), blob=float(c["blob"]),
                     blob_slope=float(c["blob_slope"]), blob_width=float(c["blob_width_Hp"]))
-        s, a = float(v.scale), v.blob_amplitude(float(template.mass))
+        s, a = v.scale_at(float(template.mass)), v.blob_amplitude(float(template.mass))
     except (KeyError, TypeError, ValueError):
         return None
     if not (np.isfinite(s) and np.isfinite(a)):
