@@ -4,7 +4,7 @@ Every ``import`` of a spiralbayes module is read from the source (top level and 
 relative and absolute), so a lazy import cannot hide a circle. Layers, lowest first — a module may
 import its own layer and the ones below it, never one above:
 
-0. base: ``exceptions``, ``units``, ``_version``, ``_provenance``, ``_hdf5``, ``_casa``
+0. base: ``exceptions``, ``units``, ``_version``, ``_provenance``, ``_hdf5``, ``_casa``, ``_threads``
 1. data: ``geometry``, ``layout``, ``visibilities``, ``fourier``, ``io``
 2. models: ``axisymmetric``, ``templates``, ``quadrature``, ``model``
 3. synthetic data: ``simulate``
@@ -26,7 +26,7 @@ import spiralbayes
 
 PACKAGE = Path(spiralbayes.__file__).parent
 LAYERS = {
-    "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "_casa": 0,
+    "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "_casa": 0, "_threads": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
     "axisymmetric": 2, "templates": 2, "model": 2, "asymmetries": 2, "quadrature": 2,
     "simulate": 3,
@@ -248,3 +248,16 @@ def test_angles_are_wrapped_by_the_one_helper():
     found = [f"{name}:{i}: {line.strip()}" for name, path in modules().items() if name != "spiralbayes.units"
              for i, line in enumerate(path.read_text().split("\n"), 1) if pattern.search(line)]
     assert not found, "hand-written angle wraps (use spiralbayes.units.wrap_angle):\n" + "\n".join(found)
+
+
+def test_threads_are_limited_by_the_one_helper():
+    """``spiralbayes._threads.blas_threads`` is the only module that imports threadpoolctl."""
+    found = []
+    for name, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "threadpoolctl":
+                found.append(name)
+            elif isinstance(node, ast.Import) and any(a.name.split(".")[0] == "threadpoolctl" for a in node.names):
+                found.append(name)
+    assert set(found) <= {"spiralbayes._threads"}, f"threadpoolctl imported outside spiralbayes._threads: {sorted(set(found))}"
+    assert found, "spiralbayes._threads no longer imports threadpoolctl"

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import time
 import warnings
@@ -10,6 +9,7 @@ import warnings
 import numpy as np
 
 from .._provenance import data_hash, provenance_record
+from .._threads import blas_threads as _limit_blas  # the parameter is called blas_threads
 from ..exceptions import DataWarning, InputError
 from ..geometry import DiscGeometry
 from ..units import ARCSEC
@@ -62,23 +62,6 @@ def _fit_geometry(vis: Visibilities, method: str, guess: DiscGeometry | None, Rm
     except ValueError as exc:
         raise RuntimeError(f"frank's {method} geometry fit gave an unusable geometry "
                            f"(inc={fitter.inc}, PA={fitter.PA}): {exc}; give the geometry instead") from None
-
-
-def _blas_threads(n: int | None):
-    """Limit BLAS threads to ``n`` during frank's iterations (needs threadpoolctl; else no-op).
-
-    frank's iterations multiply N x N matrices a few hundred times; BLAS threads buy nothing
-    at N = 200 and, on a busy machine, spin-waiting threads made a fit 6-8x slower (measured on
-    2 cores with other work running: 36-50 s instead of 6 s).
-    """
-    if n is None:
-        return contextlib.nullcontext()
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        log.debug("threadpoolctl not installed: BLAS threads not limited")
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=int(n), user_api="blas")
 
 
 class _IterationProgress:
@@ -155,8 +138,8 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     progress : bool
         Show a tqdm counter of frank's iterations.
     blas_threads : int, optional
-        BLAS threads during the fit (via threadpoolctl when installed); None leaves them alone.
-        One is fastest for N ~ 200 (see ``_blas_threads``).
+        BLAS threads during the fit (threadpoolctl); None leaves them alone.
+        One is fastest for N ~ 200 (see :func:`spiralbayes._threads.blas_threads`).
 
     Returns
     -------
@@ -226,7 +209,7 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     fitter = FrankFitter(Rmax, int(N), _to_frank_geometry(geometry), alpha=alpha, p_0=p0,
                          weights_smooth=weights_smooth, method=method, max_iter=max_iter, tol=tol,
                          store_iteration_diagnostics=True, verbose=False, convergence_failure="ignore")
-    with _IterationProgress(fitter, progress), _blas_threads(blas_threads), warnings.catch_warnings():
+    with _IterationProgress(fitter, progress), _limit_blas(blas_threads), warnings.catch_warnings():
         # frank 1.2 hands scipy's spsolve a non-CSC matrix at every iteration: harmless, noisy
         warnings.filterwarnings("ignore", message="spsolve requires A be CSC or CSR")
         sol = fitter.fit(vis.u, vis.v, vis.V, vis.weights)

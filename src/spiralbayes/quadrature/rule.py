@@ -8,6 +8,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .._threads import blas_threads
 from ..units import ARCSEC, TWO_PI
 from .angular import PHI_TOLERANCE, TemplateSpectrum, _angular_n, bessel_tail
 from .radial import KERNEL_TOLERANCE, choose_radial_basis
@@ -219,12 +220,10 @@ class ProductQuadrature:
     def weights(self, profile, spectrum: TemplateSpectrum) -> np.ndarray:
         """Node weights in units of ``r_p^2``: ``(2 pi / n_phi) sum_t C[a, t] delta~_t(phi_j)`` [Jy/sr],
         flat; :meth:`flux` is this times ``r_p^2`` [sr]."""
-        from threadpoolctl import threadpool_limits
-
         C, _, _ = self.radial_matrix(profile)
         # one BLAS thread: a threaded product may round differently, and the same inputs must give
         # the same bits in every process (data hashes, resumed runs)
-        with threadpool_limits(limits=1, user_api="blas"):
+        with blas_threads(1):
             return np.concatenate([((C[a:b] @ spectrum.rows(n)) * (TWO_PI / n)).ravel() for a, b, n in self.blocks])
 
     def flux(self, profile, spectrum: TemplateSpectrum) -> np.ndarray:

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..._hdf5 import open_file, write_file
 from ..._provenance import data_hash, json_default, provenance_record
+from ..._threads import blas_threads
 from ...asymmetries import (
     ALTERNATIVE_LABELS,
     ALTERNATIVE_MODELS,
@@ -172,17 +173,6 @@ class AlternativesResult:
 
 
 # ------------------------------------------------------------------------------------------
-def _one_blas_thread():
-    """Single-threaded BLAS for the optimiser's tiny products (threadpoolctl; else no-op).
-
-    Measured on 2 busy cores: L-BFGS-B's bookkeeping took 6 ms per step with multithreaded
-    OpenBLAS (threads spin-waiting) and a negligible time with one thread.
-    """
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=1, user_api="blas")
-
-
 def _emission_radius(axisymmetric, fraction: float = 0.995) -> float:
     """Radius [arcsec] enclosing ``fraction`` of the (positive) face-on flux, times 1.1."""
     r_out = float(getattr(axisymmetric, "Rmax", 3.0))
@@ -351,7 +341,7 @@ def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *,
     prob = _setup(vis, axisymmetric, geometry, r_max, cell_factor, nthreads)
     fits = {}
     for name in tqdm(names, desc="alternatives", disable=not progress):
-        with _one_blas_thread():
+        with blas_threads(1):  # L-BFGS-B's tiny products: 6 ms a step with spinning threads
             fit = (_fit_geometry(prob, axisymmetric) if name == "geometry"
                    else _fit_field(name, prob, n_starts, max_iter))
         log.info("alternative %s: delta chi2 = %.1f (%d evaluations, %.2f s)", name, fit.delta_chi2,

@@ -11,13 +11,13 @@ emcee #199) and pin BLAS threads; ``pool="mpi"`` uses ``schwimmbad.MPIPool``.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import zlib
 
 import numpy as np
 
+from ..._threads import blas_threads
 from ...exceptions import InputError
 from ...units import wrap_angle
 from .chains import ChainState
@@ -39,12 +39,7 @@ _WORKER_LOGPOST = None
 def _pin_threads() -> None:
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
         os.environ[var] = "1"
-    try:  # pragma: no cover - optional
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(1)
-    except ImportError:
-        pass
+    blas_threads(1, all_pools=True)  # for the rest of this worker process
 
 
 def _init_worker(logpost) -> None:
@@ -94,14 +89,6 @@ def _set_mpi_rank(pool) -> None:
         from mpi4py import MPI  # lazy: only on clusters
 
         _MPI_RANK = MPI.COMM_WORLD.Get_rank()
-
-
-def _blas_single_thread():
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
-        return contextlib.nullcontext()
-    return threadpool_limits(1)
 
 
 def streams(seed: int, name: str):

@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from ..._provenance import check_output_name, data_hash, provenance_record
+from ..._threads import blas_threads
 from ..._version import __version__
 from ...axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
 from ...axisymmetric.gp import ProfilePrior
@@ -68,7 +69,7 @@ from ...exceptions import InputError
 from ...geometry import DiscGeometry
 from ...templates.template import template_metadata
 from ...units import wrap_angle
-from .chain_runner import _blas_single_thread, _ChainData, _set_mpi_rank, _writes_files, run_chain
+from .chain_runner import _ChainData, _set_mpi_rank, _writes_files, run_chain
 from .chain_runner import streams as chain_streams
 from .chains import ChainState, ChainStore
 from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, convergence_diagnostics
@@ -393,7 +394,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
                 "progress": progress, "seed": seed, "evidence_draws": evidence_draws, "initial": initial,
                 "convergence": convergence, "likelihood_kwargs": likelihood_kwargs}
     _set_mpi_rank(pool)
-    with _blas_single_thread():
+    with blas_threads(1, all_pools=True):
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
                                {**common, "evidence_draws": int(evidence_draws)}, seed, evidence_draws,
                                likelihood_kwargs)

@@ -55,6 +55,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..._threads import blas_threads
 from ...exceptions import InputError
 from ...fourier import NUFFT_EPSILON
 from ...geometry import DiscGeometry
@@ -447,18 +448,10 @@ def _terms_at(context: ScanContext, template, r_p: float) -> tuple[np.ndarray, n
     return cross, power, quad, flux
 
 
-def _one_blas_thread():
-    """BLAS on one thread: the small matrix products here ran 20x slower with OpenBLAS threads
-    spinning on a busy 2-core machine (1.35 s instead of 0.06 s per template, measured)."""
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=1, user_api="blas")
-
-
 def scan_template(context: ScanContext, template) -> TemplateTerms:
     """``cross`` and ``power`` of one template over the context's ``r_p`` × ``phi_p`` grid, and
     their error estimates (module docstring), as a :class:`TemplateTerms` pair."""
-    with _one_blas_thread():
+    with blas_threads(1):  # small products: threads spinning cost more
         return _scan_template(context, template)
 
 
@@ -497,7 +490,7 @@ def perturbation_spectrum(context: ScanContext, flux: np.ndarray, quad) -> np.nd
 def cross_template(context: ScanContext, template) -> np.ndarray:
     """Only ``cross`` of one template over the context's grid (e.g. for another residual)."""
     out = np.empty((context.r_p.size, context.n_phi_p))
-    with _one_blas_thread():
+    with blas_threads(1):  # small products: threads spinning cost more
         for i, r_p in enumerate(context.r_p):
             quad = context.quadrature(template, r_p)
             out[i] = _cross_all_phi(context, context.flux(template, quad), quad)
