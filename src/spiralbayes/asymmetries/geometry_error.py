@@ -7,7 +7,7 @@ profile ``I_A`` unchanged, seen under ``(inc + d_inc, PA + d_PA, dRA + d_dRA, dD
     V(u, v) = cos i' · H(q') · exp(2 pi i (u dRA' + v dDec')),
 
 with ``q'`` the baseline deprojected with the new geometry and ``H`` the profile's face-on
-Hankel transform (frank's, :meth:`AxisymmetricModel.visibilities`). ``H`` is tabulated once on a
+Hankel transform (frank's, :meth:`.AxisymmetricModel.visibilities`). ``H`` is tabulated once on a
 grid of ``points_per_period`` points per ``1 / r_max`` in ``q`` and interpolated with a cubic
 spline (relative error ~1e-7, measured in ``tests/asymmetries/test_geometry_error.py``), so one
 evaluation at 36k baselines costs about a millisecond; the Jacobian with respect to the four

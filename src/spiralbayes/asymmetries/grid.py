@@ -6,7 +6,7 @@ perturbations ``P(r, phi)`` [Jy/sr] in the disc plane. As for the spiral model
 
     ΔV(u, v) = cos i · exp(2 pi i (u dRA + v dDec)) · sum_c P_c A_c exp(2 pi i q · s_c),
 
-with ``q`` the baseline in the disc frame (:meth:`DiscGeometry.disc_frame_uv`), ``s_c`` the cell
+with ``q`` the baseline in the disc frame (:meth:`.DiscGeometry.disc_frame_uv`), ``s_c`` the cell
 centres and ``A_c`` their areas [sr]: a type-3 NUFFT (ducc0), planned once for fixed baselines.
 The sum is the exact transform of the gridded model (points of flux ``P_c A_c``), which is a
 valid sky brightness in its own right, and approximates the continuous field by the midpoint

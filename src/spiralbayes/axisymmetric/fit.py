@@ -139,7 +139,7 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
         Show a tqdm counter of frank's iterations.
     blas_threads : int, optional
         BLAS threads during the fit (threadpoolctl); None leaves them alone.
-        One is fastest for N ~ 200 (see :func:`spiralbayes._threads.blas_threads`).
+        One is fastest for N ~ 200 (see ``blas_threads``).
 
     Returns
     -------
@@ -154,18 +154,18 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     towards the prior's ``p0`` by a factor of about ``exp(-(alpha - 1))`` per iteration, so with
     the paper's ``alpha = 1.05`` it takes ``~ln(p_start / p0) / 0.05 ~ 500`` iterations to settle,
     and the profile keeps moving until then. Each iteration costs O(N^3), independent of the
-    number of visibilities. Measured (2 busy cores; AS 209's 196 visibilities, frank's geometry):
+    number of visibilities. Measured (2 busy cores; AS 209's 196 visibilities, frank's geometry)::
 
-    ========================== ========== ======= ================ ======================
-    setting                    iterations  time    max |dI| / I_max  sqrt(sum w |dV_A|^2)
-    ========================== ========== ======= ================ ======================
-    N = 200 (paper)              743        64 s    (reference)      (reference)
-    N = 100                      793        11 s    0.3 %            0.21
-    N = 80                       764         8 s    0.8 %            0.50
-    N = 200, tol = 1e-2          544        44 s    < 0.01 %         0.005
-    N = 200, stopped at 200      200       ~17 s    5.6 %            2.9
-    N = 200, alpha = 1.3         195        16 s    (another prior: chi2 473 instead of 456)
-    ========================== ========== ======= ================ ======================
+        ========================== ========== ======= ================ ======================
+        setting                    iterations  time    max |dI| / I_max  sqrt(sum w |dV_A|^2)
+        ========================== ========== ======= ================ ======================
+        N = 200 (paper)              743        64 s    (reference)      (reference)
+        N = 100                      793        11 s    0.3 %            0.21
+        N = 80                       764         8 s    0.8 %            0.50
+        N = 200, tol = 1e-2          544        44 s    < 0.01 %         0.005
+        N = 200, stopped at 200      200       ~17 s    5.6 %            2.9
+        N = 200, alpha = 1.3         195        16 s    (another prior: chi2 473 instead of 456)
+        ========================== ========== ======= ================ ======================
 
     The fiducial simulation (36k visibilities) took 561 iterations at N = 200. So for sparse
     data, whose longest baseline needs far fewer collocation points than 200, the default N is

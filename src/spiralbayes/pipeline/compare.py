@@ -58,7 +58,7 @@ def _format_table(rows: list[dict]) -> str:
 def run_compare_config(config: dict, *, progress: bool = True) -> CompareResult:
     """The visibility scan and the image-space baselines on the same data (needs CASA).
 
-    Runs :func:`run_scan_config` (writing its usual outputs), then
+    Runs :func:`.run_scan_config` (writing its usual outputs), then
     :func:`spiralbayes.baselines.clean_residuals` and :func:`spiralbayes.baselines.gap_depth` on
     the CLEAN image with the settings of ``[compare]``, and writes ``compare.png`` (the paper's
     Fig. 7 layout), ``compare_verdicts.txt`` and ``compare_verdicts.json`` to ``[output] dir``;

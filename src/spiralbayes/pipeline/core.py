@@ -22,17 +22,20 @@ from ..config import describe_config, geometry_given
 from ..exceptions import ConfigError, InputError
 from ..geometry import DiscGeometry
 from ..inference.detection.alternatives import fit_alternatives
+from ..inference.detection.settings import AlternativesSettings
 from ..inference.detection.refit import GeometryFollowUp, rescan_at_fitted_geometry
 from ..inference.detection.verdict import DELTA_BIC_THRESHOLD, detect, mirror_index
 from ..inference.posterior.priors import DEFAULT_WIDTHS, Priors
 from ..inference.posterior.results import PosteriorResult
 from ..inference.posterior.sampler import sample_posterior
+from ..inference.posterior.settings import SamplingSettings
 from ..inference.scan.run import ScanResult, scan
 from ..io import load_visibilities
 from ..plotting.alternatives import plot_residual_comparison
 from ..plotting.axisymmetric import plot_binned_visibilities, plot_profile
 from ..plotting.posterior import plot_corner, plot_hypotheses, plot_template_probabilities
 from ..plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
+from ..settings import from_config
 from ..simulate import DiscModel, simulate_observation
 from ..templates import TemplateBank, default_bank, make_template
 from ..visibilities import Visibilities, estimate_weights
@@ -295,8 +298,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
                   progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume,
                   rule=s["quadrature"], power_path=s["power_path"])
     a = config["alternatives"]
-    alt_kwargs = {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"],
-                  "progress": progress}
+    alt_kwargs = {"settings": from_config(AlternativesSettings, a, nthreads=s["nthreads"]), "progress": progress}
     alts = fit_alternatives(vis, axisym, axisym.geometry, **alt_kwargs) if a["fit"] else None
     detect_kwargs = {"alternative_threshold": a["threshold"]}
     verdict = detect(result, amplitude, alternatives=alts, **detect_kwargs)
@@ -394,12 +396,9 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     scan_path = s["scan"] or (out_dir / "scan.h5" if (out_dir / "scan.h5").exists() else "")
     scan_result = reusable_scan(scan_path, vis, axisym) if scan_path else None
     _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))
-    sampler = {k: s[k] for k in ("n_walkers", "max_steps", "check_every", "convergence", "min_ess", "seed",
-                                  "prune_delta_lnL", "evidence_draws", "flush_every", "planet_prior")}
+    sampling = from_config(SamplingSettings, s, run_name=run_name)
     result = sample_posterior(vis, axisym, templates, scan=scan_result, priors=_priors(config, axisym),
-                              run_name=run_name, chains_dir=out_dir / "chains", n_steps=s["n_steps"] or None,
-                              processes=s["processes"] if s["processes"] > 1 else None,
-                              mcmc_templates=s["mcmc_templates"] or None, progress=progress, **sampler)
+                              settings=sampling, chains_dir=out_dir / "chains", progress=progress)
     result.save(out_dir / f"{run_name}_posterior.h5")
     summary = {**result.to_json(), "summary": _summary_with_units(result.summary())}
     _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))
@@ -436,7 +435,7 @@ def run_axisym(vis: Visibilities, out_dir, geometry: DiscGeometry | None = None,
     out_dir : path
         Output folder (created if missing).
     geometry : DiscGeometry, optional
-        Passed to :func:`fit_axisymmetric`.
+        Passed to :func:`.fit_axisymmetric`.
     distance : float, optional
         Source distance [pc], for an au axis on the profile plot.
     bin_width : float
@@ -445,7 +444,7 @@ def run_axisym(vis: Visibilities, out_dir, geometry: DiscGeometry | None = None,
         Stem of the output file names: ``{prefix}_model.h5``, ``{prefix}_profile.png``,
         ``{prefix}_visibilities.png``.
     **fit_kwargs
-        Passed to :func:`fit_axisymmetric`.
+        Passed to :func:`.fit_axisymmetric`.
     """
     out_dir = Path(out_dir)
     check_output_name(prefix, "prefix")

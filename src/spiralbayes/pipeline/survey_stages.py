@@ -250,8 +250,11 @@ def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
 
 
 def _alt_kwargs(config: dict) -> dict:
-    a, s = config["alternatives"], config["scan"]
-    return {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"], "progress": False}
+    from ..inference.detection.settings import AlternativesSettings
+    from ..settings import from_config
+
+    settings = from_config(AlternativesSettings, config["alternatives"], nthreads=config["scan"]["nthreads"])
+    return {"settings": settings, "progress": False}
 
 
 @_staged("alternatives")

@@ -26,7 +26,7 @@ class ProductQuadrature:
     ``n_phi`` azimuths ``2 pi j / n_phi`` from its group.
 
     Rings are grouped: consecutive rings that need the same number of azimuths (the angular
-    rule's count grows with the ring's radius, :func:`angular_count`) form one group, so inner
+    rule's count grows with the ring's radius, :func:`.angular_count`) form one group, so inner
     rings carry fewer nodes. Arrays over all nodes (fluxes, positions) are flat, group after
     group, ring-major inside a group (:meth:`split`).
 

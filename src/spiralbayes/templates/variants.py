@@ -22,7 +22,7 @@ for cannot exclude it). The references are ``tests/data/references/`` (tools/REA
 
 Names: ``<variant>_m1_tau0.3_b0_h0.07_R`` (the compromise keeps the generator's ``wake_`` prefix);
 the variant is in ``provenance["variant"]`` and the template metadata (``variant``), so it is part of
-the template family (:mod:`spiralbayes.inference.families`) and of mirror matching.
+the template family (:mod:`spiralbayes.inference.limits.families`) and of mirror matching.
 """
 
 from __future__ import annotations

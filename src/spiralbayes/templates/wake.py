@@ -246,7 +246,7 @@ class WakeSettings:
         return dataclasses.asdict(self)
 
     def key(self) -> str:
-        """Short hash of the settings and :data:`GENERATOR_VERSION` (cache key)."""
+        """Short hash of the settings and :data:`.GENERATOR_VERSION` (cache key)."""
         blob = json.dumps({"v": GENERATOR_VERSION, **self.to_dict()}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 

@@ -2,6 +2,7 @@
 
 * :mod:`.verdict` — :func:`detect` and its :class:`Verdict`;
 * :mod:`.alternatives` — maximum-likelihood fits of the non-spiral asymmetries, scored by ΔBIC;
+* :mod:`.settings` — their options, :class:`AlternativesSettings`;
 * :mod:`.starts` — their starting points, read off the residual dirty image;
 * :mod:`.refit` — refit frank at the fitted geometry, scan again, decide again.
 * :mod:`.planet_peak` — the spiral hypothesis as spiral + compact source at the planet, scored in test 3.
@@ -16,6 +17,7 @@ from .verdict import (
     mirror_index,
     one_sidedness,
 )
+from .settings import AlternativesSettings
 from .starts import candidate_starts, linear_amplitudes
 from .alternatives import (
     ALTERNATIVES_KIND,
@@ -35,6 +37,7 @@ __all__ = [
     "ALTERNATIVES_KIND",
     "AlternativeFit",
     "AlternativesResult",
+    "AlternativesSettings",
     "GeometryFollowUp",
     "Verdict",
     "best_handed_candidate",

@@ -16,7 +16,7 @@ How:
   one adjoint type-3 transform per evaluation, whatever the number of parameters
   (``dχ²/dθ = −2 sum_c (dP_c/dθ) g_c``, ``g`` the gradient map of ``w (V_O − V_model)``), from
   the best ``n_starts`` of the shapes that correlate best with the residual dirty image
-  (:mod:`spiralbayes.inference.alternative_starts`).
+  (:mod:`spiralbayes.inference.detection.starts`).
 
 The plain NumPy reference :func:`delta_chi2_direct` rebuilds a fitted model's visibilities by
 direct Fourier sums; the tests check the fits' Δχ² against it.
@@ -38,7 +38,6 @@ from ..._threads import blas_threads
 from ...asymmetries import (
     ALTERNATIVE_LABELS,
     ALTERNATIVE_MODELS,
-    DEFAULT_CELL_FACTOR,
     FIELD_MODELS,
     DiscGrid,
     FieldTransform,
@@ -51,7 +50,9 @@ from ...asymmetries import (
 )
 from ...exceptions import InputError
 from ...geometry import DiscGeometry
+from ...settings import with_overrides
 from ...units import ARCSEC
+from .settings import AlternativesSettings
 from .starts import candidate_starts
 from ..scan.statistics import bic_threshold, chi2
 
@@ -291,10 +292,9 @@ def _fit_field(name: str, prob: _Problem, n_starts: int, max_iter: int) -> Alter
                           model.describe(theta), int(counter["n"]), time.perf_counter() - t0, ok)
 
 
-def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *, models=None,
-                     n_starts: int = 2, max_iter: int = 100, r_max: float | None = None,
-                     cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1,
-                     progress: bool = False) -> AlternativesResult:
+def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *,
+                     settings: AlternativesSettings | None = None, progress: bool = False,
+                     **overrides) -> AlternativesResult:
     """Fit every competing asymmetry model to the data by maximum likelihood.
 
     Parameters
@@ -306,27 +306,28 @@ def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *,
         ``visibilities(u, v, geometry)`` [Jy]).
     geometry : DiscGeometry, optional
         Default: the axisymmetric model's (the scan's) geometry.
-    models : sequence of str, optional
-        Subset of :data:`~spiralbayes.asymmetries.ALTERNATIVE_MODELS` (default: all five).
-    n_starts : int
-        Optimiser starts per field model (the best-correlating shapes of the residual image).
-    max_iter : int
-        L-BFGS-B iterations per start.
-    r_max : float, optional
-        Outer radius of the grid [arcsec]; default 1.1 times the radius holding 99.5 % of the
-        profile's flux.
-    cell_factor : float
-        Radial cells at most ``1 / (cell_factor uv_max)`` wide (:class:`DiscGrid`).
-    nthreads : int
-        Threads of the NUFFTs.
+    settings : AlternativesSettings, optional
+        The ``models`` (a subset of :data:`~spiralbayes.asymmetries.ALTERNATIVE_MODELS`; default
+        all five), ``n_starts`` optimiser starts per field model (the best-correlating shapes of
+        the residual image), ``max_iter`` L-BFGS-B iterations per start, the grid's outer radius
+        ``r_max`` [arcsec] (default 1.1 times the radius holding 99.5 % of the profile's flux),
+        its ``cell_factor`` (radial cells at most ``1 / (cell_factor uv_max)`` wide, see
+        :class:`~spiralbayes.asymmetries.DiscGrid`) and the NUFFTs' ``nthreads``. Default
+        ``AlternativesSettings()``.
     progress : bool
         Show a progress bar over the models.
+    **overrides
+        Fields of :class:`AlternativesSettings` replacing those of ``settings`` (e.g. ``n_starts=4``).
 
     Returns
     -------
     AlternativesResult
     """
     from tqdm.auto import tqdm
+
+    s = with_overrides(settings, AlternativesSettings, overrides, "fit_alternatives")
+    models, n_starts, max_iter, r_max, cell_factor, nthreads = (s.models, s.n_starts, s.max_iter, s.r_max,
+                                                                s.cell_factor, s.nthreads)
 
     names = list(ALTERNATIVE_MODELS if models is None else models)
     for name in names:

@@ -1,6 +1,6 @@
 """What the data rule out and what they could detect: exclusion limits, completeness, forecasts.
 
-* :mod:`.exclusion` — :func:`compute_limits`, the limiting mass M_lim(r_p);
+* :mod:`.exclusion` — :func:`compute_limits`, the limiting mass M_lim(r_p); :mod:`.settings` — its options;
 * :mod:`.families` — templates grouped by everything but mass and hand;
 * :mod:`.table` — the paper's Table 3 from computed limits;
 * :mod:`.injection` — injected planets' Δχ² without re-scanning;
@@ -10,6 +10,7 @@
 """
 
 from .families import Family, select_family, template_families
+from .settings import LimitSettings
 from .table import describe_family_limits, limits_table, runs, table_csv, table_markdown
 from .exclusion import (
     ExclusionLimits,
@@ -53,6 +54,7 @@ __all__ = [
     "Forecast",
     "Injection",
     "InjectionEngine",
+    "LimitSettings",
     "amplitude_upper_limit",
     "bright_extent",
     "brute_force_injection",

@@ -10,7 +10,7 @@ azimuthal mean, so it leaves the axisymmetric fit unchanged to first order) and 
     X(a, b)      = Re sum_k w_k ΔV_a,k* ΔV_b,k,
     Δχ²_inj(b)   = 2 cross_inj(b) - power(b) = Δχ²(b) + 2 A_inj X(a, b).
 
-``X`` is evaluated with the scan's own machinery (:mod:`spiralbayes.inference.scan_engine`): the
+``X`` is evaluated with the scan's own machinery (:mod:`spiralbayes.inference.scan.engine`): the
 perturbation spectrum ``P_hat`` of each template at each radius on the polar uv grid (the same
 single-precision type-3 NUFFT the power term uses) and the angular Fourier coefficients
 ``W[j, m]`` of the data weights. With the ring weight density

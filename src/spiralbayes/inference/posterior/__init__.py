@@ -5,7 +5,7 @@
 * :mod:`.conditional` — the likelihood at a fixed profile, the reference (:class:`SpiralLikelihood`);
 * :mod:`.tables`, :mod:`.perturbation` — the fast perturbation tables;
 * :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
-* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.moves` — the wrapped DE move;
+* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings`; :mod:`.moves` — the wrapped DE move;
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files and the chain loop;
 * :mod:`.diagnostics` — convergence; :mod:`.results` — :class:`PosteriorResult` and its runs.
 """
@@ -28,6 +28,7 @@ from .chains import CHAIN_KIND, ChainState, ChainStore
 from .chain_runner import initial_walkers, make_pool, run_chain, streams
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .optimise import find_map, fit_null_geometry
+from .settings import SamplingSettings
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
@@ -52,6 +53,7 @@ __all__ = [
     "Priors",
     "ProfileMarginal",
     "SAMPLE_NAMES",
+    "SamplingSettings",
     "SpiralLikelihood",
     "TAU_FACTOR",
     "TemplateRun",

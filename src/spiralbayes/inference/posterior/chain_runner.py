@@ -26,6 +26,7 @@ from .conditional import PARAMETER_NAMES
 from .moves import default_moves
 from .priors import N_DIM
 from .results import wrap_phi
+from .settings import SamplingSettings
 
 __all__ = ["initial_walkers", "make_pool", "run_chain", "streams"]
 
@@ -130,13 +131,19 @@ def _value(out) -> float:
     return float(out[0] if isinstance(out, tuple) else out)
 
 
-def run_chain(store, saved, inputs, logpost, theta_map, cov, priors, *, n_walkers, n_steps, max_steps,
-               check_every, flush_every, min_ess, pool, processes, moves, progress, streams, initial, name):
+def run_chain(store, saved, inputs, logpost, theta_map, cov, priors, *, settings: SamplingSettings, streams,
+              name: str, progress: bool = False):
     """Sample in batches, flushing each to ``store``.
+
+    ``settings`` gives the walkers, steps, flushes, convergence test, pool, moves and initial
+    walkers (:class:`SamplingSettings`); ``streams`` the template's random streams (:func:`streams`).
 
     Returns ``(chain, log_prob, blobs, accepted, mapper, owned pool or None, log-prob function)``,
     or None on an MPI worker rank.
     """
+    n_walkers, n_steps, max_steps = settings.n_walkers, settings.n_steps, settings.max_steps
+    check_every, flush_every, min_ess = settings.check_every, settings.flush_every, settings.min_ess
+    pool, processes, moves, initial = settings.pool, settings.processes, settings.moves, settings.initial
     import emcee
     from emcee.state import State
 

@@ -11,7 +11,7 @@ the result, checked on resume), and once the template is finished ``result`` (JS
 Why not emcee's own backend: it writes every step into the file in place, so a kill during a
 write can leave a damaged file, and it restores emcee's random state but not the other streams
 of a run. Here the sampler runs ``flush_every`` steps in memory, then the whole file is copied,
-updated and renamed into place (:func:`spiralbayes._provenance.atomic_path`): a kill loses at
+updated and renamed into place (``atomic_path``): a kill loses at
 most the current batch, and the file on disk is always a consistent snapshot that holds the
 random state at its last step. A resumed run therefore continues exactly as the uninterrupted
 one would have (tested by killing a subprocess, ``tests/test_faults_sampling.py``).

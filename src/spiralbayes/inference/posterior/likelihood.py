@@ -47,7 +47,7 @@ Rmax = 1.2") with 6-point Lagrange weights (:class:`~spiralbayes.axisymmetric.gp
 frank's deprojected binning made exact — the normal matrix to 4e-10 of its largest element,
 measured), which turns the ``n x N^2`` normal matrix into an
 ``n_grid x N^2`` product; one Cholesky factorisation of the ``N x N`` (N = 200) precision.
-``benchmarks/bench_sample.py`` prints the measured split. :meth:`exact_log_likelihood` is the
+``benchmarks/bench_sample.py`` prints the measured split. :meth:`.exact_log_likelihood` is the
 plain NumPy reference (dense ``H`` at every datum, the exact type-3 perturbation).
 """
 
@@ -183,7 +183,7 @@ class ProfileMarginal:
     axisymmetric : AxisymmetricModel
         Its profile is the centring profile ``I0`` (its geometry is not used).
     prior : ProfilePrior, optional
-        Default :meth:`ProfilePrior.from_model` (frank's power spectrum).
+        Default :meth:`.ProfilePrior.from_model` (frank's power spectrum).
     reference_geometry : DiscGeometry, optional
         ``ln L`` is reported relative to its value there (default: the model's geometry).
     tolerance, order : float, int
@@ -413,7 +413,7 @@ class MarginalSpiralLikelihood:
         return self.perturbation.quadrature_error
 
     def null_log_likelihood(self, geometry) -> float:
-        """The no-planet hypothesis at ``geometry`` (same constant as :meth:`__call__`)."""
+        """The no-planet hypothesis at ``geometry`` (same constant as ``__call__``)."""
         return self.base.log_likelihood(geometry)
 
     def exact_log_likelihood(self, theta, amplitude):

@@ -3,7 +3,7 @@
 :class:`FastPerturbation` owns one template's tables (built by :class:`.tables._TableBuilder`,
 refined in ``r_p`` until the interpolation error at node midpoints is below ``rp_tolerance``) and
 evaluates ``cos i P_hat`` at the data with one type-2 NUFFT per call. Both the conditional
-likelihood (:mod:`.likelihood`) and the profile-marginalised one (:mod:`.marginal`) use it. The
+likelihood (:mod:`.likelihood`) and the profile-marginalised one (:mod:`.likelihood`) use it. The
 build logs each refinement round and shows a progress bar of node builds when asked.
 """
 

@@ -7,7 +7,7 @@ pools, the evidences and the combination — and splitting it would scatter one 
 Hypotheses (:mod:`.results`): the disc alone ("no planet", parameters ``inc, PA, dRA, dDec``) and,
 for every template, the disc plus that spiral (``r_p`` [arcsec], ``phi_p`` [rad], amplitude ``A``
 and the same geometry). In both the frank profile is integrated out analytically, and in the
-spiral model the amplitude too (:mod:`.marginal`); priors in :mod:`.priors`.
+spiral model the amplitude too (:mod:`.likelihood`); priors in :mod:`.priors`.
 
 Procedure (:func:`sample_posterior`):
 
@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from ..._provenance import check_output_name, data_hash, provenance_record
+from ...settings import with_overrides
 from ..._threads import blas_threads
 from ..._version import __version__
 from ...axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
@@ -86,6 +87,7 @@ from .optimise import find_map, fit_null_geometry
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
 from .results import NullRun, PosteriorResult, TemplateRun, wrap_phi
+from .settings import SamplingSettings
 
 __all__ = ["LogPosterior", "NullLogPosterior", "refit_axisymmetric", "sample_posterior"]
 
@@ -228,10 +230,10 @@ def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.nda
 
 
 def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_range, partners, settings):
-    s = settings
+    s, sampling = settings, settings["sampling"]
     t0 = time.perf_counter()
     name = template.name
-    streams = chain_streams(s["seed"], name)
+    streams = chain_streams(sampling.seed, name)
     store = ChainStore(chain_path, name)
     inputs = {**s["inputs"], "template": template_metadata(template), "template_hash": _template_hash(template),
               "mode": mode, "r_range": list(r_range)}
@@ -258,17 +260,17 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         samples = _with_amplitude(draws, terms[:, 1], terms[:, 2], priors, rng_amp)
         run = TemplateRun(name, meta, "laplace", samples, theta_map, cov, lnz_laplace, float("nan"), lnz_laplace,
                           {**info, "time_s": time.perf_counter() - t0}, str(chain_path), name)
-        store.write(ChainState(np.empty((0, s["n_walkers"], N_DIM)), np.empty((0, s["n_walkers"])), None,
-                               np.zeros(s["n_walkers"]), None, inputs, run.to_json(), samples))
+        n_walkers = sampling.n_walkers
+        store.write(ChainState(np.empty((0, n_walkers, N_DIM)), np.empty((0, n_walkers)), None,
+                               np.zeros(n_walkers), None, inputs, run.to_json(), samples))
         return run, likelihood
-    out = run_chain(store, saved, inputs, logpost, theta_map, cov, priors, streams=streams, initial=s["initial"],
-                     name=name, **{k: s[k] for k in ("n_walkers", "n_steps", "max_steps", "check_every", "flush_every",
-                                                    "min_ess", "pool", "processes", "moves", "progress")})
+    out = run_chain(store, saved, inputs, logpost, theta_map, cov, priors, settings=sampling, streams=streams,
+                    name=name, progress=s["progress"])
     if out is None:  # an MPI worker rank
         return None, likelihood
     chain, log_prob, blobs, accepted, mapper, owned_pool, fn = out
     try:
-        diag = convergence_diagnostics(chain, min_ess=s["min_ess"])
+        diag = convergence_diagnostics(chain, min_ess=sampling.min_ess)
         sl = slice(diag["burn_in"], None, diag["thin"])
         flat = chain[sl].reshape(-1, N_DIM)
         fb = blobs[sl].reshape(-1, 2)
@@ -277,7 +279,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         chain_t = StudentT(centred.mean(axis=0), np.cov(centred, rowvar=False) * 1.2 ** 2, _scales(priors, null)[1],
                            periodic=(1,))
         plateau = GaussianGeometry(null.geometry_map, null.covariance * 1.5 ** 2, priors.geometry_widths, priors.r_p)
-        ev = importance_evidence(fn, [chain_t, plateau], [0.7, 0.3], s["evidence_draws"], rng_evidence, mapper)
+        ev = importance_evidence(fn, [chain_t, plateau], [0.7, 0.3], sampling.evidence_draws, rng_evidence, mapper)
     finally:
         if owned_pool is not None:
             owned_pool.close()
@@ -293,7 +295,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         log.warning("arviz diagnostics failed: %s", exc)
     store.write(_final_state(store, run, samples))
     if not diag["converged"]:
-        _apply_policy(s["convergence"], _convergence_message(name, diag))
+        _apply_policy(sampling.convergence, _convergence_message(name, diag))
     return run, likelihood
 
 
@@ -306,13 +308,8 @@ def _final_state(store, run, samples):
 
 # ---------------------------------------------------------------------------------------------
 def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors | None = None,
-                     run_name: str = "posterior", chains_dir="chains", n_walkers: int = 32,
-                     n_steps: int | None = None, max_steps: int = 20000, check_every: int = 500,
-                     flush_every: int = 100, convergence: str = "warn", min_ess: float = 400.0,
-                     processes: int | None = None, pool=None, seed: int = 0, moves=None, template_prior=None,
-                     planet_prior: float = 0.5, mcmc_templates=None, prune_delta_lnL: float = 25.0,
-                     evidence_draws: int = 2000, progress: bool = True, initial=None,
-                     likelihood_kwargs: dict | None = None) -> PosteriorResult:
+                     settings: SamplingSettings | None = None, chains_dir="chains", progress: bool = True,
+                     **overrides) -> PosteriorResult:
     """Sample the posterior of every template, the no-planet hypothesis, and combine them.
 
     Parameters
@@ -328,49 +325,30 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
         Starts each template's optimiser from its best grid instances, and prunes templates
         (``prune_delta_lnL``).
     priors : Priors, optional
-        Default :meth:`Priors.default` (``axisymmetric``), including the amplitude prior.
-    run_name, chains_dir : str, path
-        Chains go to ``<chains_dir>/<run_name>.h5``; an existing file with the same inputs is
-        resumed (see the module docs).
-    n_walkers : int
-        emcee walkers (>= 2 x 6; default 32).
-    n_steps : int, optional
-        Total steps per walker. ``None``: run in chunks of ``check_every`` until converged
-        (> 50 tau and ESS >= ``min_ess`` for every parameter) or ``max_steps``.
-    flush_every : int
-        Steps between atomic writes of the chain file (a kill loses at most these).
-    convergence : {'warn', 'raise', 'ignore'}
-        What to do when a chain fails the 50-tau / ESS test.
-    processes : int, optional
-        Run walkers in a multiprocessing pool of this size. ``pool``: ``"mpi"`` or any object with
-        ``map`` (then ``processes`` is ignored).
-    seed : int
-        Seed of every random stream (each template's own, derived from ``(seed, name)``).
-    moves : emcee moves, optional
-        Default :func:`.moves.default_moves` (differential evolution, ``phi_p`` wrapped).
-    template_prior : array_like, optional
-        Prior probabilities of the templates given a planet (default uniform).
-    planet_prior : float
-        Prior probability that there is a planet (default 0.5).
-    mcmc_templates : list of str, optional
-        Templates that get a chain; the others get a Laplace evidence only. Default: those within
-        ``prune_delta_lnL`` of the best scan peak (every template without a scan).
-    evidence_draws : int
-        Proposal draws of each importance-sampled evidence.
-    initial : array_like, optional
-        Explicit initial walkers (n_walkers, 6) for every template.
-    likelihood_kwargs : dict, optional
-        Table settings (``epsilon``, ``rp_tolerance``, ``oversample``, ``cell_factor``) and the
-        profile grid's ``tolerance``/``order`` (:mod:`.marginal`).
+        Default :meth:`.Priors.default` (``axisymmetric``), including the amplitude prior.
+    settings : SamplingSettings, optional
+        How to sample (walkers, steps, convergence, seed, pruning, pool, ...); default
+        ``SamplingSettings()``. Chains go to ``<chains_dir>/<settings.run_name>.h5``; an existing
+        file with the same inputs is resumed (see the module docs). ``settings.n_steps = None``
+        runs in chunks of ``check_every`` until converged (> 50 tau and ESS >= ``min_ess`` for
+        every parameter) or ``max_steps``.
+    chains_dir : str or path
+        Folder of the chain files.
     progress : bool
         Progress bars for the table builds and the steps (default True).
+    **overrides
+        Fields of :class:`SamplingSettings` replacing those of ``settings`` (e.g. ``n_walkers=48``).
 
     Returns
     -------
     PosteriorResult
         ``p_planet``, ``ln_bayes_factor``, ``verdict``, per-template runs and the ``null`` run.
     """
-    templates = _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, flush_every)
+    s = with_overrides(settings, SamplingSettings, overrides, "sample_posterior")
+    run_name, n_walkers, seed, evidence_draws = s.run_name, s.n_walkers, s.seed, s.evidence_draws
+    pool, moves, likelihood_kwargs = s.pool, s.moves, s.likelihood_kwargs
+    template_prior, planet_prior = s.template_prior, s.planet_prior
+    templates = _check_templates(templates)
     vis = vis.standardised()
     priors = priors or Priors.default(axisymmetric)
     priors.check_data(vis, axisymmetric)
@@ -381,18 +359,15 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
     prior_t = prior_t / prior_t.sum()
     chain_path = Path(chains_dir) / f"{check_output_name(run_name, 'run_name')}.h5"
     chain_path.parent.mkdir(parents=True, exist_ok=True)
-    selected = _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL)
+    selected = _select_mcmc(names, scan, s.mcmc_templates, s.prune_delta_lnL)
     likelihood_kwargs = dict(likelihood_kwargs or {})
     profile_prior = ProfilePrior.from_model(axisymmetric)
     common = {"data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights), "n_data": int(vis.n),
               "model_hash": _model_hash(axisymmetric, profile_prior), "priors": priors.to_dict(), "seed": int(seed),
               "likelihood_kwargs": likelihood_kwargs, "spiralbayes": __version__}
-    settings = {"inputs": {**common, "n_walkers": int(n_walkers), "evidence_draws": int(evidence_draws),
-                           "moves": "wrapped DE" if moves is None else repr(moves)},
-                "n_walkers": n_walkers, "n_steps": n_steps, "max_steps": max_steps, "check_every": check_every,
-                "flush_every": flush_every, "min_ess": min_ess, "pool": pool, "processes": processes, "moves": moves,
-                "progress": progress, "seed": seed, "evidence_draws": evidence_draws, "initial": initial,
-                "convergence": convergence, "likelihood_kwargs": likelihood_kwargs}
+    run_settings = {"inputs": {**common, "n_walkers": int(n_walkers), "evidence_draws": int(evidence_draws),
+                               "moves": "wrapped DE" if moves is None else repr(moves)},
+                    "sampling": s, "progress": progress, "likelihood_kwargs": likelihood_kwargs}
     _set_mpi_rank(pool)
     with blas_threads(1, all_pools=True):
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
@@ -403,7 +378,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
             mode = "mcmc" if template.name in selected else "laplace"
             r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan, template.name)
             run, likelihood = _sample_one(vis, base, null, template, priors, scan=scan, chain_path=chain_path, mode=mode,
-                                          r_range=r_range, partners=partners, settings=settings)
+                                          r_range=r_range, partners=partners, settings=run_settings)
             if mode == "mcmc":  # its mirror shares the table (rebuilt on demand if read back from the file)
                 partners[_mirror_name(template)] = (likelihood.perturbation if likelihood is not None else
                                                     _deferred_table(base, template, r_range, null, likelihood_kwargs))
@@ -420,9 +395,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
     return result
 
 
-def _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, flush_every) -> list:
-    if convergence not in ("warn", "raise", "ignore"):
-        raise InputError(f"convergence = {convergence!r}: use 'warn', 'raise' or 'ignore'")
+def _check_templates(templates) -> list:
     if hasattr(templates, "evaluate"):
         templates = [templates]
     templates = list(templates)
@@ -431,14 +404,6 @@ def _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, f
     names = [t.name for t in templates]
     if len(set(names)) != len(names) or NULL_GROUP in names:
         raise InputError(f"template names must be unique (and not {NULL_GROUP!r}), got {names}")
-    if n_walkers < 2 * N_DIM:
-        raise InputError(f"n_walkers = {n_walkers}: emcee needs at least 2 x {N_DIM} = {2 * N_DIM} walkers")
-    if n_steps is not None and n_steps < 1:
-        raise InputError(f"n_steps = {n_steps} must be a positive number of steps")
-    if not 0.0 < float(planet_prior) < 1.0:
-        raise InputError(f"planet_prior = {planet_prior!r} must lie strictly between 0 and 1")
-    if int(flush_every) < 1:
-        raise InputError(f"flush_every = {flush_every!r} must be a positive number of steps")
     return templates
 
 
