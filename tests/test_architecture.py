@@ -155,6 +155,11 @@ def test_public_api_is_importable_and_complete():
         assert hasattr(spiralbayes, name), name
     for name in ("scan", "detect", "sample_posterior", "fit_axisymmetric", "load_visibilities", "simulate_observation"):
         assert callable(getattr(spiralbayes, name))
+    # grouped by stage: every public name in exactly one stage list
+    stages = ("DATA", "MODELS", "SEARCH", "DETECTION", "LIMITS", "POSTERIOR", "PLOTTING", "SURVEY")
+    grouped = [name for stage in stages for name in getattr(spiralbayes, stage)]
+    assert len(grouped) == len(set(grouped)), "a public name is listed under two stages"
+    assert sorted(grouped + ["__version__", "exceptions"]) == sorted(spiralbayes.__all__)
 
 
 def stage(name: str) -> str | None:
