@@ -9,7 +9,7 @@ import its own layer and the ones below it, never one above:
 2. models: ``axisymmetric``, ``templates``, ``quadrature``, ``model``
 3. synthetic data: ``simulate``
 4. inference: ``inference``
-5. outputs: ``plotting``, ``baselines``
+5. outputs: ``plotting``, ``image_plane``
 6. runners: ``pipeline``, ``config``, ``cli`` and the package's ``__init__``
 
 Inside ``inference`` the modules live in stage subpackages, each a layer of its own (lowest first:
@@ -32,7 +32,7 @@ LAYERS = {
     "axisymmetric": 2, "templates": 2, "model": 2, "asymmetries": 2, "quadrature": 2,
     "simulate": 3,
     "inference": 4,
-    "plotting": 5, "baselines": 5,
+    "plotting": 5, "image_plane": 5,
     "pipeline": 6, "config": 6, "cli": 6, "": 6,
 }
 INFERENCE = PACKAGE / "inference"

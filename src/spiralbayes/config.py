@@ -7,7 +7,7 @@ the configuration actually used is saved beside every output. ``spiralbayes scan
 drives every command: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
 and ``[priors]``, ``limits`` adds ``[limits]`` (the last two reuse the scan's outputs when they
 are in ``[output] dir``); ``compare`` runs
-the scan and the image-space baselines of ``[compare]`` (needs CASA). Relative paths — inputs and
+the scan and the image-plane comparisons of ``[compare]`` (needs CASA). Relative paths — inputs and
 ``[output] dir`` alike — are taken relative to the configuration file, so a configuration means
 the same wherever it is run from.
 

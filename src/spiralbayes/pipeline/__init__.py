@@ -3,7 +3,7 @@
 :mod:`~spiralbayes.pipeline.core` holds the demo, the frank fit with plots, and ``scan`` and
 ``sample`` from a configuration; :mod:`~spiralbayes.pipeline.limits` the exclusion limits,
 completeness and forecasts; :mod:`~spiralbayes.pipeline.compare` the comparison with CASA's
-image-space baselines. The command line (:mod:`spiralbayes.cli`) only parses arguments and calls
+image-plane comparisons. The command line (:mod:`spiralbayes.cli`) only parses arguments and calls
 these. Outputs are written atomically (temporary file, then rename, with the user's umask), JSON
 outputs are strict (NaN written as ``null``), and a scan's configuration record is written only
 once the scan it describes has finished.
