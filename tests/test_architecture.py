@@ -29,7 +29,7 @@ LAYERS = {
     "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "_casa": 0, "_threads": 0,
     "settings": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
-    "axisymmetric": 2, "templates": 2, "model": 2, "asymmetries": 2, "quadrature": 2,
+    "axisymmetric": 2, "templates": 2, "model": 2, "alternatives": 2, "quadrature": 2,
     "simulate": 3,
     "inference": 4,
     "plotting": 5, "image_plane": 5,
@@ -267,3 +267,17 @@ def test_threads_are_limited_by_the_one_helper():
                 found.append(name)
     assert set(found) <= {"spiralbayes._threads"}, f"threadpoolctl imported outside spiralbayes._threads: {sorted(set(found))}"
     assert found, "spiralbayes._threads no longer imports threadpoolctl"
+
+
+def test_docstrings_hold_no_change_history():
+    """Change history ("issue 9", "version 1") lives in docs/history.md, not in docstrings."""
+    import re
+
+    pattern = re.compile(r"\bissue #?\d+|\bversion[- ]1\b", re.I)
+    found = []
+    for name, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+                doc = ast.get_docstring(node) or ""
+                found += [f"{name}.{getattr(node, 'name', '')}: {m.group(0)}" for m in pattern.finditer(doc)]
+    assert not found, "change history in docstrings (move it to docs/history.md):\n" + "\n".join(found)

@@ -20,7 +20,7 @@ from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
 from .inference.detection.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
 from .inference.detection.settings import AlternativesSettings  # noqa: E402
-from .inference.detection.refit import rescan_at_fitted_geometry  # noqa: E402
+from .inference.detection.follow_up import rescan_at_fitted_geometry  # noqa: E402
 from .inference.detection.verdict import Verdict, detect  # noqa: E402
 from .inference.limits.exclusion import ExclusionLimits, compute_limits  # noqa: E402
 from .inference.limits.forecasting import Forecast, forecast  # noqa: E402

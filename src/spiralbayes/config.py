@@ -28,7 +28,7 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # Python 3.10: the same parser, packaged as tomli
     import tomli as tomllib
 
-from .asymmetries import ALTERNATIVE_MODELS
+from .alternatives import ALTERNATIVE_MODELS
 from .exceptions import ConfigError, MissingFileError
 from .inference.detection.settings import AlternativesSettings
 from .inference.limits.settings import LimitSettings

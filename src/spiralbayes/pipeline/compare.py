@@ -10,7 +10,9 @@ from pathlib import Path
 from .._provenance import json_default
 from ..axisymmetric import AxisymmetricModel
 from ..exceptions import ConfigError
-from .core import _write_text, load_data, run_scan_config, save_figure
+from .inputs import load_data
+from .outputs import _write_text, save_figure
+from .scan_command import run_scan_config
 
 __all__ = ["CompareResult", "compare_table", "run_compare_config"]
 

@@ -15,7 +15,9 @@ from ..inference.scan.run import scan
 from ..simulate import DiscModel, simulate_observation
 from ..templates import make_template
 from .._hdf5 import require_file
-from .core import _write_text, load_data, load_templates, run_scan_config, save_figure
+from .inputs import load_data, load_templates
+from .outputs import _write_text, save_figure
+from .scan_command import run_scan_config
 from .reuse import reusable_axisymmetric, reusable_scan
 
 __all__ = ["LimitsRun", "TAURUS_DEMO", "default_limits_config", "run_forecast", "run_limits", "run_limits_config",
@@ -45,7 +47,7 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
     from ..inference.limits.exclusion import compute_limits
     from ..inference.limits.settings import LimitSettings
     from ..settings import from_config
-    from ..inference.limits.table import table_csv, table_markdown
+    from ..inference.limits.table3 import table_csv, table_markdown
     from ..plotting.limits import plot_completeness, plot_excluded_fraction, plot_mass_radius
 
     lc = {**default_limits_config(), **(limits_config or {})}

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .._provenance import atomic_path
-from .core import _write_text, save_figure
+from .outputs import _write_text, save_figure
 
 __all__ = ["disc_row", "failed_row", "survey_table", "write_figures", "write_table"]
 

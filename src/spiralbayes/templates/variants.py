@@ -1,7 +1,7 @@
 """Template morphology variants: a small set of spiral shapes per (M_p, H/r, τ0, β) spanning the references.
 
-No template is the true spiral (issue 22; docs/limits.md §4c): the built-in generator
-(:mod:`.wake`, calibrated in issue 9 as a compromise between wakeflow and FARGO3D) projects a
+No template is the true spiral (docs/limits.md §4c): the built-in generator
+(:mod:`.wake`, fitted as a compromise between wakeflow and FARGO3D) projects a
 hydrodynamic spiral onto less than its own power, so a fixed-shape template wrongly excludes
 planets that are there. The morphology is therefore a nuisance with a few discrete values, each a
 linear combination of two building blocks on the generator's grid:
@@ -79,7 +79,7 @@ class Variant:
 VARIANTS: dict[str, Variant] = {
     "compromise": Variant(
         "compromise", note="the generator as calibrated in issue 9 against all 11 reference maps (wake.py, step 3)"),
-    # fitted by tools/fit_variants.py (issue 22); A_up per reference case in docs/limits.md §4d
+    # fitted by tools/fit_variants.py; A_up per reference case in docs/limits.md §4d
     "hydro": Variant(
         "hydro", scale=0.5439, blob=-0.4603, blob_slope=1.0, blob_width=0.5,
         fitted_to=("fargo3d_isothermal.h5:h0.07_mu0.3", "fargo3d_isothermal.h5:h0.07_mu1"),

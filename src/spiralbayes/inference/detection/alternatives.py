@@ -1,6 +1,6 @@
 """Maximum-likelihood fits of the competing asymmetry models, scored by ΔBIC (test 3).
 
-Each alternative of :mod:`spiralbayes.asymmetries` is fitted to the same visibilities and
+Each alternative of :mod:`spiralbayes.alternatives` is fitted to the same visibilities and
 weights as the scan, relative to the same axisymmetric model ``V_A``:
 ``Δχ²_alt = χ²_AO − min_θ χ²(V_A + ΔV_alt(θ), V_O)`` and ``ΔBIC_alt = Δχ²_alt − k_alt ln N``
 (k = 4 for ``geometry``, ``lopsided`` and ``eccentric_ring``, 5 for ``arc`` and ``m2``), to be
@@ -10,7 +10,7 @@ How:
 
 * ``geometry``: Levenberg–Marquardt-type least squares (``scipy.optimize.least_squares``,
   trust-region reflective) of the four offsets, with the analytic Jacobian of
-  :func:`~spiralbayes.asymmetries.geometry_visibilities`, started at zero offset; the final Δχ²
+  :func:`~spiralbayes.alternatives.geometry_visibilities`, started at zero offset; the final Δχ²
   uses the model's own exact visibilities at the fitted geometry.
 * field models: L-BFGS-B over all parameters (bounded) with the exact gradient — one forward and
   one adjoint type-3 transform per evaluation, whatever the number of parameters
@@ -35,7 +35,7 @@ import numpy as np
 from ..._hdf5 import open_file, write_file
 from ..._provenance import data_hash, json_default, provenance_record
 from ..._threads import blas_threads
-from ...asymmetries import (
+from ...alternatives import (
     ALTERNATIVE_LABELS,
     ALTERNATIVE_MODELS,
     FIELD_MODELS,
@@ -73,7 +73,7 @@ class AlternativeFit:
     Attributes
     ----------
     name, label : str
-        Model name (:data:`~spiralbayes.asymmetries.ALTERNATIVE_MODELS`) and a readable label.
+        Model name (:data:`~spiralbayes.alternatives.ALTERNATIVE_MODELS`) and a readable label.
     n_params : int
         Free parameters (BIC penalty ``n_params ln N``).
     delta_chi2 : float
@@ -133,7 +133,7 @@ class AlternativesResult:
 
     def model_visibilities(self, name: str, vis, axisymmetric, *, nthreads: int = 1) -> np.ndarray:
         """``V_model − V_A`` [Jy] of a fitted alternative at ``vis``' baselines."""
-        from ...asymmetries import asymmetry_visibilities
+        from ...alternatives import asymmetry_visibilities
 
         vis = vis.standardised()
         return asymmetry_visibilities(name, self.fits[name].theta, vis.u, vis.v, axisymmetric, self.geometry,
@@ -307,12 +307,12 @@ def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *,
     geometry : DiscGeometry, optional
         Default: the axisymmetric model's (the scan's) geometry.
     settings : AlternativesSettings, optional
-        The ``models`` (a subset of :data:`~spiralbayes.asymmetries.ALTERNATIVE_MODELS`; default
+        The ``models`` (a subset of :data:`~spiralbayes.alternatives.ALTERNATIVE_MODELS`; default
         all five), ``n_starts`` optimiser starts per field model (the best-correlating shapes of
         the residual image), ``max_iter`` L-BFGS-B iterations per start, the grid's outer radius
         ``r_max`` [arcsec] (default 1.1 times the radius holding 99.5 % of the profile's flux),
         its ``cell_factor`` (radial cells at most ``1 / (cell_factor uv_max)`` wide, see
-        :class:`~spiralbayes.asymmetries.DiscGrid`) and the NUFFTs' ``nthreads``. Default
+        :class:`~spiralbayes.alternatives.DiscGrid`) and the NUFFTs' ``nthreads``. Default
         ``AlternativesSettings()``.
     progress : bool
         Show a progress bar over the models.

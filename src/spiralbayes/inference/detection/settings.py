@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ...asymmetries import DEFAULT_CELL_FACTOR
+from ...alternatives import DEFAULT_CELL_FACTOR
 from ...settings import option
 
 __all__ = ["AlternativesSettings"]

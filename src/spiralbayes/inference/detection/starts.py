@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...asymmetries import FIELD_MODELS, FieldTransform, ProfileContext
+from ...alternatives import FIELD_MODELS, FieldTransform, ProfileContext
 
 __all__ = ["candidate_starts", "linear_amplitudes"]
 

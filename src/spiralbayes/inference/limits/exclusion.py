@@ -53,7 +53,7 @@ from ...settings import with_overrides
 from ...units import mth_to_mjup
 from .families import Family, select_family, template_families
 from .settings import LimitSettings
-from .table import describe_family_limits, runs
+from .table3 import describe_family_limits, runs
 
 __all__ = ["ExclusionLimits", "amplitude_upper_limit", "compute_limits", "data_resolution", "bright_extent",
            "z_score"]

@@ -30,7 +30,7 @@ __all__ = ["SINGLE_VARIANT", "combined_m_lim", "combined_m_lim_mjup", "describe_
            "near_planet_mask", "price_of_robustness", "variant_groups"]
 
 SINGLE_VARIANT = "compromise"
-"""The variant the price of robustness is measured against (the issue-9 calibration)."""
+"""The variant the price of robustness is measured against (the wake generator as fitted to the reference maps)."""
 
 _LIMITED = ("limit", "below_bank")
 
@@ -127,7 +127,7 @@ def _range_text_over(limits, lo: float, hi: float, mass: float) -> str:
 def describe_over_families(limits) -> str:
     """Sentences for :meth:`.ExclusionLimits.summary` without ``family=``: the robust limit over every
     family, the set named, and the price of robustness where variants exist."""
-    from .table import THRESHOLDS, runs
+    from .table3 import THRESHOLDS, runs
 
     fams = list(limits.families)
     m_lim, status = combined_m_lim(limits, fams)

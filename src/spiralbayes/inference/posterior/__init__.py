@@ -3,7 +3,7 @@
 * :mod:`.priors` — the parameters' priors;
 * :mod:`.likelihood` — the sampled likelihood (profile and amplitude marginalised);
 * :mod:`.conditional` — the likelihood at a fixed profile, the reference (:class:`SpiralLikelihood`);
-* :mod:`.tables`, :mod:`.perturbation` — the fast perturbation tables;
+* :mod:`.interpolation`, :mod:`.perturbation` — the fast perturbation tables;
 * :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
 * :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings`; :mod:`.moves` — the wrapped DE move;
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files and the chain loop;
@@ -18,7 +18,7 @@ from .likelihood import (
     log_amplitude_integral,
 )
 from .conditional import PARAMETER_LABELS, PARAMETER_NAMES, SpiralLikelihood, geometry_from_theta
-from .tables import AxisymmetricTable, PerturbationTable
+from .interpolation import AxisymmetricTable, PerturbationTable
 from .perturbation import FastPerturbation
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 from .moves import WrappedDEMove, default_moves

@@ -24,7 +24,7 @@ linearly (grid step chosen so that the interpolation error is below ~1e-7 of the
 :meth:`.AxisymmetricTable.max_error` measures it against the exact curve). No Hankel transform is
 done per call. Re-fitting the profile for each geometry is not done.
 
-The tables and why they are exact: :mod:`spiralbayes.inference.posterior.tables`.
+The tables and why they are exact: :mod:`spiralbayes.inference.posterior.interpolation`.
 
 :meth:`SpiralLikelihood.exact_log_likelihood` is the reference (type-3 NUFFT of the full
 quadrature at double precision plus the exact Hankel visibilities);
@@ -52,7 +52,7 @@ from ...model import (
 )
 from ...units import ARCSEC, TWO_PI
 from .perturbation import FastPerturbation
-from .tables import AxisymmetricTable, _outer_radius
+from .interpolation import AxisymmetricTable, _outer_radius
 
 __all__ = ["PARAMETER_LABELS", "PARAMETER_NAMES", "SpiralLikelihood", "geometry_from_theta"]
 
@@ -100,7 +100,7 @@ class SpiralLikelihood:
         Show a progress bar of the table's node builds (each refinement round is logged).
     mirror_of : SpiralLikelihood, optional
         The likelihood of this template's mirror image on the same data and r_p range: its
-        tables are shared (see :mod:`spiralbayes.inference.posterior.tables`), nothing is built.
+        tables are shared (see :mod:`spiralbayes.inference.posterior.interpolation`), nothing is built.
     """
 
     def __init__(self, vis, axisymmetric, template, r_range, *, reference_geometry: DiscGeometry | None = None,
@@ -135,7 +135,7 @@ class SpiralLikelihood:
 
     @property
     def table(self):
-        """The perturbation's :class:`~spiralbayes.inference.posterior.tables.PerturbationTable`."""
+        """The perturbation's :class:`~spiralbayes.inference.posterior.interpolation.PerturbationTable`."""
         return self.perturbation.table
 
     @property
