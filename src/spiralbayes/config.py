@@ -29,17 +29,20 @@ except ModuleNotFoundError:  # Python 3.10: the same parser, packaged as tomli
     import tomli as tomllib
 
 from .alternatives import ALTERNATIVE_MODELS
+from .axisymmetric.model import DEFAULT_HYPERPARAMETERS
 from .exceptions import ConfigError, MissingFileError
 from .inference.detection.settings import AlternativesSettings
 from .inference.limits.settings import LimitSettings
 from .inference.posterior.settings import SamplingSettings
+from .inference.scan.engine import ScanSettings
 from .settings import config_options
 
 __all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "default_config", "describe_config", "geometry_given", "load_config",
            "merge_config"]
 
 # section -> key -> (default, description). The [alternatives], [sample] and [limits] options are the
-# fields of their settings dataclasses (spiralbayes.settings): each default is written there, once.
+# fields of their settings dataclasses (spiralbayes.settings); [frank] and [scan] take their defaults
+# from frank's hyperparameters and ScanSettings: each default is written once, where the code uses it.
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     "data": {
         "path": ("", "visibility file: uvtable .txt/.npz, spiralbayes .h5, or a Measurement Set directory"),
@@ -58,10 +61,10 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     },
     "frank": {
         "N": (0, "number of radial collocation points; 0: the paper's 200, or for fewer than 200 visibilities the count their longest baseline needs (x1.25)"),
-        "Rmax": (1.2, "outer radius of the fit [arcsec]"),
-        "alpha": (1.05, "order parameter of the power-spectrum prior"),
-        "p0": (1e-15, "scale parameter of the power-spectrum prior [Jy^2]"),
-        "weights_smooth": (0.1, "strength of the power-spectrum smoothing"),
+        "Rmax": (DEFAULT_HYPERPARAMETERS["Rmax"], "outer radius of the fit [arcsec]"),
+        "alpha": (DEFAULT_HYPERPARAMETERS["alpha"], "order parameter of the power-spectrum prior"),
+        "p0": (DEFAULT_HYPERPARAMETERS["p0"], "scale parameter of the power-spectrum prior [Jy^2]"),
+        "weights_smooth": (DEFAULT_HYPERPARAMETERS["weights_smooth"], "strength of the power-spectrum smoothing"),
         "nonnegative": (False, "use frank's non-negative profile"),
         "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
@@ -83,9 +86,9 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "amplitude": ("fixed", "'fixed' (the paper's A = 1) or 'free' (best linear spiral amplitude per instance, +1 BIC parameter)"),
         "dask": ("", "empty: serial; 'local': a Dask LocalCluster; else a scheduler address (tcp://host:8786)"),
         "nthreads": (1, "threads per template for the NUFFTs"),
-        "cell_factor": (20.0, "midpoint quadrature only: cells at most 1/(cell_factor u_max) across"),
-        "quadrature": ("product", "'product' (exact, with an error estimate per instance) or 'midpoint' (the earlier cells, for comparison)"),
-        "power_path": ("auto", "'auto', 'polar' (uv grids; large N) or 'direct' (the model at every baseline; small N)"),
+        "cell_factor": (ScanSettings.cell_factor, "midpoint quadrature only: cells at most 1/(cell_factor u_max) across"),
+        "quadrature": (ScanSettings.rule, "'product' (exact, with an error estimate per instance) or 'midpoint' (the earlier cells, for comparison)"),
+        "power_path": (ScanSettings.power_path, "'auto', 'polar' (uv grids; large N) or 'direct' (the model at every baseline; small N)"),
         "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
     },
     "alternatives": {
