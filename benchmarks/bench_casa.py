@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from spiralbayes._casa import import_casa
-from spiralbayes.baselines import _cpu_seconds, clean_image, default_clean_grid
+from spiralbayes.image_plane import _cpu_seconds, clean_image, default_clean_grid
 from spiralbayes.geometry import DiscGeometry
 from spiralbayes.io import write_ms
 from spiralbayes.simulate import DiscModel, disc_visibilities, simulate_observation

@@ -20,7 +20,7 @@ import numpy as np
 from spiralbayes.axisymmetric import fit_axisymmetric
 from spiralbayes.geometry import DiscGeometry
 from spiralbayes.inference.posterior import Priors
-from spiralbayes.inference.posterior import sample_posterior
+from spiralbayes.inference.posterior import SamplingSettings, sample_posterior
 from spiralbayes.inference.scan import scan
 from spiralbayes.simulate import DiscModel, simulate_observation
 from spiralbayes.templates import make_template
@@ -48,8 +48,9 @@ print(result_scan.best)
 # %% Posterior: r_p, phi_p, the amplitude A and the geometry nuisances, the frank profile integrated
 # out; "no planet" competes with every template (weighted by their evidences)
 priors = Priors.default(axisym, r_p=(0.05, 0.6), widths={"inc": 3.0, "PA": 3.0, "dRA": 0.02, "dDec": 0.02})
-post = sample_posterior(vis, axisym, templates, scan=result_scan, priors=priors, run_name="example",
-                        chains_dir=OUT / "chains", processes=2)
+sampling = SamplingSettings(run_name="example", processes=2)  # every [sample] option, with its default
+post = sample_posterior(vis, axisym, templates, scan=result_scan, priors=priors, settings=sampling,
+                        chains_dir=OUT / "chains")
 print(post.verdict)
 print("P(planet | data) =", post.p_planet, "ln B =", post.ln_bayes_factor)
 print(post.template_probabilities, "P(R | planet) =", post.p_right_handed)

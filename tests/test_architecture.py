@@ -4,12 +4,12 @@ Every ``import`` of a spiralbayes module is read from the source (top level and 
 relative and absolute), so a lazy import cannot hide a circle. Layers, lowest first — a module may
 import its own layer and the ones below it, never one above:
 
-0. base: ``exceptions``, ``units``, ``_version``, ``_provenance``, ``_hdf5``, ``results``, ``_casa``
+0. base: ``exceptions``, ``units``, ``settings``, ``_version``, ``_provenance``, ``_hdf5``, ``results``, ``_casa``, ``_threads``
 1. data: ``geometry``, ``layout``, ``visibilities``, ``fourier``, ``io``
 2. models: ``axisymmetric``, ``templates``, ``quadrature``, ``model``
 3. synthetic data: ``simulate``
 4. inference: ``inference``
-5. outputs: ``plotting``, ``baselines``
+5. outputs: ``plotting``, ``image_plane``
 6. runners: ``pipeline``, ``config``, ``cli`` and the package's ``__init__``
 
 Inside ``inference`` the modules live in stage subpackages, each a layer of its own (lowest first:
@@ -27,11 +27,12 @@ import spiralbayes
 PACKAGE = Path(spiralbayes.__file__).parent
 LAYERS = {
     "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "results": 0, "_casa": 0,
+    "_threads": 0, "settings": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
-    "axisymmetric": 2, "templates": 2, "model": 2, "asymmetries": 2, "quadrature": 2,
+    "axisymmetric": 2, "templates": 2, "model": 2, "alternatives": 2, "quadrature": 2,
     "simulate": 3,
     "inference": 4,
-    "plotting": 5, "baselines": 5,
+    "plotting": 5, "image_plane": 5,
     "pipeline": 6, "config": 6, "cli": 6, "": 6,
 }
 INFERENCE = PACKAGE / "inference"
@@ -154,6 +155,11 @@ def test_public_api_is_importable_and_complete():
         assert hasattr(spiralbayes, name), name
     for name in ("scan", "detect", "sample_posterior", "fit_axisymmetric", "load_visibilities", "simulate_observation"):
         assert callable(getattr(spiralbayes, name))
+    # grouped by stage: every public name in exactly one stage list
+    stages = ("DATA", "MODELS", "SEARCH", "DETECTION", "LIMITS", "POSTERIOR", "PLOTTING", "SURVEY")
+    grouped = [name for stage in stages for name in getattr(spiralbayes, stage)]
+    assert len(grouped) == len(set(grouped)), "a public name is listed under two stages"
+    assert sorted(grouped + ["__version__", "exceptions"]) == sorted(spiralbayes.__all__)
 
 
 def stage(name: str) -> str | None:
@@ -303,3 +309,30 @@ def test_the_hdf5_rule_can_fail(tmp_path):
                       "            f.create_dataset('x', data=[1])\n")
     assert hdf5_calls(sample) == ["File (line 4)", "create_dataset (line 5)"]
     assert own_save_load(sample) == ["R (line 2)"]
+
+
+def test_threads_are_limited_by_the_one_helper():
+    """``spiralbayes._threads.blas_threads`` is the only module that imports threadpoolctl."""
+    found = []
+    for name, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "threadpoolctl":
+                found.append(name)
+            elif isinstance(node, ast.Import) and any(a.name.split(".")[0] == "threadpoolctl" for a in node.names):
+                found.append(name)
+    assert set(found) <= {"spiralbayes._threads"}, f"threadpoolctl imported outside spiralbayes._threads: {sorted(set(found))}"
+    assert found, "spiralbayes._threads no longer imports threadpoolctl"
+
+
+def test_docstrings_hold_no_change_history():
+    """Change history ("issue 9", "version 1") lives in docs/history.md, not in docstrings."""
+    import re
+
+    pattern = re.compile(r"\bissue #?\d+|\bversion[- ]1\b", re.I)
+    found = []
+    for name, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+                doc = ast.get_docstring(node) or ""
+                found += [f"{name}.{getattr(node, 'name', '')}: {m.group(0)}" for m in pattern.finditer(doc)]
+    assert not found, "change history in docstrings (move it to docs/history.md):\n" + "\n".join(found)

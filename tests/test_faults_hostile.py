@@ -271,11 +271,11 @@ def test_frank_with_fewer_visibilities_than_collocation_points_warns(setup):
 
 
 def test_a_config_without_geometry_refuses_to_fit_frank_face_on(setup, tmp_path, monkeypatch):
-    import spiralbayes.pipeline.core as core
+    import spiralbayes.pipeline.inputs as inputs
     from spiralbayes.config import load_config
     from spiralbayes.pipeline import run_scan
 
-    monkeypatch.setattr(core, "fit_axisymmetric", lambda *a, **k: pytest.fail("frank must not run"))
+    monkeypatch.setattr(inputs, "fit_axisymmetric", lambda *a, **k: pytest.fail("frank must not run"))
     out = tmp_path / "out"
     cfg = _config(tmp_path / "c.toml", setup, out, frank="")
     with Unchanged(tmp_path, *_inputs(setup)), pytest.raises(ConfigError, match=r"no \[geometry\] inc and PA.*fit = "
@@ -409,7 +409,7 @@ def test_forecast_text_uses_the_asked_probability_and_never_says_zero_minutes():
 
 
 def test_posterior_summary_json_gives_phi_p_in_degrees_with_the_unit_in_the_key():
-    from spiralbayes.pipeline.core import _summary_with_units
+    from spiralbayes.pipeline.sample_command import _summary_with_units
 
     stats = {"phi_p": {"median": 0.5, "lo": 0.4, "hi": 0.6, "std": 0.05}, "r_p": {"median": 0.3}, "inc": {"median": 30}}
     out = _summary_with_units(stats)
@@ -443,20 +443,21 @@ def test_an_unreachable_dask_scheduler_is_reported_before_frank(setup, tmp_path,
     import socket
     import time
 
-    import spiralbayes.pipeline.core as core
+    import spiralbayes.pipeline.inputs as inputs
+    import spiralbayes.pipeline.scan_command as scan_command
     from spiralbayes.config import load_config
 
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    monkeypatch.setattr(core, "fit_axisymmetric", lambda *a, **k: pytest.fail("frank must not run"))
-    monkeypatch.setattr(core, "load_data", lambda *a, **k: pytest.fail("the data must not be read"))
+    monkeypatch.setattr(inputs, "fit_axisymmetric", lambda *a, **k: pytest.fail("frank must not run"))
+    monkeypatch.setattr(scan_command, "load_data", lambda *a, **k: pytest.fail("the data must not be read"))
     cfg = _config(tmp_path / "c.toml", setup, tmp_path / "out", frank="", geometry="inc = 30.0\nPA = 60.0",
                   scan=f'dask = "tcp://127.0.0.1:{port}"')
     t0 = time.monotonic()
     with Unchanged(tmp_path), pytest.raises(InputError, match=f"no Dask scheduler answers at 127.0.0.1:{port}"):
-        core.run_scan(load_config(cfg), progress=False)
-    assert time.monotonic() - t0 < core.DASK_CONNECT_TIMEOUT_S + 1
+        scan_command.run_scan(load_config(cfg), progress=False)
+    assert time.monotonic() - t0 < scan_command.DASK_CONNECT_TIMEOUT_S + 1
 
 
 def test_compare_on_a_uvtable_without_wavelength_names_the_option_before_the_scan(setup, tmp_path, monkeypatch):

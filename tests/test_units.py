@@ -80,3 +80,29 @@ def test_wrap_angle_lands_in_range_by_whole_periods():
     assert np.all(np.abs(c - mu) <= np.pi) and np.allclose(np.cos(c), np.cos(a), atol=1e-12)
     assert wrap_angle(370.0, 0.0, 360.0) == 10.0 and wrap_angle(-190.0, period=360.0) == 170.0
     assert wrap_angle(np.pi) == -np.pi  # the range is half-open
+
+
+def test_constants_are_the_published_values():
+    """The SI-exact constants and the IAU 2015 / CODATA 2018 masses, typed from the standards."""
+    from spiralbayes import units
+
+    assert units.C_LIGHT == 299_792_458.0
+    assert units.H_PLANCK == 6.62607015e-34
+    assert units.K_BOLTZMANN == 1.380649e-23
+    assert units.G_NEWTON == 6.67430e-11
+    assert units.AU == 1.495978707e11
+    assert units.JY == 1e-26
+    assert units.ARCSEC == pytest.approx(np.pi / 648000, rel=1e-15)
+    # IAU 2015 B3 nominal GM values [m^3 s^-2] divided by CODATA 2018 G
+    assert units.M_SUN == pytest.approx(1.3271244e20 / 6.67430e-11, rel=1e-15)
+    assert units.M_JUP == pytest.approx(1.2668653e17 / 6.67430e-11, rel=1e-15)
+    assert units.M_EARTH == pytest.approx(3.986004e14 / 6.67430e-11, rel=1e-15)
+
+
+def test_astropy_mass_units_are_accepted():
+    import astropy.units as u
+
+    for name, unit in [("Mjup", u.M_jup), ("Msun", u.M_sun), ("Mearth", u.M_earth), ("kg", u.kg)]:
+        assert thermal_mass(40.0, 1.1, unit=unit) == pytest.approx(thermal_mass(40.0, 1.1, unit=name), rel=1e-14)
+    with pytest.raises(ValueError, match="not a mass unit"):
+        thermal_mass(40.0, 1.1, unit=u.m)

@@ -19,15 +19,18 @@ from ._version import __version__  # noqa: E402
 from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
 from .inference.detection.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
-from .inference.detection.refit import rescan_at_fitted_geometry  # noqa: E402
+from .inference.detection.settings import AlternativesSettings  # noqa: E402
+from .inference.detection.follow_up import rescan_at_fitted_geometry  # noqa: E402
 from .inference.detection.verdict import Verdict, detect  # noqa: E402
 from .inference.limits.exclusion import ExclusionLimits, compute_limits  # noqa: E402
 from .inference.limits.forecasting import Forecast, forecast  # noqa: E402
 from .inference.limits.recovery import CompletenessResult, completeness  # noqa: E402
+from .inference.limits.settings import LimitSettings  # noqa: E402
 from .inference.posterior.conditional import SpiralLikelihood  # noqa: E402
 from .inference.posterior.priors import Priors  # noqa: E402
 from .inference.posterior.results import PosteriorResult  # noqa: E402
 from .inference.posterior.sampler import sample_posterior  # noqa: E402
+from .inference.posterior.settings import SamplingSettings  # noqa: E402
 from .inference.scan.run import ScanResult, scan  # noqa: E402
 from .io import load_visibilities, save_visibilities  # noqa: E402
 from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage  # noqa: E402
@@ -50,41 +53,27 @@ def __getattr__(name):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = [
-    "AlternativesResult",
-    "PRESETS",
-    "PosteriorResult",
-    "Priors",
-    "SpiralLikelihood",
-    "AxisymmetricModel",
-    "CompletenessResult",
-    "DiscGeometry",
-    "DiscModel",
-    "ExclusionLimits",
-    "Forecast",
-    "ScanResult",
-    "SpiralTemplate",
-    "TemplateBank",
-    "Verdict",
-    "Visibilities",
-    "__version__",
-    "bin_deprojected",
-    "completeness",
-    "compute_limits",
-    "default_bank",
-    "detect",
-    "estimate_weights",
-    "exceptions",
-    "fit_alternatives",
-    "fit_axisymmetric",
-    "forecast",
-    "load_visibilities",
-    "make_template",
-    "run_survey",
-    "sample_posterior",
-    "save_visibilities",
-    "rescan_at_fitted_geometry",
-    "scan",
-    "simulate_observation",
-    "uv_coverage",
-]
+# The public names, grouped by stage (as astropy.cosmology's ``__all__``); each stage's list is also
+# importable, e.g. ``spiralbayes.POSTERIOR``.
+DATA = ["Visibilities", "DiscGeometry", "load_visibilities", "save_visibilities", "bin_deprojected",
+        "estimate_weights", "PRESETS", "DiscModel", "simulate_observation", "uv_coverage"]
+"""Data: visibilities, disc geometry, files, synthetic observations."""
+MODELS = ["AxisymmetricModel", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank", "make_template"]
+"""Models: the axisymmetric (frank) profile and the spiral templates."""
+SEARCH = ["ScanResult", "scan"]
+"""Search: the template scan."""
+DETECTION = ["Verdict", "detect", "AlternativesResult", "AlternativesSettings", "fit_alternatives",
+             "rescan_at_fitted_geometry"]
+"""Detection: tests 1-3, the competing asymmetries, the geometry follow-up."""
+LIMITS = ["ExclusionLimits", "LimitSettings", "compute_limits", "CompletenessResult", "completeness", "Forecast",
+          "forecast"]
+"""Limits: exclusion limits, completeness, forecasts."""
+POSTERIOR = ["PosteriorResult", "Priors", "SamplingSettings", "SpiralLikelihood", "sample_posterior"]
+"""Posterior: the sampled posterior and its parts."""
+PLOTTING = ["plotting"]
+"""Plotting: ``spiralbayes.plotting`` (Matplotlib, imported on first use)."""
+SURVEY = ["run_survey"]
+"""Survey: many discs on Dask (imported on first use)."""
+
+__all__ = ["__version__", "exceptions", *DATA, *MODELS, *SEARCH, *DETECTION, *LIMITS, *POSTERIOR, *PLOTTING,
+           *SURVEY]

@@ -23,7 +23,7 @@ turn the search into Bayesian inference. Commands: demo (an end-to-end example),
 (synthetic ALMA data), axisym (frank fit), scan (grid scan of spiral templates, verdict and
 heatmaps), sample (emcee posterior), limits (exclusion limits and completeness), survey (many
 discs on Dask, one table), forecast
-(time on source a planet needs), compare (image-space baselines with CASA), templates (the
+(time on source a planet needs), compare (image-plane comparisons with CASA), templates (the
 built-in template bank). Run
 'spiralbayes COMMAND -h' for a command's options; 'spiralbayes scan --print-config' writes a
 documented configuration file."""

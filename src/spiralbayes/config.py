@@ -7,7 +7,7 @@ the configuration actually used is saved beside every output. ``spiralbayes scan
 drives every command: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
 and ``[priors]``, ``limits`` adds ``[limits]`` (the last two reuse the scan's outputs when they
 are in ``[output] dir``); ``compare`` runs
-the scan and the image-space baselines of ``[compare]`` (needs CASA). Relative paths — inputs and
+the scan and the image-plane comparisons of ``[compare]`` (needs CASA). Relative paths — inputs and
 ``[output] dir`` alike — are taken relative to the configuration file, so a configuration means
 the same wherever it is run from.
 
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 import math
+from dataclasses import fields
 from pathlib import Path
 
 try:  # Python >= 3.11
@@ -27,13 +28,21 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # Python 3.10: the same parser, packaged as tomli
     import tomli as tomllib
 
-from .asymmetries import ALTERNATIVE_MODELS
+from .alternatives import ALTERNATIVE_MODELS
+from .axisymmetric.model import DEFAULT_HYPERPARAMETERS
 from .exceptions import ConfigError, MissingFileError
+from .inference.detection.settings import AlternativesSettings
+from .inference.limits.settings import LimitSettings
+from .inference.posterior.settings import SamplingSettings
+from .inference.scan.engine import ScanSettings
+from .settings import config_options
 
 __all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "default_config", "describe_config", "geometry_given", "load_config",
            "merge_config"]
 
-# section -> key -> (default, description)
+# section -> key -> (default, description). The [alternatives], [sample] and [limits] options are the
+# fields of their settings dataclasses (spiralbayes.settings); [frank] and [scan] take their defaults
+# from frank's hyperparameters and ScanSettings: each default is written once, where the code uses it.
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     "data": {
         "path": ("", "visibility file: uvtable .txt/.npz, spiralbayes .h5, or a Measurement Set directory"),
@@ -52,10 +61,10 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     },
     "frank": {
         "N": (0, "number of radial collocation points; 0: the paper's 200, or for fewer than 200 visibilities the count their longest baseline needs (x1.25)"),
-        "Rmax": (1.2, "outer radius of the fit [arcsec]"),
-        "alpha": (1.05, "order parameter of the power-spectrum prior"),
-        "p0": (1e-15, "scale parameter of the power-spectrum prior [Jy^2]"),
-        "weights_smooth": (0.1, "strength of the power-spectrum smoothing"),
+        "Rmax": (DEFAULT_HYPERPARAMETERS["Rmax"], "outer radius of the fit [arcsec]"),
+        "alpha": (DEFAULT_HYPERPARAMETERS["alpha"], "order parameter of the power-spectrum prior"),
+        "p0": (DEFAULT_HYPERPARAMETERS["p0"], "scale parameter of the power-spectrum prior [Jy^2]"),
+        "weights_smooth": (DEFAULT_HYPERPARAMETERS["weights_smooth"], "strength of the power-spectrum smoothing"),
         "nonnegative": (False, "use frank's non-negative profile"),
         "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
@@ -77,34 +86,21 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "amplitude": ("fixed", "'fixed' (the paper's A = 1) or 'free' (best linear spiral amplitude per instance, +1 BIC parameter)"),
         "dask": ("", "empty: serial; 'local': a Dask LocalCluster; else a scheduler address (tcp://host:8786)"),
         "nthreads": (1, "threads per template for the NUFFTs"),
-        "cell_factor": (20.0, "midpoint quadrature only: cells at most 1/(cell_factor u_max) across"),
-        "quadrature": ("product", "'product' (exact, with an error estimate per instance) or 'midpoint' (the earlier cells, for comparison)"),
-        "power_path": ("auto", "'auto', 'polar' (uv grids; large N) or 'direct' (the model at every baseline; small N)"),
+        "cell_factor": (ScanSettings.cell_factor, "midpoint quadrature only: cells at most 1/(cell_factor u_max) across"),
+        "quadrature": (ScanSettings.rule, "'product' (exact, with an error estimate per instance) or 'midpoint' (the earlier cells, for comparison)"),
+        "power_path": (ScanSettings.power_path, "'auto', 'polar' (uv grids; large N) or 'direct' (the model at every baseline; small N)"),
         "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
     },
     "alternatives": {
         "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = 2) and apply test 3"),
-        "models": ([], "which of geometry, arc, lopsided, eccentric_ring, m2 to fit (empty: all)"),
-        "threshold": (10.0, "test 3: the spiral's Delta BIC must exceed the best alternative's by more than this"),
-        "n_starts": (2, "optimiser starts per alternative model (the shapes that best match the residual image)"),
+        **config_options(AlternativesSettings),
         "refit_geometry": (True, "if no spiral is detected and the geometry alternative has Delta BIC > 10: refit frank at its geometry, rescan and decide again (OUTPUT/refit_geometry/)"),
     },
     "sample": {
-        "run_name": ("posterior", "chains go to OUTPUT/chains/<run_name>.h5"),
+        **config_options(SamplingSettings, ["run_name"]),
         "scan": ("", "a saved ScanResult (.h5) to start walkers from and prune templates (empty: OUTPUT/scan.h5 if present)"),
-        "n_walkers": (32, "emcee walkers per template (>= 12)"),
-        "n_steps": (0, "total steps per walker (0: run until converged, up to max_steps)"),
-        "max_steps": (20000, "cap on the steps per walker when running until converged"),
-        "check_every": (500, "steps between convergence checks"),
-        "convergence": ("warn", "'raise', 'warn' or 'ignore' when a chain is shorter than 50 autocorrelation times"),
-        "min_ess": (400.0, "smallest effective sample size per parameter for convergence"),
-        "processes": (1, "worker processes for the walkers"),
-        "seed": (0, "random seed of the sampler"),
-        "prune_delta_lnL": (25.0, "templates whose scan peak is this far below the best (in ln L) get a Laplace evidence only"),
-        "evidence_draws": (2000, "draws of the importance-sampled evidence"),
-        "mcmc_templates": ([], "names of the templates that get a chain (empty: chosen by prune_delta_lnL)"),
-        "flush_every": (100, "steps between atomic writes of the chain file (a kill loses at most these)"),
-        "planet_prior": (0.5, "prior probability that the disc hosts a planet (against the no-planet hypothesis)"),
+        **config_options(SamplingSettings, [f.name for f in fields(SamplingSettings)
+                                            if f.metadata["config"] and f.name != "run_name"]),
     },
     "priors": {
         "r_p_min": (0.0, "smallest planet radius [arcsec] (0: R_eff / 25 of the frank profile)"),
@@ -127,28 +123,16 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "r_out": (0.0, "outer disc radius [arcsec] for the residual statistic and the profile (0: 1.1 R_99 of the frank profile)"),
         "keep_casa_files": (True, "keep the Measurement Sets, CASA images and CASA log in OUTPUT/casa"),
     },
-    "limits": {
-        "cl": (0.95, "one-sided confidence level of the exclusion limits, in (0.5, 1)"),
-        "method": ("all_phi", "'all_phi': excluded at r_p when excluded at every phi_p (the paper's reading); 'marginal': phi_p marginalised (uniform prior)"),
-        "hand": ("both", "'both': a planet is excluded only when both hands are; 'R' or 'L' when the disc's rotation fixes the hand"),
-        "mstar": (0.8, "stellar mass [M_sun], for planet masses in M_Jup (M_th = (H/r)^3 M_*)"),
-        "h_ref": (0.0, "H/r at r_ref for the thermal mass (0: the templates' h_p)"),
-        "r_ref": (50.0, "reference radius of H/r [au]"),
-        "flaring": (0.25, "flaring index: H/r = h_ref (r / r_ref)^flaring, so M_th ~ r_p^(3 flaring)"),
-        "resolution": (0.0, "beam FWHM [arcsec] for the 'unresolved' flag (0: fitted to the data's natural-weighted beam)"),
-        "resolution_factor": (1.0, "radii below resolution_factor x resolution are flagged 'unresolved', not excluded"),
-        "extent_fraction": (0.95, "radii beyond the radius holding this fraction of the disc's flux are flagged, not excluded"),
-        "completeness": (True, "injection-recovery (fast path) for the minimum detectable mass"),
-        "n_azimuths": (8, "injection azimuths per radius, evenly spaced on the scan grid"),
-        "inject_hand": (["R"], "hands of the injected planets"),
-        "thresholds": ([3.0, 1.0], "planet masses [M_th] of the table's columns (the paper's Table 3: 3 and 1)"),
-        "name": ("", "disc name in the table (empty: the data file's stem)"),
-    },
+    "limits": config_options(LimitSettings),
     "output": {
         "dir": ("spiralbayes-output", "directory for results and plots"),
         "plots": (True, "write heatmap PNGs"),
     },
 }
+"""section -> option -> ``(default, description)`` of every configuration option; the ``[alternatives]``,
+``[sample]`` and ``[limits]`` options come from :class:`~spiralbayes.inference.detection.settings.AlternativesSettings`,
+:class:`~spiralbayes.inference.posterior.settings.SamplingSettings` and
+:class:`~spiralbayes.inference.limits.settings.LimitSettings`."""
 
 
 PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("sample", "scan"), ("output", "dir"))
@@ -268,7 +252,7 @@ CHECKS: dict[str, dict[str, object]] = {
     "output": {"dir": lambda v: None if v.strip() else "must name a directory"},
 }
 """section -> option -> check of its (already type-coerced) value; options without one take any value
-of their type. Sections added to :data:`SCHEMA` may add their checks here."""
+of their type. Sections added to :data:`.SCHEMA` may add their checks here."""
 
 
 def _check_values(config: dict) -> None:

@@ -8,7 +8,7 @@ Image convention (the FITS/CASA display convention, as galario's):
   ``l = -(ix - nx // 2) * pixel_size`` (RA offset, east positive) and
   ``m = (iy - ny // 2) * pixel_size``.
 * ``V(u, v) = sum image[iy, ix] exp(+2 pi i (u' l + v' m)) exp(+2 pi i (u dRA + v dDec))``
-  with ``(u', v')`` the baselines rotated by ``PA`` (:meth:`DiscGeometry.rotate_uv`): the image
+  with ``(u', v')`` the baselines rotated by ``PA`` (:meth:`.DiscGeometry.rotate_uv`): the image
   is drawn with its major axis to the north and rotated to ``PA`` east of north in uv space,
   then shifted to ``(dRA, dDec)``, as galario's ``sampleImage``.
 

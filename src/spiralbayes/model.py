@@ -7,7 +7,7 @@ visibilities add to the axisymmetric model's:
 
     ΔV(u, v) = cos i · exp(2 pi i (u dRA + v dDec)) · sum_c P_c A_c exp(2 pi i q · s_c)
 
-with ``q = (xi, eta)`` the baseline in the disc frame (:meth:`DiscGeometry.disc_frame_uv`) and
+with ``q = (xi, eta)`` the baseline in the disc frame (:meth:`.DiscGeometry.disc_frame_uv`) and
 ``s_c`` the centres of the cells of a polar quadrature grid (areas ``A_c`` [sr]). The sum is a
 type-3 (non-uniform to non-uniform) FFT, done with ducc0; :func:`perturbation_visibilities_dft`
 is the direct-sum reference and :func:`render_perturbation_image` the Cartesian image used by
@@ -16,10 +16,10 @@ the naive path (image + NUFFT), against which the quadrature is tested.
 Quadrature (:func:`make_quadrature`): by default the product rule of :mod:`spiralbayes.quadrature`,
 which integrates the template's bilinear interpolant and the profile exactly and interpolates
 only the Fourier kernel; its error is below ~1e-11 of the perturbation's L1 norm at every baseline
-up to ``uv_max``, and it reports a bound (:meth:`ProductQuadrature.error_bound`).
+up to ``uv_max``, and it reports a bound (:meth:`.ProductQuadrature.error_bound`).
 ``rule="midpoint"`` keeps the earlier polar cells, log-spaced in ``x = r / r_p`` over the
 template's range and uniform in ``phi``, no larger than ``1 / (cell_factor u_max)``: second order,
-with Σ w |ΔV|^2 low by 3-9e-4 at the default ``cell_factor`` 20; it is kept as the
+with ``Σ w |ΔV|^2`` low by 3-9e-4 at the default ``cell_factor`` 20; it is kept as the
 reference of that behaviour.
 """
 
@@ -194,7 +194,7 @@ def _next_pow2_multiple(n: int, base: int) -> int:
 def template_on_quadrature(template, quad: PolarQuadrature) -> np.ndarray:
     """``delta`` at the quadrature's cell centres with the planet at ``phi = 0``; shape ``quad.shape``.
 
-    The template's bilinear interpolant in ``(ln x, phi)`` (:meth:`SpiralTemplate.evaluate`),
+    The template's bilinear interpolant in ``(ln x, phi)`` (:meth:`~spiralbayes.templates.template.SpiralTemplate.evaluate`),
     evaluated as two 1-D linear interpolations: a tensor-product grid needs no more.
     """
     log_x = np.log(np.asarray(template.x, dtype=float))
@@ -231,7 +231,7 @@ def perturbation_flux(profile: Profile, template, quad, delta=None, *,
     Product rule: flat, in the order of ``quad.positions()`` (``quad.split`` gives one
     ``(rings, n_phi)`` array per group of rings); ``spectrum`` (the template's
     :class:`~spiralbayes.quadrature.TemplateSpectrum`) may be passed to reuse it. Midpoint rule:
-    shape ``quad.shape``; ``delta`` (:func:`template_on_quadrature`) may be passed.
+    shape ``quad.shape``; ``delta`` (:func:`.template_on_quadrature`) may be passed.
     """
     if isinstance(quad, ProductQuadrature):
         return quad.flux(profile, spectrum if spectrum is not None else TemplateSpectrum(template))
@@ -322,7 +322,7 @@ def render_perturbation_image(profile: Profile, template, r_p: float, phi_p: flo
     """Image [Jy/pixel] of ``I_A delta`` in the frame of :func:`spiralbayes.fourier.sample_image`.
 
     Major axis north (PA and offsets are applied in uv space by the sampler); each pixel is the
-    mean of ``supersample``² point samples of the continuous model (bilinear template).
+    mean of ``supersample ** 2`` point samples of the continuous model (bilinear template).
     """
     geom0 = DiscGeometry(inc, 0.0, 0.0, 0.0)
     l_axis, m_axis = image_axes(shape, pixel_size)

@@ -21,6 +21,9 @@ Radii are in au unless ``distance`` [pc] is given, in which case they are in arc
 from __future__ import annotations
 
 import numpy as np
+from astropy import units as _u
+from astropy.constants import codata2018 as _codata
+from astropy.constants import iau2015 as _iau
 
 from .exceptions import InputError
 
@@ -49,44 +52,51 @@ __all__ = [
     "mth_to_mnep",
 ]
 
-ARCSEC = np.pi / 180.0 / 3600.0
+# The constants come from astropy, pinned to CODATA 2018 and the IAU 2015 resolution B3 so that a
+# user's astropy science state cannot change the package's numbers (cached banks, data hashes).
+ARCSEC = float(_u.arcsec.to(_u.rad))
 """One arcsecond [rad]."""
 TWO_PI = 2.0 * np.pi
 
-C_LIGHT = 299_792_458.0
+C_LIGHT = float(_codata.c.value)
 """Speed of light [m/s] (SI, exact)."""
-H_PLANCK = 6.62607015e-34
+H_PLANCK = float(_codata.h.value)
 """Planck constant [J s] (SI 2019, exact)."""
-K_BOLTZMANN = 1.380649e-23
+K_BOLTZMANN = float(_codata.k_B.value)
 """Boltzmann constant [J/K] (SI 2019, exact)."""
-G_NEWTON = 6.67430e-11
+G_NEWTON = float(_codata.G.value)
 """Gravitational constant [m^3 kg^-1 s^-2] (CODATA 2018)."""
 M_HYDROGEN = 1.6735575e-27
-"""Mass of a hydrogen atom [kg]."""
-JY = 1e-26
+"""Mass of a hydrogen atom [kg]: the standard atomic weight 1.00784 u (not in astropy.constants)."""
+JY = float(_u.Jy.to(_u.W / _u.m**2 / _u.Hz))
 """One jansky [W m^-2 Hz^-1]."""
 
-M_SUN = 1.988409870698051e30
+M_SUN = float(_iau.M_sun.value)
 """Solar mass [kg] (IAU 2015 nominal GM_sun divided by CODATA 2018 G)."""
-M_JUP = 1.8981245973360505e27
+M_JUP = float(_iau.M_jup.value)
 """Jupiter mass [kg] (IAU 2015 nominal GM_Jup divided by CODATA 2018 G)."""
 M_NEP = 1.02409e26
-"""Neptune mass [kg] (NASA Neptune fact sheet)."""
-M_EARTH = 5.972167867791379e24
+"""Neptune mass [kg] (NASA Neptune fact sheet; not in astropy.constants)."""
+M_EARTH = float(_iau.M_earth.value)
 """Earth mass [kg] (IAU 2015 nominal GM_Earth divided by CODATA 2018 G)."""
-AU = 1.495978707e11
+AU = float(_iau.au.value)
 """Astronomical unit [m] (IAU 2012)."""
 
 MASS_UNITS = {"Msun": M_SUN, "Mjup": M_JUP, "Mnep": M_NEP, "Mearth": M_EARTH, "kg": 1.0}
-"""Mass units accepted by the ``unit`` arguments, in kg."""
+"""Mass units accepted by the ``unit`` arguments, in kg (an astropy mass unit, e.g.
+``astropy.units.M_jup``, is accepted too)."""
 
 
-def _unit_kg(unit: str) -> float:
+def _unit_kg(unit) -> float:
+    if isinstance(unit, _u.UnitBase):
+        if unit.physical_type != "mass":
+            raise InputError(f"unit {unit} is not a mass unit: use one of {sorted(MASS_UNITS)} or an astropy mass unit")
+        return float(unit.to(_u.kg))
     try:
         return MASS_UNITS[unit]
-    except KeyError:
+    except (KeyError, TypeError):
         raise InputError(
-            f"unknown mass unit {unit!r}: use one of {sorted(MASS_UNITS)}"
+            f"unknown mass unit {unit!r}: use one of {sorted(MASS_UNITS)} or an astropy mass unit"
         ) from None
 
 
@@ -137,7 +147,7 @@ def thermal_mass(
     r_ref: float = 50.0,
     flaring: float = 0.25,
     distance: float | None = None,
-    unit: str = "Msun",
+    unit: str | _u.UnitBase = "Msun",
 ):
     """Thermal mass ``M_th = (H/r)_p^3 M_*`` at the planet radius.
 
@@ -151,8 +161,8 @@ def thermal_mass(
         Aspect ratio ``h_ref`` at ``r_ref`` [au] and flaring index (see :func:`aspect_ratio`).
     distance : float, optional
         Distance [pc]; when given, ``r_p`` is in arcsec.
-    unit : {'Msun', 'Mjup', 'Mnep', 'Mearth', 'kg'}
-        Unit of the result.
+    unit : {'Msun', 'Mjup', 'Mnep', 'Mearth', 'kg'} or astropy.units.UnitBase
+        Unit of the result (any astropy mass unit, e.g. ``astropy.units.M_jup``).
 
     Returns
     -------
@@ -165,7 +175,7 @@ def thermal_mass(
     return float(m) if np.ndim(m) == 0 else m
 
 
-def mth_to_mass(mass_mth, r_p, mstar: float, *, unit: str = "Mjup", **disc) -> float | np.ndarray:
+def mth_to_mass(mass_mth, r_p, mstar: float, *, unit: str | _u.UnitBase = "Mjup", **disc) -> float | np.ndarray:
     """Convert a planet mass in thermal masses to ``unit`` at radius ``r_p``.
 
     ``disc`` takes ``h_ref``, ``r_ref``, ``flaring`` and ``distance`` as in :func:`thermal_mass`.
@@ -177,7 +187,7 @@ def mth_to_mass(mass_mth, r_p, mstar: float, *, unit: str = "Mjup", **disc) -> f
     return float(out) if np.ndim(out) == 0 else out
 
 
-def mass_to_mth(mass, r_p, mstar: float, *, unit: str = "Mjup", **disc) -> float | np.ndarray:
+def mass_to_mth(mass, r_p, mstar: float, *, unit: str | _u.UnitBase = "Mjup", **disc) -> float | np.ndarray:
     """Convert a planet mass in ``unit`` to thermal masses at radius ``r_p`` (inverse of
     :func:`mth_to_mass`)."""
     mass = np.asarray(mass, dtype=float)

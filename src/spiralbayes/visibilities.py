@@ -4,8 +4,8 @@ The container holds u, v [lambda], complex V [Jy] and weights [Jy^-2] and valida
 construction; file formats live in :mod:`spiralbayes.io`. Also here: :func:`bin_deprojected`
 (a "uvplot" of deprojected, binned visibilities) and :func:`estimate_weights` (one weight
 rescaling factor from the scatter of the data, an explicit option), with two estimators: the
-scatter within uv cells or deprojected annuli (:func:`estimate_weight_factor`) and the scatter
-about planes through uv neighbours (:func:`neighbour_weight_factor`).
+scatter within uv cells or deprojected annuli (:func:`.estimate_weight_factor`) and the scatter
+about planes through uv neighbours (:func:`.neighbour_weight_factor`).
 
 Why this module is long: the container, its binning and the two weight estimators share the
 uv-plane folding and the provenance conventions; splitting them would scatter one topic (what
@@ -271,7 +271,7 @@ def bin_deprojected(
     """Average visibilities in annuli of deprojected baseline length (a "uvplot").
 
     The visibilities are re-centred and deprojected with
-    :meth:`DiscGeometry.apply_correction` (no ``cos i`` flux rescaling), then binned in
+    :meth:`.DiscGeometry.apply_correction` (no ``cos i`` flux rescaling), then binned in
     ``q = hypot(u', v')`` with inverse-variance weights.
 
     Parameters
@@ -319,7 +319,7 @@ def bin_deprojected(
 # ----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class WeightRescaling:
-    """Result of :func:`estimate_weight_factor`.
+    """Result of :func:`.estimate_weight_factor`.
 
     Attributes
     ----------
@@ -439,7 +439,7 @@ def neighbour_weight_factor(vis: Visibilities, max_points: int = 20_000, seed: i
     4.4e5 visibilities, ~1 s on 2 busy cores; ``benchmarks/bench_guards.py``), 0.93 (3000 random
     baselines at peak S/N 1000), 0.89 (the 196-point AS 209 sample); with weights 1.1e4 times too
     small it returned 1.14e4 (true: 1.13e4). For comparison,
-    :func:`estimate_weight_factor` in uv cells gave 0.024 on the fiducial set-up (the bright disc
+    :func:`.estimate_weight_factor` in uv cells gave 0.024 on the fiducial set-up (the bright disc
     varies within a cell) and in deprojected annuli 1.00 there but 0.67 on a disc with a spiral.
 
     Parameters
@@ -499,7 +499,7 @@ def estimate_weights(
 
     An explicit option — spiralbayes never rescales weights on its own. CASA weights are
     often not statistical (and uvplot's export halves them): this measures by how much.
-    See :func:`estimate_weight_factor` for the estimator and its assumptions.
+    See :func:`.estimate_weight_factor` for the estimator and its assumptions.
 
     Parameters
     ----------
@@ -509,9 +509,9 @@ def estimate_weights(
     bin_width : float, optional
         Cell size [lambda].
     method : {'scatter', 'neighbours'}
-        ``'scatter'``: within uv cells or deprojected annuli (:func:`estimate_weight_factor`;
+        ``'scatter'``: within uv cells or deprojected annuli (:func:`.estimate_weight_factor`;
         give the geometry for a bright disc). ``'neighbours'``: about planes through uv
-        neighbours (:func:`neighbour_weight_factor`; ``geometry`` and ``bin_width`` unused).
+        neighbours (:func:`.neighbour_weight_factor`; ``geometry`` and ``bin_width`` unused).
 
     Returns
     -------

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from spiralbayes.asymmetries import DiscGrid
+try:
+    from spiralbayes.alternatives import DiscGrid
+except ImportError:  # the code before the renames (make_format1.py)
+    from spiralbayes.asymmetries import DiscGrid
 from spiralbayes.geometry import DiscGeometry
 from spiralbayes.inference.detection import AlternativeFit, AlternativesResult, detect
 from spiralbayes.inference.limits import CompletenessResult, Forecast, compute_limits

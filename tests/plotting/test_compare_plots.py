@@ -6,7 +6,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from spiralbayes.baselines import CleanImage, CleanResiduals, gap_depth, residual_detection  # noqa: E402
+from spiralbayes.image_plane import CleanImage, CleanResiduals, gap_depth, residual_detection  # noqa: E402
 from spiralbayes.fourier import image_axes  # noqa: E402
 from spiralbayes.inference.detection.verdict import detect  # noqa: E402
 from spiralbayes.plotting.compare import plot_comparison  # noqa: E402

@@ -11,6 +11,7 @@ import warnings
 import numpy as np
 
 from .._provenance import data_hash, provenance_record
+from .._threads import blas_threads as _limit_blas  # the parameter is called blas_threads
 from ..exceptions import DataWarning, InputError
 from ..geometry import DiscGeometry
 from ..units import ARCSEC
@@ -63,23 +64,6 @@ def _fit_geometry(vis: Visibilities, method: str, guess: DiscGeometry | None, Rm
     except ValueError as exc:
         raise RuntimeError(f"frank's {method} geometry fit gave an unusable geometry "
                            f"(inc={fitter.inc}, PA={fitter.PA}): {exc}; give the geometry instead") from None
-
-
-def _blas_threads(n: int | None):
-    """Limit BLAS threads to ``n`` during frank's iterations (needs threadpoolctl; else no-op).
-
-    frank's iterations multiply N x N matrices a few hundred times; BLAS threads buy nothing
-    at N = 200 and, on a busy machine, spin-waiting threads made a fit 6-8x slower (measured on
-    2 cores with other work running: 36-50 s instead of 6 s).
-    """
-    if n is None:
-        return contextlib.nullcontext()
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        log.debug("threadpoolctl not installed: BLAS threads not limited")
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=int(n), user_api="blas")
 
 
 class _IterationProgress:
@@ -156,8 +140,8 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     progress : bool
         Show a tqdm counter of frank's iterations.
     blas_threads : int, optional
-        BLAS threads during the fit (via threadpoolctl when installed); None leaves them alone.
-        One is fastest for N ~ 200 (see ``_blas_threads``).
+        BLAS threads during the fit (threadpoolctl); None leaves them alone.
+        One is fastest for N ~ 200 (see ``blas_threads``).
 
     Returns
     -------
@@ -172,18 +156,18 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     towards the prior's ``p0`` by a factor of about ``exp(-(alpha - 1))`` per iteration, so with
     the paper's ``alpha = 1.05`` it takes ``~ln(p_start / p0) / 0.05 ~ 500`` iterations to settle,
     and the profile keeps moving until then. Each iteration costs O(N^3), independent of the
-    number of visibilities. Measured (2 busy cores; AS 209's 196 visibilities, frank's geometry):
+    number of visibilities. Measured (2 busy cores; AS 209's 196 visibilities, frank's geometry)::
 
-    ========================== ========== ======= ================ ======================
-    setting                    iterations  time    max |dI| / I_max  sqrt(sum w |dV_A|^2)
-    ========================== ========== ======= ================ ======================
-    N = 200 (paper)              743        64 s    (reference)      (reference)
-    N = 100                      793        11 s    0.3 %            0.21
-    N = 80                       764         8 s    0.8 %            0.50
-    N = 200, tol = 1e-2          544        44 s    < 0.01 %         0.005
-    N = 200, stopped at 200      200       ~17 s    5.6 %            2.9
-    N = 200, alpha = 1.3         195        16 s    (another prior: chi2 473 instead of 456)
-    ========================== ========== ======= ================ ======================
+        ========================== ========== ======= ================ ======================
+        setting                    iterations  time    max |dI| / I_max  sqrt(sum w |dV_A|^2)
+        ========================== ========== ======= ================ ======================
+        N = 200 (paper)              743        64 s    (reference)      (reference)
+        N = 100                      793        11 s    0.3 %            0.21
+        N = 80                       764         8 s    0.8 %            0.50
+        N = 200, tol = 1e-2          544        44 s    < 0.01 %         0.005
+        N = 200, stopped at 200      200       ~17 s    5.6 %            2.9
+        N = 200, alpha = 1.3         195        16 s    (another prior: chi2 473 instead of 456)
+        ========================== ========== ======= ================ ======================
 
     The fiducial simulation (36k visibilities) took 561 iterations at N = 200. So for sparse
     data, whose longest baseline needs far fewer collocation points than 200, the default N is
@@ -227,7 +211,7 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     fitter = FrankFitter(Rmax, int(N), _to_frank_geometry(geometry), alpha=alpha, p_0=p0,
                          weights_smooth=weights_smooth, method=method, max_iter=max_iter, tol=tol,
                          store_iteration_diagnostics=True, verbose=False, convergence_failure="ignore")
-    with _IterationProgress(fitter, progress), _blas_threads(blas_threads), _frank_quiet():
+    with _IterationProgress(fitter, progress), _limit_blas(blas_threads), _frank_quiet():
         try:
             sol = fitter.fit(vis.u, vis.v, vis.V, vis.weights)
         except ValueError as exc:

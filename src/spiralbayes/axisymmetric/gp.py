@@ -229,7 +229,7 @@ class QGridProjector:
         return rho @ self.H
 
     def max_error(self, prior: ProfilePrior, q: np.ndarray) -> float:
-        """Largest |interpolated - exact| of ``H`` at ``q``, relative to max |H|."""
+        """Largest ``|interpolated - exact|`` of ``H`` at ``q``, relative to ``max |H|``."""
         q = np.asarray(q, dtype=float)
         first, weights = self.stencil(q)
         approx = sum(weights[s][:, None] * self.H[first + s] for s in range(self.order))

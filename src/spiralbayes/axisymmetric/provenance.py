@@ -1,6 +1,6 @@
 """Is an axisymmetric model the fit of these visibilities? (its recorded data hash against theirs).
 
-A frank fit records ``provenance["data_hash"]`` (u, v, V and weights; :func:`spiralbayes._provenance.data_hash`).
+A frank fit records ``provenance["data_hash"]`` (u, v, V and weights; ``data_hash``).
 A model fitted to other data makes every Δχ² of a scan or posterior meaningless (a model of
 another disc leaves the whole disc in the residuals: Δχ² of hundreds "detected"), so the scan and
 the pipelines refuse it unless told the difference is intended (injected signals).

@@ -4,11 +4,11 @@ Every reader returns a :class:`~spiralbayes.visibilities.Visibilities` (u, v [la
 [Jy], weights [Jy^-2]); every writer accepts one. Formats (``shared/notes/ecosystem.md`` lists
 where users' files come from and their pitfalls):
 
-* uvtable ``.txt``/``.dat``/``.csv`` (optionally ``.gz``): :func:`read_uvtable` /
+* uvtable ``.txt``/``.dat``/``.csv`` (optionally ``.gz``): :func:`.read_uvtable` /
   :func:`write_uvtable` — frank's layout; uvplot's metre variant is converted with the
   wavelength in its header.
-* ``.npz``: :func:`read_npz` / :func:`write_npz` — frank's keys, or DSHARP ``ExportMS`` keys.
-* ``.h5``/``.hdf5``: :func:`read_hdf5` / :func:`write_hdf5` — spiralbayes' own format, with
+* ``.npz``: :func:`.read_npz` / :func:`write_npz` — frank's keys, or DSHARP ``ExportMS`` keys.
+* ``.h5``/``.hdf5``: :func:`.read_hdf5` / :func:`write_hdf5` — spiralbayes' own format, with
   metadata and provenance.
 * Measurement Set directories (``.ms``): :func:`read_ms` / :func:`write_ms` — needs
   python-casacore (``pip install "spiralbayes[ms]"``).
@@ -88,9 +88,9 @@ def _format_of(path: Path) -> str:
 def load_visibilities(path, *, check_weights_on_load: bool = True, **kwargs) -> Visibilities:
     """Read visibilities from any supported file, chosen by extension.
 
-    ``.txt/.dat/.csv`` (optionally ``.gz``) → :func:`read_uvtable`; ``.npz`` →
-    :func:`read_npz`; ``.h5/.hdf5`` → :func:`read_hdf5`; a directory ending in ``.ms``
-    (or any casacore table directory) → :func:`spiralbayes.measurement_set.read_ms`.
+    ``.txt/.dat/.csv`` (optionally ``.gz``) → :func:`.read_uvtable`; ``.npz`` →
+    :func:`.read_npz`; ``.h5/.hdf5`` → :func:`.read_hdf5`; a directory ending in ``.ms``
+    (or any casacore table directory) → :func:`spiralbayes.io.measurement_set.read_ms`.
     Keyword arguments go to that reader (an option the reader does not take raises
     :class:`~spiralbayes.exceptions.InputError` listing those it does). The file is never modified.
 
@@ -100,7 +100,7 @@ def load_visibilities(path, *, check_weights_on_load: bool = True, **kwargs) -> 
 
     With ``check_weights_on_load`` (default) the weights are compared with the scatter of the
     data and a :class:`~spiralbayes.exceptions.DataWarning` says how to fix them when they do
-    not look statistical (:func:`check_weights`).
+    not look statistical (:func:`.check_weights`).
     """
     path = require_file(path, "visibility file")
     fmt = _format_of(path)

@@ -126,7 +126,7 @@ def check_weights(vis: Visibilities, source: str = "data", *, warn: bool = True)
 
     Two findings are reported: a scatter factor
     (:func:`~spiralbayes.visibilities.neighbour_weight_factor`) outside
-    :data:`WEIGHT_FACTOR_LIMITS`, and weights all exactly 1 or 2 (the values CASA leaves when
+    :data:`.WEIGHT_FACTOR_LIMITS`, and weights all exactly 1 or 2 (the values CASA leaves when
     weights were never set: simobserve writes WEIGHT = SIGMA = 1 per polarisation, and Stokes I
     sums the two) unless the scatter confirms them. The fix is in the message: re-estimate them
     (:func:`~spiralbayes.visibilities.estimate_weights` with the disc geometry; ``[data]

@@ -1,4 +1,4 @@
-"""Load-time checks of what the numbers in a visibility file can mean (issue 23).
+"""Load-time checks of what the numbers in a visibility file can mean.
 
 Each check refuses data no search can use (:class:`~spiralbayes.exceptions.InputError`) or warns
 (:class:`~spiralbayes.exceptions.DataWarning`) with the fix in the message:

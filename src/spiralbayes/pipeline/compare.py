@@ -1,4 +1,4 @@
-"""``spiralbayes compare``: the visibility scan beside the image-space baselines (CLEAN residuals, gap depth)."""
+"""``spiralbayes compare``: the visibility scan beside the image-plane comparisons (CLEAN residuals, gap depth)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,9 @@ from pathlib import Path
 from .._provenance import json_default
 from ..axisymmetric import AxisymmetricModel
 from ..exceptions import ConfigError
-from .core import _write_text, load_data, run_scan_config, save_figure
+from .inputs import load_data
+from .outputs import _write_text, save_figure
+from .scan_command import run_scan_config
 
 __all__ = ["CompareResult", "compare_table", "run_compare_config"]
 
@@ -56,16 +58,16 @@ def _format_table(rows: list[dict]) -> str:
 
 
 def run_compare_config(config: dict, *, progress: bool = True) -> CompareResult:
-    """The visibility scan and the image-space baselines on the same data (needs CASA).
+    """The visibility scan and the image-plane comparisons on the same data (needs CASA).
 
-    Runs :func:`run_scan_config` (writing its usual outputs), then
-    :func:`spiralbayes.baselines.clean_residuals` and :func:`spiralbayes.baselines.gap_depth` on
+    Runs :func:`.run_scan_config` (writing its usual outputs), then
+    :func:`spiralbayes.image_plane.clean_residuals` and :func:`spiralbayes.image_plane.gap_depth` on
     the CLEAN image with the settings of ``[compare]``, and writes ``compare.png`` (the paper's
     Fig. 7 layout), ``compare_verdicts.txt`` and ``compare_verdicts.json`` to ``[output] dir``;
     CASA's files go to ``OUTPUT/casa``.
     """
     from .._casa import import_casa
-    from ..baselines import clean_residuals, gap_depth
+    from ..image_plane import clean_residuals, gap_depth
     from ..plotting.compare import plot_comparison
 
     import_casa()  # fail before the scan if CASA is missing

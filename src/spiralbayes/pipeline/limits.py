@@ -15,7 +15,9 @@ from ..inference.scan.run import scan
 from ..simulate import DiscModel, simulate_observation
 from ..templates import make_template
 from .._hdf5 import require_file
-from .core import _write_text, load_data, load_templates, run_scan_config, save_figure
+from .inputs import load_data, load_templates
+from .outputs import _write_text, save_figure
+from .scan_command import run_scan_config
 from .reuse import reusable_axisymmetric, reusable_scan
 
 __all__ = ["LimitsRun", "TAURUS_DEMO", "default_limits_config", "run_forecast", "run_limits", "run_limits_config",
@@ -43,17 +45,16 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
     """Exclusion limits, completeness (optional), Table 3 (Markdown, CSV), HDF5 and plots in ``out_dir``."""
     from ..inference.limits.recovery import completeness, injection_engine
     from ..inference.limits.exclusion import compute_limits
-    from ..inference.limits.table import table_csv, table_markdown
+    from ..inference.limits.settings import LimitSettings
+    from ..settings import from_config
+    from ..inference.limits.table3 import table_csv, table_markdown
     from ..plotting.limits import plot_completeness, plot_excluded_fraction, plot_mass_radius
 
     lc = {**default_limits_config(), **(limits_config or {})}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    limits = compute_limits(result, cl=lc["cl"], method=lc["method"], hand=lc["hand"],
-                            resolution=lc["resolution"] or None, vis=vis, axisymmetric=axisym,
-                            resolution_factor=lc["resolution_factor"], extent_fraction=lc["extent_fraction"],
-                            distance=distance, mstar=lc["mstar"], h_ref=lc["h_ref"] or None, r_ref=lc["r_ref"],
-                            flaring=lc["flaring"])
+    limits = compute_limits(result, settings=from_config(LimitSettings, lc), vis=vis, axisymmetric=axisym,
+                            distance=distance)
     files = [limits.save(out_dir / "limits.h5")]
     comps = []
     if lc["completeness"]:

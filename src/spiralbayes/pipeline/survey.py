@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._provenance import content_hash, provenance_record, to_json
-from .core import _write_text
+from .outputs import _write_text
 from .survey_config import SurveySpec, load_survey
 from .survey_engine import Ref, Task, open_engine
 from .survey_stages import (

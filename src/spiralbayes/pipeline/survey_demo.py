@@ -1,7 +1,7 @@
 """The Taurus example survey: synthetic, planet-free analogues of the paper's six Taurus discs.
 
 Stevenson et al. (2024, Table 2) list, per disc, the distance [pc], the observed flux [Jy], the
-radius holding 95 % of the flux R_eff [arcsec], the inclination and PA [deg] (:data:`TAURUS_DISCS`).
+radius holding 95 % of the flux R_eff [arcsec], the inclination and PA [deg] (``TAURUS_DISCS``).
 Each analogue is the package's power-law disc (:class:`~spiralbayes.simulate.DiscModel`, optical
 depth 0.3 at 50 au, r_in = 0.1 r_out) with r_out chosen so that its 95 % radius is R_eff and its
 flux rescaled to the observed flux (face-on flux = flux / cos i), observed with the ``taurus``

@@ -24,6 +24,7 @@ import time
 import uuid
 from dataclasses import dataclass, field
 
+from .._threads import blas_threads
 from ..exceptions import InputError
 
 __all__ = ["JOBQUEUE_KINDS", "Engine", "Ref", "SchedulerUnreachableError", "Task", "connect", "jobqueue_cluster",
@@ -129,7 +130,6 @@ class Engine:
         return self._run_dask(tasks, wanted, progress)
 
     def _run_serial(self, tasks, wanted, progress) -> Outcome:
-        from threadpoolctl import threadpool_limits
         from tqdm.auto import tqdm
 
         results, errors, seconds = {}, {}, {}
@@ -142,7 +142,7 @@ class Engine:
             t0 = time.perf_counter()
             for attempt in range(self.retries + 1):
                 try:
-                    with threadpool_limits(1):  # as a Dask worker: one BLAS thread, so the same bits
+                    with blas_threads(1, all_pools=True):  # as a Dask worker: one BLAS thread, so the same bits
                         results[task.key] = task.func(*args)
                     break
                 except Exception as exc:

@@ -77,7 +77,7 @@ def done(out_dir: Path, stage: str, key: str, *needed: str) -> dict | None:
 
 
 def mark(out_dir: Path, stage: str, key: str, info: dict | None = None) -> None:
-    from .core import _write_text
+    from .outputs import _write_text
 
     _write_text(_marker(out_dir, stage), to_json({"stage": stage, "key": key, "info": info or {}}, indent=1))
 
@@ -127,7 +127,7 @@ def stage_bank(bank: dict, path: str) -> str:
 @_staged("templates")
 def stage_templates(templates_section: dict, bank_path: str | None = None) -> list:
     """The templates of a ``[templates]`` section (``bank_path`` only orders this after the bank)."""
-    from .core import load_templates
+    from .inputs import load_templates
 
     return load_templates(templates_section)
 
@@ -135,7 +135,7 @@ def stage_templates(templates_section: dict, bank_path: str | None = None) -> li
 @_staged("load")
 def stage_prepare(job) -> Prepared:
     """Simulate the disc's data if missing and asked for, then load it as ``spiralbayes scan`` does."""
-    from .core import load_data
+    from .inputs import load_data
 
     path = Path(job.config["data"]["path"])
     if not path.exists() and job.simulate is not None:
@@ -151,7 +151,7 @@ def stage_prepare(job) -> Prepared:
 def stage_frank(job, prep: Prepared):
     """The axisymmetric model: ``axisymmetric.h5`` when the frank stage finished, else a frank fit."""
     from ..axisymmetric import AxisymmetricModel
-    from .core import load_axisymmetric
+    from .inputs import load_axisymmetric
 
     out = job.out_dir
     key = job.key("data", "geometry", "frank", extra=prep.data_key, bank=False)
@@ -250,8 +250,11 @@ def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
 
 
 def _alt_kwargs(config: dict) -> dict:
-    a, s = config["alternatives"], config["scan"]
-    return {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"], "progress": False}
+    from ..inference.detection.settings import AlternativesSettings
+    from ..settings import from_config
+
+    settings = from_config(AlternativesSettings, config["alternatives"], nthreads=config["scan"]["nthreads"])
+    return {"settings": settings, "progress": False}
 
 
 @_staged("alternatives")
@@ -270,9 +273,10 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
     if setup.finished:
         return json.loads((job.out_dir / "verdict.json").read_text())
     from ..inference.detection import detect
-    from ..inference.detection.refit import rescan_at_fitted_geometry
+    from ..inference.detection.follow_up import rescan_at_fitted_geometry
     from ..inference.scan.accuracy import warn_if_inaccurate
-    from .core import _geometry_error_significant, _write_text, write_scan_outputs
+    from .outputs import _write_text, write_scan_outputs
+    from .scan_command import _geometry_error_significant
 
     config, out = job.config, job.out_dir
     result = setup.result
@@ -313,7 +317,7 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
 def stage_limits(job, prep: Prepared, axisym, templates, verdict: dict) -> str:
     """Exclusion limits and Table 3 of the disc, as ``spiralbayes limits`` writes them."""
     from ..inference.scan import ScanResult
-    from .core import _write_text
+    from .outputs import _write_text
     from .limits import run_limits
 
     config, out = job.config, job.out_dir
@@ -336,7 +340,7 @@ def wants_posterior(mode: str, verdict: dict) -> bool:
 @_staged("posterior")
 def stage_posterior(job, prep: Prepared, verdict: dict, mode: str, steps: int) -> dict | None:
     """The posterior (``spiralbayes sample``) of a disc the policy selects, with the candidate's template."""
-    from .core import run_sample_config
+    from .sample_command import run_sample_config
 
     if not wants_posterior(mode, verdict):
         return None

@@ -1,6 +1,6 @@
 """The survey's outputs: one row per disc (the paper's Table 3 columns and the verdict), the table as ECSV and Markdown, the figure set.
 
-Columns (:data:`COLUMNS`): ``disc``; ``R_eff95_arcsec`` and ``R_eff95_au`` (radius holding 95 %
+Columns (``COLUMNS``): ``disc``; ``R_eff95_arcsec`` and ``R_eff95_au`` (radius holding 95 %
 of the frank profile's flux); for each mass threshold M of ``[limits] thresholds`` (the paper's
 3 and 1 M_th) ``excl_ge{M}Mth_au`` (orbital radii [au] where planets of at least M thermal masses
 are ruled out at ``[limits] cl``) and ``excl_ge{M}Mth_MJup`` (the Jupiter masses M corresponds to
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .._provenance import atomic_path
-from .core import _write_text, save_figure
+from .outputs import _write_text, save_figure
 
 __all__ = ["disc_row", "failed_row", "survey_table", "write_figures", "write_table"]
 

@@ -89,7 +89,7 @@ def plot_binned_visibilities(vis: Visibilities, model: AxisymmetricModel, *, bin
     The data are re-centred and deprojected with the model's geometry
     (:func:`spiralbayes.visibilities.bin_deprojected`, no ``cos i`` rescaling), so the model
     curve is ``cos i`` times the Hankel transform of the profile
-    (:meth:`AxisymmetricModel.visibilities_deprojected`).
+    (:meth:`.AxisymmetricModel.visibilities_deprojected`).
 
     Parameters
     ----------

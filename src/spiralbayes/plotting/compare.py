@@ -1,4 +1,4 @@
-"""The visibility scan beside the image-space baselines, in the style of Stevenson et al. (2024, Fig. 7).
+"""The visibility scan beside the image-plane comparisons, in the style of Stevenson et al. (2024, Fig. 7).
 
 Four panels: the CLEAN image of the data, the CLEAN residual image (in units of its noise), the
 Δχ² heatmap of the best template and the CLEAN image's azimuthally averaged profile with the
@@ -51,8 +51,8 @@ def plot_comparison(residuals, gap, scan_result, verdict, geometry, *, distance:
 
     Parameters
     ----------
-    residuals : spiralbayes.baselines.CleanResiduals
-    gap : spiralbayes.baselines.GapDepth
+    residuals : spiralbayes.image_plane.CleanResiduals
+    gap : spiralbayes.image_plane.GapDepth
     scan_result : ScanResult
     verdict : Verdict
         Of the scan (:func:`spiralbayes.inference.detection.verdict.detect`).

@@ -3,7 +3,7 @@
 The perturbation is ``P(r, phi) = I_A(r) delta(r / r_p, phi)`` with ``delta`` the template's
 bilinear interpolant in ``(ln x, phi)`` (zero outside ``[x_0, x_end]``, :class:`SpiralTemplate`),
 and its visibilities are ``P_hat(q) = int int P exp(2 pi i q . s) r dr dphi``. A midpoint sum over
-cells of size ``h`` errs by O((pi u_max h)^2), with a sign that does not average out (Σ w |ΔV|^2
+cells of size ``h`` errs by O((pi u_max h)^2), with a sign that does not average out (``Σ w |ΔV|^2``
 came out 3-9e-4 low with cells of 1 / (20 u_max)). The rule here does not approximate the
 template or the profile at all; it approximates only the Fourier kernel, whose bandwidth is set
 by the data's longest baseline ``u_max``, and integrates everything else exactly:
@@ -38,7 +38,7 @@ by the data's longest baseline ``u_max``, and integrates everything else exactly
 The node fluxes are ``(2 pi / n_phi_a) r_p^2 sum_t C[a, t] delta~_t(phi_j)`` [Jy], a set of point
 sources that a type-3 NUFFT sends to any baseline. Why this rule (the alternatives measured
 on the fiducial observation, 27 radius/azimuth/template cases against a converged
-reference): midpoint cells of 1 / (20 u_max) gave |δ power| / power up to 8.8e-4 and Δχ² off by up
+reference): midpoint cells of 1 / (20 u_max) gave ``|δ power| / power`` up to 8.8e-4 and Δχ² off by up
 to 3.6; halving cells with Richardson extrapolation reached 5e-7 but needed 5x the cells;
 Gauss-Legendre per template interval with exact phi reached 8e-11 with 4 nodes per interval but
 its node count follows the template grid (320 x 720), not the data; the product rule reaches
@@ -53,7 +53,6 @@ the scan reports its own error estimate. The defaults keep ``B`` near 1e-11 of t
 both terms are good to ~1e-9 relative, well below the 1e-6 the scan's tolerance rule needs.
 """
 
-from .blas import one_blas_thread
 from .angular import PHI_TOLERANCE, TemplateSpectrum, angular_count, bessel_tail, bessel_tail_limit
 from .radial import (
     KERNEL_TOLERANCE,
@@ -81,6 +80,5 @@ __all__ = [
     "bessel_tail_limit",
     "gauss_interpolation_bound",
     "make_product_quadrature",
-    "one_blas_thread",
     "sinc_interpolation_error",
 ]

@@ -8,8 +8,8 @@ from functools import cached_property
 
 import numpy as np
 
+from .._threads import blas_threads
 from ..units import ARCSEC, TWO_PI
-from .blas import one_blas_thread
 from .angular import PHI_TOLERANCE, TemplateSpectrum, _angular_n, bessel_tail
 from .radial import KERNEL_TOLERANCE, choose_radial_basis
 
@@ -26,7 +26,7 @@ class ProductQuadrature:
     ``n_phi`` azimuths ``2 pi j / n_phi`` from its group.
 
     Rings are grouped: consecutive rings that need the same number of azimuths (the angular
-    rule's count grows with the ring's radius, :func:`angular_count`) form one group, so inner
+    rule's count grows with the ring's radius, :func:`.angular_count`) form one group, so inner
     rings carry fewer nodes. Arrays over all nodes (fluxes, positions) are flat, group after
     group, ring-major inside a group (:meth:`split`).
 
@@ -223,7 +223,7 @@ class ProductQuadrature:
         C, _, _ = self.radial_matrix(profile)
         # one BLAS thread: a threaded product may round differently, and the same inputs must give
         # the same bits in every process (data hashes, resumed runs)
-        with one_blas_thread():
+        with blas_threads(1):
             return np.concatenate([((C[a:b] @ spectrum.rows(n)) * (TWO_PI / n)).ravel() for a, b, n in self.blocks])
 
     def flux(self, profile, spectrum: TemplateSpectrum) -> np.ndarray:

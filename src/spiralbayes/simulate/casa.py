@@ -82,7 +82,7 @@ def sky_image(disc: DiscModel, geometry: DiscGeometry, wavelength: float, *, per
     """The model sky [Jy/pixel] as ``image[iy north, ix west]`` (PA, offsets applied), and its axes.
 
     Each pixel is the mean of ``supersample^2`` point samples of ``I(r) (1 + delta(r, phi))`` at
-    the disc-plane positions of the sub-samples (:meth:`DiscGeometry.sky_to_disc`), times the
+    the disc-plane positions of the sub-samples (:meth:`.DiscGeometry.sky_to_disc`), times the
     pixel's solid angle. The image is square, odd-free (even size, centre pixel ``n // 2``) and
     covers the disc with a 10 % margin.
     """

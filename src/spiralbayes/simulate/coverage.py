@@ -48,7 +48,7 @@ def _config_root():
 def available_configurations() -> list[str]:
     """Names of the packaged configurations, e.g. ``["cycle10.1", ..., "cycle11.10"]``.
 
-    ``"C-M"`` is short for ``"cycle11.M"`` (see :func:`load_configuration`).
+    ``"C-M"`` is short for ``"cycle11.M"`` (see :func:`.load_configuration`).
     """
     names = []
     for entry in _config_root().iterdir():
@@ -249,7 +249,7 @@ def uv_coverage(configurations, declination: float, hour_angles=(-0.5, 0.5),
     ----------
     configurations : str or sequence
         One configuration or several (e.g. ``["C-4", "C-7"]``), each as accepted by
-        :func:`load_configuration`. Several configurations are concatenated, each observed over
+        :func:`.load_configuration`. Several configurations are concatenated, each observed over
         its own hour-angle range.
     declination : float
         Source declination [deg].

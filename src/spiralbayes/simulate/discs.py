@@ -147,7 +147,7 @@ def _describe_perturbation(perturbation):
 def render_disc_image(profile, geometry: DiscGeometry, r_max: float, *, pixel_size: float = 0.004,
                       supersample: int = 3, perturbation=None, r_p: float | None = None,
                       phi_p: float | None = None, axisymmetric: bool = True):
-    """Inclined disc image [Jy/pixel] in the unrotated frame of :func:`fourier.sample_image`.
+    """Inclined disc image [Jy/pixel] in the unrotated frame of :func:`.fourier.sample_image`.
 
     The major axis points north (image ``y``), east is left; only ``geometry.inc`` is used
     (``PA``, ``dRA``, ``dDec`` are applied when sampling). Each pixel is the mean of

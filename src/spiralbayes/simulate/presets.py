@@ -150,7 +150,7 @@ def simulate_observation(preset="fiducial", disc: DiscModel | None = None,
     Parameters
     ----------
     preset : str or Preset
-        One of :data:`PRESETS` (``"fiducial"``, ``"high_sensitivity"``, ``"low_sensitivity"``,
+        One of :data:`.PRESETS` (``"fiducial"``, ``"high_sensitivity"``, ``"low_sensitivity"``,
         ``"high_resolution"``, ``"taurus"``).
     disc : DiscModel
         Default ``DiscModel()`` (10-110 au at 140 pc).
@@ -166,7 +166,7 @@ def simulate_observation(preset="fiducial", disc: DiscModel | None = None,
     coverage : UVCoverage, optional
         Reuse a coverage computed earlier (must belong to the preset).
     method, pixel_size, supersample
-        See :func:`disc_visibilities` (with ``backend="casa"``: the FITS sky model's pixel and
+        See :func:`.disc_visibilities` (with ``backend="casa"``: the FITS sky model's pixel and
         sub-sampling).
     backend : {"package", "casa"}
         ``"casa"`` observes the same sky with CASA's simobserve (:mod:`spiralbayes.simulate.casa`;

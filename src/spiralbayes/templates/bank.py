@@ -211,7 +211,7 @@ def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = Fal
     (default {0.05, 0.07, 0.10}: 192 templates), from the built-in generator, cached on disk.
 
     Built on first use with :func:`~spiralbayes.templates.generator.paper_grid` (seconds) and
-    stored as ``bank-<key>.h5`` in ``cache_dir`` (default :func:`default_cache_dir`), where ``key`` hashes
+    stored as ``bank-<key>.h5`` in ``cache_dir`` (default :func:`.default_cache_dir`), where ``key`` hashes
     the generator settings, version and ``h_ps``, so a changed generator rebuilds. Loading a cached
     bank takes well under a second. Select one aspect ratio with ``bank.select(h_p=0.07)``.
 

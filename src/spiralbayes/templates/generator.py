@@ -7,7 +7,7 @@ the 64 templates of Stevenson et al. (2024) for each disc aspect ratio.
 
 There is no wakeflow backend: wakeflow 1.4.0 runs only with several workarounds and takes 20–130 s
 per model (see ``tools/make_wakeflow_references.py``, which uses it to make the reference maps the
-generator is calibrated against, docs/templates.md). To use a wakeflow map as a template, compute
+generator is fitted to, docs/templates.md). To use a wakeflow map as a template, compute
 δΣ/Σ with wakeflow and pass it to :func:`~spiralbayes.templates.radiative.template_from_perturbation`.
 """
 

@@ -1,7 +1,7 @@
 """Template morphology variants: a small set of spiral shapes per (M_p, H/r, τ0, β) spanning the references.
 
-No template is the true spiral (issue 22; docs/limits.md §4c): the built-in generator
-(:mod:`.wake`, calibrated in issue 9 as a compromise between wakeflow and FARGO3D) projects a
+No template is the true spiral (docs/limits.md §4c): the built-in generator
+(:mod:`.wake`, fitted as a compromise between wakeflow and FARGO3D) projects a
 hydrodynamic spiral onto less than its own power, so a fixed-shape template wrongly excludes
 planets that are there. The morphology is therefore a nuisance with a few discrete values, each a
 linear combination of two building blocks on the generator's grid:
@@ -28,7 +28,7 @@ docs/limits.md §4d.
 
 Names: ``<variant>_m1_tau0.3_b0_h0.07_R`` (the compromise keeps the generator's ``wake_`` prefix);
 the variant is in ``provenance["variant"]`` and the template metadata (``variant``), so it is part of
-the template family (:mod:`spiralbayes.inference.families`) and of mirror matching.
+the template family (:mod:`spiralbayes.inference.limits.families`) and of mirror matching.
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ class Variant:
 VARIANTS: dict[str, Variant] = {
     "compromise": Variant(
         "compromise", note="the generator as calibrated in issue 9 against all 11 reference maps (wake.py, step 3)"),
-    # fitted by tools/fit_variants.py (issue 22); A_up per reference case in docs/templates.md, the
+    # fitted by tools/fit_variants.py; A_up per reference case in docs/templates.md, the
     # leave-one-source-out calibration in docs/limits.md §4d
     "hydro": Variant(
         "hydro", scale=0.3832, scale_slope=-0.4, blob=-0.06724, blob_slope=3.0, blob_width=0.5,

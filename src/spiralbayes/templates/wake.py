@@ -3,7 +3,7 @@
 The hydrodynamic templates of Stevenson et al. (2024) (2-D gas+dust FARGO3D runs of Speedie,
 Booth & Dong 2022, "S22") are not public. This module makes templates of the same kind in
 seconds from the analytic theory of planet wakes, so that the package works out of the box.
-Every step cites its source; numbers marked "calibrated" are defaults chosen by us, not facts.
+Every step cites its source; numbers marked "fitted" are defaults we fitted to the reference maps, not facts.
 
 Recipe (``x = r/r_p``, ``h_p = H/r`` at ``r_p``, ``H/r ∝ r^f`` with flaring ``f``, so the sound
 speed ``c_s ∝ r^{-q}`` with ``q = 1/2 − f``; ``Σ ∝ r^{-p}``; rotation anticlockwise, i.e. hand R):
@@ -27,18 +27,16 @@ speed ``c_s ∝ r^{-q}`` with ``q = 1/2 − f``; ``Σ ∝ r^{-p}``; rotation ant
    modelled as a zero-mean pulse: a positive Gaussian (peak ``profile_amp`` = 0.4, width
    ``profile_width`` = 0.95 in η) and a *broad* negative lobe of equal area (width 11.5 × 0.95 in
    η, i.e. ≈ 0.5 rad at h_p = 0.07, centred 0.5 × 0.95 behind the peak), then made exactly
-   zero-mean on the η period. **Calibrated (issue 9)** against all 11 reference maps
+   zero-mean on the η period. **Fitted** to all 11 reference maps
    (``tests/data/references/wakeflow_isothermal.h5``: wakeflow 1.4.0, H/r 0.05–0.10 × 0.1–1 M_th;
    ``fargo3d_isothermal.h5``: our FARGO3D runs, H/r 0.07 × 0.3 and 1 M_th), each for τ0 = 0.3
    and 3: the four numbers maximise the mean over the 22 δ maps of the beam-smoothed (0.061″ at
    140 pc) image-plane recovery ``(2⟨S,T⟩ − ⟨T,T⟩)/⟨S,S⟩`` (capped at 1), by Nelder–Mead from a
-   first fit to wakeflow alone; mean 0.81 over the wakeflow maps and 0.61 over FARGO3D's (version
-   1: 0.21 and −0.41). The version-1 pulse's narrow trailing lobe (1.5 × 0.8 wide at −2.5 × 0.8)
-   cancelled the arm inside one beam; wakeflow's negative part is a shallow background spread
-   over the annulus. Within ``near_planet`` = 4/3 H_p of the planet (= 2l, where the Burgers
+   first fit to wakeflow alone; mean 0.81 over the wakeflow maps and 0.61 over FARGO3D's (the
+   pulse it replaced, and why: ``docs/history.md``). Wakeflow's negative part is a shallow
+   background spread over the annulus. Within ``near_planet`` = 4/3 H_p of the planet (= 2l, where the Burgers
    solve starts) the amplitude factor ``1/g`` is held at its value there instead of falling to 0
-   at r_p (g → ∞): wakeflow's linear box holds 6× the version-1 smoothed power at 0.9–1.1 r_p;
-   0.5, 0.8, 4/3, 2 and 3 H_p were tried (mean wakeflow recovery 0.74, 0.75, 0.77, 0.78, 0.78
+   at r_p (g → ∞); 0.5, 0.8, 4/3, 2 and 3 H_p were tried (mean wakeflow recovery 0.74, 0.75, 0.77, 0.78, 0.78
    with the first pulse fit; FARGO3D's 1 M_th case falls beyond 4/3). Pure Burgers decay is kept:
    Cimerman & Rafikov (2021) find it over-damps far from the planet, but at x = 1.5–2 the
    generator's peak δΣ/Σ already equals wakeflow's (within 5 %, h0.05–0.10 × 0.1–1 M_th) and
@@ -51,19 +49,19 @@ speed ``c_s ∝ r^{-q}`` with ``q = 1/2 − f``; ``Σ ∝ r^{-p}``; rotation ant
    2015, ``φ_sep ≈ 102° (q_p/10⁻³)^{0.2}``): a copy of the primary inner arm at ``φ_wake + φ_sep``
    (towards +φ for hand R, further along the winding: our FARGO3D run
    ``fargo3d_isothermal.h5:h0.07_mu1`` has its secondary arm 78–86° from the primary at
-   x = 0.4–0.55, where Fung & Dong give 82°; version 1 put the copy at ``φ_wake − φ_sep``),
+   x = 0.4–0.55, where Fung & Dong give 82°),
    switched on below ``x ≈ 0.75`` and fully on by ``x = 0.5``, for ``M_p ≳ M_th`` (weight rising
    from 0 at 0.3 M_th to 1 at 1 M_th). No outer secondary arm (Miranda & Rafikov 2019).
-   **Off by default since issue 9** (``secondary=False``): against that FARGO3D run (40 orbits)
+   **Off by default** (``secondary=False``): against that FARGO3D run (40 orbits)
    the copy, on either side, changes the beam-smoothed recovery little (τ0 = 0.3: 0.36 without,
    0.33 with it at +φ_sep, 0.31 at −φ_sep; τ0 = 3: 0.54 in all three), FARGO3D's secondary arm
    being twice the primary's amplitude at x ≈ 0.5 where the copy has the primary's, and
    wakeflow has no secondary arm (its mean recovery drops from 0.81 to 0.79 with the copy).
 5. **Gap** (Kanagawa et al. 2016, PASJ 68, 43; 2015 ApJL 806 L15): depth
    ``Σ_min/Σ_0 = 1/(1 + 0.04 K)``, ``K = q_p² h_p⁻⁵ α⁻¹``, full width
-   ``Δ = 0.41 r_p (q_p² h_p⁻³ α⁻¹)^{1/4}``, with α = 10⁻² by default (**calibrated, issue 9**:
+   ``Δ = 0.41 r_p (q_p² h_p⁻³ α⁻¹)^{1/4}``, with α = 10⁻² by default (**fitted**:
    the gap of ``fargo3d_isothermal.h5:h0.07_mu1`` after 40 orbits has Σ_min/Σ_0 = 0.78 at
-   x = 1.11, which α = 10⁻² gives, 0.78; α = 10⁻³, the version-1 default, gives 0.26 — the
+   x = 1.11, which α = 10⁻² gives, 0.78; α = 10⁻³ gives 0.26 — the
    equilibrium of a much older disc — and cut the τ0 = 3, 1 M_th recovery against FARGO3D from
    0.51 to 0.03; the run's own ν is α = 2 × 10⁻⁴, so this α is an effective "gap age"); shape
    ``1 − (1 − depth) 2^{−(|x − 1|/(Δ/2))⁴}``. The gap enters through the optical depth only
@@ -140,7 +138,7 @@ class WakeSettings:
     gamma : float
         Adiabatic index (1.4).
     alpha : float
-        Shakura–Sunyaev viscosity for the gap depth/width (Kanagawa et al. 2016); 1e-2, calibrated
+        Shakura–Sunyaev viscosity for the gap depth/width (Kanagawa et al. 2016); 1e-2, fitted
         to the gap of the FARGO3D reference ``h0.07_mu1`` at 40 orbits (module docstring, step 5).
     mstar : float
         Stellar mass [M_sun] for the temperature scale (0.8).
@@ -160,10 +158,10 @@ class WakeSettings:
         Peak (0.4) and Gaussian width in η (0.95) of the linear wake profile Λ for ``M_p = M_1``.
     lobe_offset, lobe_width : float
         Centre (−0.5) and width (11.5) of Λ's negative lobe, in units of ``profile_width``. All four
-        calibrated against the reference maps (module docstring, step 3).
+        fitted to the reference maps (module docstring, step 3).
     near_planet : float
         Within this many ``H_p`` of the planet the wake amplitude is held at its value there
-        (4/3: the start of the Burgers solve; calibrated against wakeflow, step 3).
+        (4/3: the start of the Burgers solve; fitted to wakeflow, step 3).
     m_eff_factor : float
         ``m_eff h_p`` in the cooling frequency ``ω = m_eff |Ω − Ω_p|`` (0.5–1; default 0.5).
     secondary, gap, nonlinear : bool
@@ -246,7 +244,7 @@ class WakeSettings:
         return dataclasses.asdict(self)
 
     def key(self) -> str:
-        """Short hash of the settings and :data:`GENERATOR_VERSION` (cache key)."""
+        """Short hash of the settings and :data:`.GENERATOR_VERSION` (cache key)."""
         blob = json.dumps({"v": GENERATOR_VERSION, **self.to_dict()}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -392,8 +390,8 @@ def linear_profile(eta, amp: float = 0.5, width: float = 0.8, lobe_offset: float
     ``lobe_offset · width``) of equal area, after the shape of the linear solutions of Goodman &
     Rafikov (2001, Fig. 1) and Rafikov (2002). Positive η is the side the wave propagates towards
     (where the shock forms). The defaults of :class:`WakeSettings` (0.4, 0.95, −0.5, 11.5) are
-    calibrated against the reference maps (module docstring, step 3); these arguments' defaults are the
-    version-1 shape.
+    fitted to the reference maps (module docstring, step 3); these arguments' defaults are the
+    first version's narrow-lobe shape (``docs/history.md``).
     """
     eta = np.asarray(eta, dtype=float)
     w2 = lobe_width * width

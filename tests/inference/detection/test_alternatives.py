@@ -5,14 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from spiralbayes.asymmetries import FIELD_MODELS, DiscGrid, FieldTransform, ProfileContext, offset_geometry
+from spiralbayes.alternatives import FIELD_MODELS, DiscGrid, FieldTransform, ProfileContext, offset_geometry
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.exceptions import InputError
 from spiralbayes.geometry import DiscGeometry
 from spiralbayes.inference.detection.alternatives import AlternativesResult, delta_chi2_direct, fit_alternatives
 from spiralbayes.inference.scan.statistics import chi2
 from spiralbayes.visibilities import Visibilities
-from tests.asymmetries.test_fields import ring_profile
+from tests.alternatives.test_fields import ring_profile
 
 GEOMETRY = DiscGeometry(inc=40.0, PA=30.0)
 ARC = np.array([0.25, 0.43, 2.0, 0.04, 0.35])  # contrast, r_c ["], phi_c, sigma_r ["], sigma_phi [rad]

@@ -15,7 +15,7 @@ import pytest
 
 from spiralbayes.inference.detection.alternatives import fit_alternatives
 from spiralbayes.inference.detection.verdict import detect
-from spiralbayes.inference.detection.refit import rescan_at_fitted_geometry
+from spiralbayes.inference.detection.follow_up import rescan_at_fitted_geometry
 from spiralbayes.inference.scan.run import scan
 from spiralbayes.simulate import DiscModel, simulate_observation
 from spiralbayes.simulate.asymmetric import ExactAxisymmetric, eccentric_ring, lopsided_disc, vortex_arc

@@ -54,7 +54,7 @@ def test_phase_centre_error_gives_one_sided_false_fit_that_fails_handedness(smal
 # --- test 3 and the handed candidate, on scans and fits built by hand --------------------------
 import json  # noqa: E402
 
-from spiralbayes.asymmetries import DiscGrid  # noqa: E402
+from spiralbayes.alternatives import DiscGrid  # noqa: E402
 from spiralbayes.exceptions import InputError  # noqa: E402
 from spiralbayes.inference.detection.alternatives import AlternativeFit, AlternativesResult  # noqa: E402
 from spiralbayes.inference.detection.verdict import best_handed_candidate, peak_region_fraction  # noqa: E402

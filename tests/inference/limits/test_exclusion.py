@@ -5,7 +5,7 @@ import pytest
 from scipy.stats import norm
 
 from spiralbayes.inference.limits.exclusion import ExclusionLimits, amplitude_upper_limit, compute_limits, z_score
-from spiralbayes.inference.limits.table import limits_table, table_csv, table_markdown
+from spiralbayes.inference.limits.table3 import limits_table, table_csv, table_markdown
 from spiralbayes.inference.scan.run import ScanResult
 from spiralbayes.units import mth_to_mjup
 from tests._support import limits_setup

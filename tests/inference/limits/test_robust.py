@@ -52,7 +52,7 @@ def test_jupiter_masses_use_each_familys_own_aspect_ratio():
 
 
 def test_table_rows_use_their_familys_aspect_ratio():
-    from spiralbayes.inference.limits.table import limits_table
+    from spiralbayes.inference.limits.table3 import limits_table
 
     rows = [r for r in limits_table(compute_limits(multi_family_scan())) if r["mass_mth"] == 1.0]
     by_h = {r["family"].split("h_p=")[1]: r["m_min_mjup"] for r in rows}

@@ -9,6 +9,7 @@ import emcee
 import numpy as np
 from emcee.state import State
 
+from spiralbayes.inference.posterior.settings import SamplingSettings
 from spiralbayes.inference.posterior import (
     ChainBackend,
     ChainStore,
@@ -39,10 +40,10 @@ def _initial():
 
 
 def _run(store, saved, n_steps, flush_every):
+    settings = SamplingSettings(n_walkers=N_WALKERS, n_steps=n_steps, max_steps=n_steps, check_every=10,
+                                flush_every=flush_every, min_ess=0, initial=_initial())
     return run_chain(ChainBackend(store, {"test": 1}), saved, WalkerPool(None, log_prob), CENTRE, np.diag(WIDTH ** 2),
-                     PRIORS, n_walkers=N_WALKERS, n_steps=n_steps, max_steps=n_steps, check_every=10,
-                     flush_every=flush_every, min_ess=0, moves=None, progress=False, streams=streams(3, "t"),
-                     initial=_initial(), name="t", logpost=log_prob)
+                     PRIORS, settings=settings, progress=False, streams=streams(3, "t"), name="t", logpost=log_prob)
 
 
 def test_batches_and_resume_give_emcees_uninterrupted_chain(tmp_path):

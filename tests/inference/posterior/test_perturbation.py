@@ -5,7 +5,7 @@ import ducc0
 import numpy as np
 
 from spiralbayes.inference.posterior.perturbation import FastPerturbation, _lattice
-from spiralbayes.inference.posterior.tables import _Cells, _TableBuilder
+from spiralbayes.inference.posterior.interpolation import _Cells, _TableBuilder
 from spiralbayes.units import ARCSEC, TWO_PI
 from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
 

@@ -2,8 +2,9 @@
 
 * :mod:`.verdict` — :func:`detect` and its :class:`Verdict`;
 * :mod:`.alternatives` — maximum-likelihood fits of the non-spiral asymmetries, scored by ΔBIC;
+* :mod:`.settings` — their options, :class:`AlternativesSettings`;
 * :mod:`.starts` — their starting points, read off the residual dirty image;
-* :mod:`.refit` — refit frank at the fitted geometry, scan again, decide again.
+* :mod:`.follow_up` — refit frank at the fitted geometry, scan again, decide again.
 * :mod:`.planet_peak` — the spiral hypothesis as spiral + compact source at the planet, scored in test 3.
 """
 
@@ -16,6 +17,7 @@ from .verdict import (
     mirror_index,
     one_sidedness,
 )
+from .settings import AlternativesSettings
 from .starts import candidate_starts, linear_amplitudes
 from .alternatives import (
     ALTERNATIVES_KIND,
@@ -24,7 +26,7 @@ from .alternatives import (
     delta_chi2_direct,
     fit_alternatives,
 )
-from .refit import GeometryFollowUp, frank_settings, rescan_at_fitted_geometry
+from .follow_up import GeometryFollowUp, frank_settings, rescan_at_fitted_geometry
 
 from .planet_peak import COMPACT_ALTERNATIVES, apply_planet_peak, spiral_with_planet_peak
 
@@ -35,6 +37,7 @@ __all__ = [
     "ALTERNATIVES_KIND",
     "AlternativeFit",
     "AlternativesResult",
+    "AlternativesSettings",
     "GeometryFollowUp",
     "Verdict",
     "best_handed_candidate",

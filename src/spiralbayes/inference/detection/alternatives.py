@@ -1,6 +1,6 @@
 """Maximum-likelihood fits of the competing asymmetry models, scored by ΔBIC (test 3).
 
-Each alternative of :mod:`spiralbayes.asymmetries` is fitted to the same visibilities and
+Each alternative of :mod:`spiralbayes.alternatives` is fitted to the same visibilities and
 weights as the scan, relative to the same axisymmetric model ``V_A``:
 ``Δχ²_alt = χ²_AO − min_θ χ²(V_A + ΔV_alt(θ), V_O)`` and ``ΔBIC_alt = Δχ²_alt − k_alt ln N``
 (k = 4 for ``geometry``, ``lopsided`` and ``eccentric_ring``, 5 for ``arc`` and ``m2``), to be
@@ -10,13 +10,13 @@ How:
 
 * ``geometry``: Levenberg–Marquardt-type least squares (``scipy.optimize.least_squares``,
   trust-region reflective) of the four offsets, with the analytic Jacobian of
-  :func:`~spiralbayes.asymmetries.geometry_visibilities`, started at zero offset; the final Δχ²
+  :func:`~spiralbayes.alternatives.geometry_visibilities`, started at zero offset; the final Δχ²
   uses the model's own exact visibilities at the fitted geometry.
 * field models: L-BFGS-B over all parameters (bounded) with the exact gradient — one forward and
   one adjoint type-3 transform per evaluation, whatever the number of parameters
   (``dχ²/dθ = −2 sum_c (dP_c/dθ) g_c``, ``g`` the gradient map of ``w (V_O − V_model)``), from
   the best ``n_starts`` of the shapes that correlate best with the residual dirty image
-  (:mod:`spiralbayes.inference.alternative_starts`).
+  (:mod:`spiralbayes.inference.detection.starts`).
 
 The plain NumPy reference :func:`delta_chi2_direct` rebuilds a fitted model's visibilities by
 direct Fourier sums; the tests check the fits' Δχ² against it.
@@ -32,10 +32,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..._provenance import data_hash, json_safe, provenance_record
-from ...asymmetries import (
+from ..._threads import blas_threads
+from ...alternatives import (
     ALTERNATIVE_LABELS,
     ALTERNATIVE_MODELS,
-    DEFAULT_CELL_FACTOR,
     FIELD_MODELS,
     DiscGrid,
     FieldTransform,
@@ -49,7 +49,9 @@ from ...asymmetries import (
 from ...exceptions import InputError
 from ...results import ResultMixin, fields_dict
 from ...geometry import DiscGeometry
+from ...settings import with_overrides
 from ...units import ARCSEC
+from .settings import AlternativesSettings
 from .starts import candidate_starts
 from ..scan.statistics import bic_threshold, chi2
 
@@ -70,7 +72,7 @@ class AlternativeFit:
     Attributes
     ----------
     name, label : str
-        Model name (:data:`~spiralbayes.asymmetries.ALTERNATIVE_MODELS`) and a readable label.
+        Model name (:data:`~spiralbayes.alternatives.ALTERNATIVE_MODELS`) and a readable label.
     n_params : int
         Free parameters (BIC penalty ``n_params ln N``).
     delta_chi2 : float
@@ -149,7 +151,7 @@ class AlternativesResult(ResultMixin):
 
     def model_visibilities(self, name: str, vis, axisymmetric, *, nthreads: int = 1) -> np.ndarray:
         """``V_model − V_A`` [Jy] of a fitted alternative at ``vis``' baselines."""
-        from ...asymmetries import asymmetry_visibilities
+        from ...alternatives import asymmetry_visibilities
 
         vis = vis.standardised()
         return asymmetry_visibilities(name, self.fits[name].theta, vis.u, vis.v, axisymmetric, self.geometry,
@@ -199,17 +201,6 @@ AlternativesResult.LEGACY_READERS = {1: _read_format_1}
 
 
 # ------------------------------------------------------------------------------------------
-def _one_blas_thread():
-    """Single-threaded BLAS for the optimiser's tiny products (threadpoolctl; else no-op).
-
-    Measured on 2 busy cores: L-BFGS-B's bookkeeping took 6 ms per step with multithreaded
-    OpenBLAS (threads spin-waiting) and a negligible time with one thread.
-    """
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=1, user_api="blas")
-
-
 def _emission_radius(axisymmetric, fraction: float = 0.995) -> float:
     """Radius [arcsec] enclosing ``fraction`` of the (positive) face-on flux, times 1.1."""
     r_out = float(getattr(axisymmetric, "Rmax", 3.0))
@@ -328,10 +319,9 @@ def _fit_field(name: str, prob: _Problem, n_starts: int, max_iter: int) -> Alter
                           model.describe(theta), int(counter["n"]), time.perf_counter() - t0, ok)
 
 
-def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *, models=None,
-                     n_starts: int = 2, max_iter: int = 100, r_max: float | None = None,
-                     cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1,
-                     progress: bool = False) -> AlternativesResult:
+def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *,
+                     settings: AlternativesSettings | None = None, progress: bool = False,
+                     **overrides) -> AlternativesResult:
     """Fit every competing asymmetry model to the data by maximum likelihood.
 
     Parameters
@@ -343,27 +333,28 @@ def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *,
         ``visibilities(u, v, geometry)`` [Jy]).
     geometry : DiscGeometry, optional
         Default: the axisymmetric model's (the scan's) geometry.
-    models : sequence of str, optional
-        Subset of :data:`~spiralbayes.asymmetries.ALTERNATIVE_MODELS` (default: all five).
-    n_starts : int
-        Optimiser starts per field model (the best-correlating shapes of the residual image).
-    max_iter : int
-        L-BFGS-B iterations per start.
-    r_max : float, optional
-        Outer radius of the grid [arcsec]; default 1.1 times the radius holding 99.5 % of the
-        profile's flux.
-    cell_factor : float
-        Radial cells at most ``1 / (cell_factor uv_max)`` wide (:class:`DiscGrid`).
-    nthreads : int
-        Threads of the NUFFTs.
+    settings : AlternativesSettings, optional
+        The ``models`` (a subset of :data:`~spiralbayes.alternatives.ALTERNATIVE_MODELS`; default
+        all five), ``n_starts`` optimiser starts per field model (the best-correlating shapes of
+        the residual image), ``max_iter`` L-BFGS-B iterations per start, the grid's outer radius
+        ``r_max`` [arcsec] (default 1.1 times the radius holding 99.5 % of the profile's flux),
+        its ``cell_factor`` (radial cells at most ``1 / (cell_factor uv_max)`` wide, see
+        :class:`~spiralbayes.alternatives.DiscGrid`) and the NUFFTs' ``nthreads``. Default
+        ``AlternativesSettings()``.
     progress : bool
         Show a progress bar over the models.
+    **overrides
+        Fields of :class:`AlternativesSettings` replacing those of ``settings`` (e.g. ``n_starts=4``).
 
     Returns
     -------
     AlternativesResult
     """
     from tqdm.auto import tqdm
+
+    s = with_overrides(settings, AlternativesSettings, overrides, "fit_alternatives")
+    models, n_starts, max_iter, r_max, cell_factor, nthreads = (s.models, s.n_starts, s.max_iter, s.r_max,
+                                                                s.cell_factor, s.nthreads)
 
     names = list(ALTERNATIVE_MODELS if models is None else models)
     for name in names:
@@ -378,7 +369,7 @@ def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *,
     prob = _setup(vis, axisymmetric, geometry, r_max, cell_factor, nthreads)
     fits = {}
     for name in tqdm(names, desc="alternatives", disable=not progress):
-        with _one_blas_thread():
+        with blas_threads(1):  # L-BFGS-B's tiny products: 6 ms a step with spinning threads
             fit = (_fit_geometry(prob, axisymmetric) if name == "geometry"
                    else _fit_field(name, prob, n_starts, max_iter))
         log.info("alternative %s: delta chi2 = %.1f (%d evaluations, %.2f s)", name, fit.delta_chi2,

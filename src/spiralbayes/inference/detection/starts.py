@@ -2,7 +2,7 @@
 
 For a field ``P`` (ring means removed) the cross term of Δχ² is ``Re sum_k w_k R_k* ΔV_k =
 sum_c P_c S_c`` with ``S`` the weighted residual dirty image on the disc grid
-(:meth:`FieldTransform.gradient_map` of ``w R``, ring means removed). Correlating ``S`` with each
+(:meth:`.FieldTransform.gradient_map` of ``w R``, ring means removed). Correlating ``S`` with each
 model's shape over its position parameters is cheap (FFTs along azimuth, a small matrix in
 radius) and, divided by the shape's root-sum-square flux, ranks candidate positions as a matched
 filter would for uniform uv coverage. The best ``n_candidates`` (well apart) then get their
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...asymmetries import FIELD_MODELS, FieldTransform, ProfileContext
+from ...alternatives import FIELD_MODELS, FieldTransform, ProfileContext
 
 __all__ = ["candidate_starts", "linear_amplitudes"]
 

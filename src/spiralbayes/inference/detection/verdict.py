@@ -17,7 +17,7 @@ Quantities used here (spiralbayes' definitions; thresholds are parameters):
 
 Test 3 (spiralbayes' addition, ``docs/verdict.md``): the paper's test 2 asks that the Δχ² structure
 show the improvement is "caused by a spiral, not some other asymmetry". Given the maximum-likelihood
-fits of the competing models (:func:`~spiralbayes.inference.alternatives.fit_alternatives`: geometry
+fits of the competing models (:func:`spiralbayes.inference.detection.alternatives.fit_alternatives`: geometry
 error, arc/vortex, lopsided disc, eccentric ring, m = 2 pattern), the spiral must beat the best of
 them by ``ΔBIC_spiral − ΔBIC_alt > alternative_threshold`` (default 10, "very strong" on the scale
 of Kass & Raftery 1995, the threshold test 1 uses against the axisymmetric model). Both ΔBIC are
@@ -41,12 +41,13 @@ import numpy as np
 
 from ...exceptions import InputError
 from ...results import ResultMixin, fields_dict
+from .settings import AlternativesSettings
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "localisation", "mirror_index",
            "one_sidedness"]
 
 DELTA_BIC_THRESHOLD = 10.0
-ALTERNATIVE_THRESHOLD = 10.0
+ALTERNATIVE_THRESHOLD = AlternativesSettings.threshold
 """Test 3: the spiral's BIC must be lower than the best alternative's by more than this."""
 CANDIDATES_PER_TEMPLATE = 5
 
@@ -151,7 +152,7 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max
     For each template with a mirror image, its ``CANDIDATES_PER_TEMPLATE`` highest local maxima
     with ΔBIC above ``min_delta_bic`` are tried: a candidate passes when the mirror template's best
     Δχ² at nearby radii is below ``max_handedness_ratio`` times its Δχ² and its own peak region
-    (:func:`peak_region_fraction`) is smaller than ``max_localisation`` of the scanned area.
+    (:func:`.peak_region_fraction`) is smaller than ``max_localisation`` of the scanned area.
     """
     dchi2 = result.delta_chi2(amplitude)
     threshold = result.peak(amplitude=amplitude)
@@ -191,7 +192,7 @@ class Verdict(ResultMixin):
     ``ΔBIC_spiral − ΔBIC_alternative`` (positive favours the spiral); ``alternatives`` holds each
     alternative's Δχ², ΔBIC against the axisymmetric model and the spiral's ΔBIC minus it,
     parameter count and fitted parameters; ``candidate`` the best
-    handed, compact candidate when the global peak fails test 2 (:func:`best_handed_candidate`).
+    handed, compact candidate when the global peak fails test 2 (:func:`.best_handed_candidate`).
     """
 
     detected: bool
@@ -308,7 +309,7 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
     """Decide whether a scan detects a planet-driven spiral.
 
     Tests 1 and 2 are the paper's (module docstring). With ``alternatives`` (an
-    :class:`~spiralbayes.inference.alternatives.AlternativesResult` fitted to the same data and
+    :class:`~spiralbayes.inference.detection.alternatives.AlternativesResult` fitted to the same data and
     axisymmetric model) test 3 is applied too, and a detection needs all three.
 
     Parameters
@@ -318,7 +319,7 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
         The spiral amplitude convention of the scan's Δχ² (fixed A = 1, or a free amplitude with
         one more BIC parameter).
     alternatives : AlternativesResult, optional
-        Competing asymmetry models (:func:`~spiralbayes.inference.alternatives.fit_alternatives`).
+        Competing asymmetry models (:func:`spiralbayes.inference.detection.alternatives.fit_alternatives`).
     neighbourhood, max_handedness_ratio, max_localisation, bic_threshold_value
         Tests 1 and 2.
     alternative_threshold : float

@@ -1,8 +1,8 @@
 """What the data rule out and what they could detect: exclusion limits, completeness, forecasts.
 
-* :mod:`.exclusion` — :func:`compute_limits`, the limiting mass M_lim(r_p);
+* :mod:`.exclusion` — :func:`compute_limits`, the limiting mass M_lim(r_p); :mod:`.settings` — its options;
 * :mod:`.families` — templates grouped by everything but mass and hand;
-* :mod:`.table` — the paper's Table 3 from computed limits;
+* :mod:`.table3` — the paper's Table 3 from computed limits;
 * :mod:`.injection` — injected planets' Δχ² without re-scanning;
 * :mod:`.recovery` — detection completeness by injection–recovery, M_det;
 * :mod:`.forecasting` — expected Δχ², detection probability and time on source for a set-up.
@@ -10,7 +10,8 @@
 """
 
 from .families import Family, select_family, template_families
-from .table import describe_family_limits, limits_table, runs, table_csv, table_markdown
+from .settings import LimitSettings
+from .table3 import describe_family_limits, limits_table, runs, table_csv, table_markdown
 from .exclusion import (
     ExclusionLimits,
     amplitude_upper_limit,
@@ -53,6 +54,7 @@ __all__ = [
     "Forecast",
     "Injection",
     "InjectionEngine",
+    "LimitSettings",
     "amplitude_upper_limit",
     "bright_extent",
     "brute_force_injection",

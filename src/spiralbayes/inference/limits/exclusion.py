@@ -48,9 +48,11 @@ import numpy as np
 from ..._provenance import provenance_record
 from ...exceptions import InputError
 from ...results import ResultMixin
+from ...settings import with_overrides
 from ...units import mth_to_mjup
 from .families import Family, select_family, template_families
-from .table import describe_family_limits, runs
+from .settings import LimitSettings
+from .table3 import describe_family_limits, runs
 
 __all__ = ["ExclusionLimits", "amplitude_upper_limit", "compute_limits", "data_resolution", "bright_extent",
            "z_score"]
@@ -127,7 +129,7 @@ def _marginal_upper_limit(a_hat, sigma, tail: float, iterations: int = 80) -> np
 
 
 def data_resolution(vis) -> float:
-    """FWHM [arcsec] of the natural-weighted beam, ``sqrt(bmaj bmin)`` (:func:`simulate.fit_beam`)."""
+    """FWHM [arcsec] of the natural-weighted beam, ``sqrt(bmaj bmin)`` (:func:`spiralbayes.simulate.noise.fit_beam`)."""
     from ...simulate.noise import fit_beam
 
     bmaj, bmin, _ = fit_beam(vis.u, vis.v, vis.weights)
@@ -364,46 +366,37 @@ def _crossing(m0, m1, u0, u1) -> float:
     return float(np.exp(np.log(m0) + np.clip(t, 0.0, 1.0) * (np.log(m1) - np.log(m0))))
 
 
-def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", hand: str = "both",
-                   resolution: float | None = None, bright_radius: float | None = None, vis=None,
-                   axisymmetric=None, resolution_factor: float = 1.0, extent_fraction: float = 0.95,
-                   distance: float | None = None, mstar: float = 0.8, h_ref: float | None = None,
-                   r_ref: float = 50.0, flaring: float = 0.25, planets=None,
-                   planet_beam: float | None = None) -> ExclusionLimits:
+def compute_limits(scan_result, *, settings: LimitSettings | None = None, vis=None, axisymmetric=None,
+                   distance: float | None = None, planets=None, **overrides) -> ExclusionLimits:
     """Exclusion limits and ``M_lim(r_p)`` of every template family of a scan.
 
     Parameters
     ----------
     scan_result : ScanResult
-    cl : float
-        One-sided confidence level in (0.5, 1).
-    method : {'all_phi', 'marginal'}
-        Excluded at r_p when excluded at every phi_p, or with phi_p marginalised.
-    hand : {'both', 'R', 'L'}
-        Hands that must be excluded for a planet to be excluded.
-    resolution : float, optional
-        Beam FWHM [arcsec]; default from ``vis`` (:func:`data_resolution`), else 0 (no flag).
-    bright_radius : float, optional
-        Outer radius of the disc's bright part [arcsec]; default the radius holding
-        ``extent_fraction`` of ``axisymmetric``'s flux, else no flag.
+    settings : LimitSettings, optional
+        The confidence level ``cl`` in (0.5, 1); the ``method`` ('all_phi': excluded at r_p when
+        excluded at every phi_p; 'marginal': phi_p marginalised); the ``hand`` ('both', 'R', 'L')
+        that must be excluded; the flags: ``resolution`` (beam FWHM [arcsec]; default from
+        ``vis``, :func:`.data_resolution`, else 0: no flag), ``resolution_factor`` (radii below
+        ``resolution_factor x resolution`` are flagged ``"unresolved"``), ``bright_radius``
+        (outer radius of the bright part [arcsec]; default the radius holding
+        ``extent_fraction`` of ``axisymmetric``'s flux, else no flag) and ``planet_beam``
+        ([arcsec]; default ``resolution``); and the disc for M_Jup: stellar mass ``mstar``
+        [M_sun] and ``H/r = h_ref (r / r_ref [au])^flaring`` (``h_ref`` default: each family's
+        own ``h_p``, else 0.07). Default ``LimitSettings()``.
     vis : Visibilities, optional
         The scanned data, for the beam.
     axisymmetric : AxisymmetricModel, optional
         The scan's axisymmetric model, for the bright extent.
-    resolution_factor : float
-        Radii below ``resolution_factor x resolution`` are flagged ``"unresolved"``.
     distance : float, optional
         [pc]; default the scan's.
-    mstar, h_ref, r_ref, flaring : float
-        Stellar mass [M_sun] and ``H/r = h_ref (r / r_ref [au])^flaring`` for M_Jup
-        (``h_ref`` default: each family's own ``h_p``, else 0.07).
     planets : Verdict or sequence of float, optional
-        Detected or candidate planets not in the scan's model: a :func:`detect` verdict (its peak
+        Detected or candidate planets not in the scan's model: a :func:`.detect` verdict (its peak
         when test 1 passes, and its candidate) or radii [arcsec]. Radii within ``planet_beam`` of
         one are flagged ``"near_planet"``, not excluded (:mod:`.robust`). Leave it out when the
         planet is in the model (scan the residual of a fit that includes it).
-    planet_beam : float, optional
-        [arcsec]; default ``resolution`` (the beam FWHM).
+    **overrides
+        Fields of :class:`LimitSettings` replacing those of ``settings`` (e.g. ``cl=0.99``).
 
     Raises
     ------
@@ -411,6 +404,10 @@ def compute_limits(scan_result, *, cl: float = 0.95, method: str = "all_phi", ha
         A confidence level outside (0.5, 1), an unknown method or hand, a scan without families,
         or a radius grid lying entirely outside the data (every r_p flagged).
     """
+    s = with_overrides(settings, LimitSettings, overrides, "compute_limits")
+    cl, method, hand, resolution, resolution_factor = s.cl, s.method, s.hand, s.resolution, s.resolution_factor
+    bright_radius, extent_fraction, planet_beam = s.bright_radius, s.extent_fraction, s.planet_beam
+    mstar, h_ref, r_ref, flaring = s.mstar, s.h_ref, s.r_ref, s.flaring
     z_score(cl)
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")

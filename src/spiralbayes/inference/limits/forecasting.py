@@ -8,7 +8,7 @@ sensitivity), the data that would contain the planet give, at the planet's own i
 
 (residual = the planet's ΔV plus noise, axisymmetric model and template exact), so
 
-    E[Δχ²] = power = sum_k w_k |ΔV_k|^2  (= chi2_SA, the paper's App. B),   sd[Δχ²] = 2 sqrt(power),
+    ``E[Δχ²] = power = sum_k w_k |ΔV_k|^2``  (= chi2_SA, the paper's App. B),   ``sd[Δχ²] = 2 sqrt(power)``,
 
 and ``P(ΔBIC > 10) ≈ Q((6 ln N + 10 - E) / (2 sqrt(E)))`` (Q the Gaussian tail), averaged over
 phi_p (uniform: where the planet happens to be). ``power`` comes from the scan's power term on

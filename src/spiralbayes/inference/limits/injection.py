@@ -10,7 +10,7 @@ azimuthal mean, so it leaves the axisymmetric fit unchanged to first order) and 
     X(a, b)      = Re sum_k w_k ΔV_a,k* ΔV_b,k,
     Δχ²_inj(b)   = 2 cross_inj(b) - power(b) = Δχ²(b) + 2 A_inj X(a, b).
 
-``X`` is evaluated with the scan's own machinery (:mod:`spiralbayes.inference.scan_engine`): the
+``X`` is evaluated with the scan's own machinery (:mod:`spiralbayes.inference.scan.engine`): the
 perturbation spectrum ``P_hat`` of each template at each radius on the polar uv grid (the same
 single-precision type-3 NUFFT the power term uses) and the angular Fourier coefficients
 ``W[j, m]`` of the data weights. With the ring weight density
@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..._threads import blas_threads
 from ...exceptions import InputError
 from ...model import perturbation_flux, perturbation_visibilities
 from ...units import ARCSEC
@@ -192,14 +193,12 @@ class InjectionEngine:
         ctx = self.context
         n_t, n_rp, n_phi = len(self.templates), ctx.r_p.size, ctx.n_phi_p
         out = np.empty((len(injections), n_t, n_rp, n_phi))
-        from threadpoolctl import threadpool_limits
-
         for start in range(0, len(injections), chunk):
             part = injections[start:start + chunk]
             h_check = self._h_check(part)
             folded = np.zeros((n_phi, len(part), n_rp, n_t), dtype=np.complex128)
             # many small products: one BLAS thread each (threads spinning for them cost more than they save)
-            with threadpool_limits(limits=1, user_api="blas"):
+            with blas_threads(1):
                 for (m, radii), mat in zip(self._columns, self._matrices):
                     view = folded[m % n_phi]
                     view[:, radii, :] += (h_check[m] @ mat).reshape(len(part), radii.size, n_t)

@@ -9,7 +9,7 @@ steps and ``max_phi_deg`` of the planted position.
 
 Neither frank nor the scan is re-run per injection: the injected dataset's Δχ² at every scanned
 instance is the data's Δχ² plus ``2 X(a, b)``, the cross term of the injected perturbation with
-each scanned one (:mod:`spiralbayes.inference.injection` states the algebra and how ``X`` comes
+each scanned one (:mod:`spiralbayes.inference.limits.injection` states the algebra and how ``X`` comes
 from the scan's polar uv grid). :func:`completeness_brute_force` re-scans injected datasets (and
 optionally refits the axisymmetric model) as the reference.
 
@@ -34,6 +34,7 @@ from ...units import wrap_angle
 from ..detection.verdict import detect
 from .families import Family, select_family, template_families
 from .injection import Injection, InjectionEngine, brute_force_injection
+from .settings import LimitSettings
 from ..scan.run import ScanResult
 from ..scan.engine import ScanContext
 
@@ -235,7 +236,7 @@ def injection_engine(vis, axisymmetric, templates, scan_result, *, geometry=None
 
 
 def completeness(vis, axisymmetric, templates, scan_result, *, family=None, masses=None, radii=None,
-                 n_azimuths: int = 8, hands=("R",), geometry=None, amplitude=None, max_rp_steps: int = 2,
+                 n_azimuths: int = LimitSettings.n_azimuths, hands=LimitSettings.inject_hand, geometry=None, amplitude=None, max_rp_steps: int = 2,
                  max_phi_deg: float = 30.0, chunk: int = 128, nthreads: int = 1, progress: bool = True,
                  engine: InjectionEngine | None = None, **detect_kwargs) -> CompletenessResult:
     """Injection–recovery completeness of a scan, by the fast cross-term path.
@@ -254,15 +255,15 @@ def completeness(vis, axisymmetric, templates, scan_result, *, family=None, mass
     hands : sequence of str
         Hands to inject (default right-handed only).
     amplitude : None or 'free'
-        Amplitude mode of the detection (as :func:`detect`).
+        Amplitude mode of the detection (as :func:`.detect`).
     max_rp_steps, max_phi_deg
         Position tolerance of a recovery.
     chunk : int
         Injections per batch of the cross-term products.
     engine : InjectionEngine, optional
-        One built for this scan (see :func:`injection_engine`), to share it between families.
+        One built for this scan (see :func:`.injection_engine`), to share it between families.
     **detect_kwargs
-        Thresholds passed to :func:`detect`.
+        Thresholds passed to :func:`.detect`.
     """
     t0 = time.perf_counter()
     _check_scan(templates, scan_result)

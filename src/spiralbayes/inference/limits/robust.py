@@ -4,7 +4,7 @@ No template is the true spiral (docs/limits.md §4c), so a planet is reported as
 when **every** member of a set of families rules it out (each member already needs both hands
 and every ``phi_p``: :mod:`.limits`). Two sets are used:
 
-* **over all families** — what :meth:`ExclusionLimits.summary`, :meth:`~ExclusionLimits.excluded`
+* **over all families** — what :meth:`.ExclusionLimits.summary`, :meth:`~.ExclusionLimits.excluded`
   and the mass–radius plot give when no ``family=`` is chosen: the mass is excluded at ``r_p``
   only when every scanned family (every ``tau0``, ``beta``, ``h_p`` and morphology variant) that
   has that mass excludes it. In M_th, ``M_lim(robust) = max_f M_lim(f)`` (no limit if one family
@@ -30,7 +30,7 @@ __all__ = ["SINGLE_VARIANT", "combined_m_lim", "combined_m_lim_mjup", "describe_
            "near_planet_mask", "price_of_robustness", "variant_groups"]
 
 SINGLE_VARIANT = "compromise"
-"""The variant the price of robustness is measured against (the issue-9 calibration)."""
+"""The variant the price of robustness is measured against (the wake generator as fitted to the reference maps)."""
 
 _LIMITED = ("limit", "below_bank")
 
@@ -125,9 +125,9 @@ def _range_text_over(limits, lo: float, hi: float, mass: float) -> str:
 
 
 def describe_over_families(limits) -> str:
-    """Sentences for :meth:`ExclusionLimits.summary` without ``family=``: the robust limit over every
+    """Sentences for :meth:`.ExclusionLimits.summary` without ``family=``: the robust limit over every
     family, the set named, and the price of robustness where variants exist."""
-    from .table import THRESHOLDS, runs
+    from .table3 import THRESHOLDS, runs
 
     fams = list(limits.families)
     m_lim, status = combined_m_lim(limits, fams)

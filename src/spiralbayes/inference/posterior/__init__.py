@@ -3,9 +3,9 @@
 * :mod:`.priors` — the parameters' priors;
 * :mod:`.likelihood` — the sampled likelihood (profile and amplitude marginalised);
 * :mod:`.conditional` — the likelihood at a fixed profile, the reference (:class:`SpiralLikelihood`);
-* :mod:`.tables`, :mod:`.perturbation` — the fast perturbation tables;
+* :mod:`.interpolation`, :mod:`.perturbation` — the fast perturbation tables;
 * :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
-* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.moves` — the wrapped DE move;
+* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings`; :mod:`.moves` — the wrapped DE move;
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files (an emcee backend) and the chain loop;
 * :mod:`.diagnostics` — convergence; :mod:`.stopping` — when a chain may stop (every parameter, or
   the geometry and the evidence when the planet is not preferred);
@@ -20,7 +20,7 @@ from .likelihood import (
     log_amplitude_integral,
 )
 from .conditional import PARAMETER_LABELS, PARAMETER_NAMES, SpiralLikelihood, geometry_from_theta
-from .tables import AxisymmetricTable, PerturbationTable
+from .interpolation import AxisymmetricTable, PerturbationTable
 from .perturbation import FastPerturbation
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 from .moves import WrappedDEMove, default_moves
@@ -31,6 +31,7 @@ from .chain_runner import WalkerPool, initial_walkers, make_pool, run_chain, str
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .optimise import find_map, fit_null_geometry
 from .stopping import MAX_LN_B_ERROR, StoppingRule, template_evidence
+from .settings import SamplingSettings
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
@@ -57,6 +58,7 @@ __all__ = [
     "Priors",
     "ProfileMarginal",
     "SAMPLE_NAMES",
+    "SamplingSettings",
     "SpiralLikelihood",
     "StoppingRule",
     "TAU_FACTOR",

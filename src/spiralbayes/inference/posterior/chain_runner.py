@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..._threads import blas_threads
 from ...exceptions import InputError
 from ...units import wrap_angle
 from .chains import ChainBackend
@@ -27,6 +28,7 @@ from .diagnostics import convergence_diagnostics
 from .conditional import PARAMETER_NAMES
 from .moves import default_moves
 from .priors import N_DIM
+from .settings import SamplingSettings
 
 __all__ = ["WalkerPool", "initial_walkers", "make_pool", "run_chain", "streams", "walker_pool"]
 
@@ -40,12 +42,7 @@ _WORKER_LOGPOST = None
 def _pin_threads() -> None:
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
         os.environ[var] = "1"
-    try:  # pragma: no cover - optional
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(1)
-    except ImportError:
-        pass
+    blas_threads(1, all_pools=True)  # for the rest of this worker process
 
 
 def _init_worker(logpost) -> None:
@@ -95,14 +92,6 @@ def _set_mpi_rank(pool) -> None:
         from mpi4py import MPI  # lazy: only on clusters
 
         _MPI_RANK = MPI.COMM_WORLD.Get_rank()
-
-
-def _blas_single_thread():
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
-        return contextlib.nullcontext()
-    return threadpool_limits(1)
 
 
 def streams(seed: int, name: str):
@@ -181,19 +170,24 @@ def walker_pool(pool, processes, logpost):
         pool_obj.close()
 
 
-def run_chain(backend: ChainBackend, saved, walkers: WalkerPool, theta_map, cov, priors, *, n_walkers, n_steps,
-              max_steps, check_every, flush_every, min_ess, moves, progress, streams, initial, name,
-              logpost, stop_check=None) -> ChainBackend:
+def run_chain(backend: ChainBackend, saved, walkers: WalkerPool, theta_map, cov, priors, *,
+              settings: SamplingSettings, streams, name: str, logpost, progress: bool = False,
+              stop_check=None) -> ChainBackend:
     """Sample in batches of ``flush_every`` steps, flushing ``backend`` after each; returns it.
 
     ``saved`` (a :class:`~.chains.ChainState` with steps) is continued exactly; otherwise walkers
     start around ``theta_map`` (:func:`initial_walkers`). With ``n_steps`` None the chain runs
-    until converged (checked every ``check_every`` steps) or ``max_steps``.
+    until converged (checked every ``check_every`` steps) or ``max_steps``. ``settings`` gives the
+    walkers, steps, flushes, convergence test, moves and initial walkers (:class:`SamplingSettings`);
+    ``streams`` the template's random streams (:func:`streams`).
 
     ``stop_check(chain, log_prob_fn, mapper)`` returns diagnostics whose ``converged`` stops the
     run (default: every parameter's 50-tau / ESS test; the sampler passes a
     :class:`.stopping.StoppingRule`).
     """
+    n_walkers, n_steps, max_steps = settings.n_walkers, settings.n_steps, settings.max_steps
+    check_every, flush_every, min_ess = settings.check_every, settings.flush_every, settings.min_ess
+    moves, initial = settings.moves, settings.initial
     import emcee
     from emcee.state import State
 

@@ -9,22 +9,22 @@ Model (Stevenson et al. 2024, sec. 2.2)::
 
     V(u, v) = cos i · exp(2 pi i (u dRA + v dDec)) · [ V_A(|q|) + P_hat(q; r_p, phi_p) ]
 
-with ``q = (xi, eta)`` the baseline in the disc frame (:meth:`DiscGeometry.disc_frame_uv`),
+with ``q = (xi, eta)`` the baseline in the disc frame (:meth:`.DiscGeometry.disc_frame_uv`),
 ``V_A`` the face-on visibility curve of the axisymmetric profile and ``P_hat`` the transform of
 the perturbation ``I_A delta`` on the product-integration rule of :mod:`spiralbayes.quadrature`
 (exact to ~1e-11 of its L1 norm; :attr:`SpiralLikelihood.quadrature_error` reports its bound).
 
 This is the *conditional* likelihood: **the axisymmetric profile is held fixed** (the frank fit),
 exact and fast, and kept as the reference of the fast path. The sampler uses the
-profile-marginalised likelihood of :mod:`spiralbayes.inference.marginal`, which integrates the
+profile-marginalised likelihood of :mod:`spiralbayes.inference.posterior.likelihood`, which integrates the
 profile (and a free spiral amplitude) out. Here the profile's visibilities are
 re-evaluated under each sampled geometry: ``V_A`` is precomputed once, on a fine uniform grid of
 deprojected baseline length, from the model's exact (Hankel) visibilities, and interpolated
 linearly (grid step chosen so that the interpolation error is below ~1e-7 of the peak;
-:meth:`AxisymmetricTable.max_error` measures it against the exact curve). No Hankel transform is
+:meth:`.AxisymmetricTable.max_error` measures it against the exact curve). No Hankel transform is
 done per call. Re-fitting the profile for each geometry is not done.
 
-The tables and why they are exact: :mod:`spiralbayes.inference.tables`.
+The tables and why they are exact: :mod:`spiralbayes.inference.posterior.interpolation`.
 
 :meth:`SpiralLikelihood.exact_log_likelihood` is the reference (type-3 NUFFT of the full
 quadrature at double precision plus the exact Hankel visibilities);
@@ -52,7 +52,7 @@ from ...model import (
 )
 from ...units import ARCSEC, TWO_PI
 from .perturbation import FastPerturbation
-from .tables import AxisymmetricTable, _outer_radius
+from .interpolation import AxisymmetricTable, _outer_radius
 
 __all__ = ["PARAMETER_LABELS", "PARAMETER_NAMES", "SpiralLikelihood", "geometry_from_theta"]
 
@@ -100,7 +100,7 @@ class SpiralLikelihood:
         Show a progress bar of the table's node builds (each refinement round is logged).
     mirror_of : SpiralLikelihood, optional
         The likelihood of this template's mirror image on the same data and r_p range: its
-        tables are shared (see :mod:`spiralbayes.inference.tables`), nothing is built.
+        tables are shared (see :mod:`spiralbayes.inference.posterior.interpolation`), nothing is built.
     """
 
     def __init__(self, vis, axisymmetric, template, r_range, *, reference_geometry: DiscGeometry | None = None,
@@ -135,7 +135,7 @@ class SpiralLikelihood:
 
     @property
     def table(self):
-        """The perturbation's :class:`~spiralbayes.inference.tables.PerturbationTable`."""
+        """The perturbation's :class:`~spiralbayes.inference.posterior.interpolation.PerturbationTable`."""
         return self.perturbation.table
 
     @property

@@ -1,7 +1,7 @@
 """Evidences of the spiral templates and of the no-planet hypothesis.
 
 ``Z = int L(theta) pi(theta) dtheta`` with the profile and the amplitude already integrated out
-of ``L`` (:mod:`.marginal`), so ``theta`` is ``(r_p, phi_p, inc, PA, dRA, dDec)`` for a template
+of ``L`` (:mod:`.likelihood`), so ``theta`` is ``(r_p, phi_p, inc, PA, dRA, dDec)`` for a template
 and ``(inc, PA, dRA, dDec)`` for the disc alone. Estimators:
 
 * **importance sampling with a defensive mixture** (the default when a chain exists;
@@ -19,7 +19,7 @@ and ``(inc, PA, dRA, dDec)`` for the disc alone. Estimators:
   width instead of an error): for templates pruned by the scan, and as a cross-check.
 * **Savage–Dickey** (cross-check for the Bayes factor against no planet): the no-planet model is
   the spiral model at ``A = 0``, so ``Z_0 / Z_T = p(A = 0 | data) / pi(A = 0)``; ``A``'s
-  conditional posterior is known exactly for every sample (:mod:`.marginal`), so
+  conditional posterior is known exactly for every sample (:mod:`.likelihood`), so
   ``Z_T / Z_0 = 1 / mean_s[exp(-ln int L(A) dA / (A_max L(0)))]``. Reliable when the chain
   visits small ``A`` (weak or no planet); for strong planets it behaves like a harmonic mean and
   overestimates ``Z_T / Z_0`` — it is reported, not used.

@@ -5,7 +5,7 @@ Model (Stevenson et al. 2024, sec. 2.2, with a free amplitude ``A``)::
     V(u, v) = cos i · exp(2 pi i (u dRA + v dDec)) · [ H(q) I + A P_hat(q; r_p, phi_p) ]
 
 ``H(q) I`` is the axisymmetric disc of frank's Fourier–Bessel profile ``I`` (Jennings et al.
-2020) and ``P_hat`` the transform of the spiral perturbation ``I_A delta`` (:mod:`.tables`).
+2020) and ``P_hat`` the transform of the spiral perturbation ``I_A delta`` (:mod:`.interpolation`).
 ``I`` has frank's Gaussian-process prior ``N(0, S)`` (:mod:`spiralbayes.axisymmetric.gp`) and
 ``A`` a uniform prior on ``[0, A_max]`` (``A = 1`` is the template as simulated, ``A = 0`` the
 disc without a planet). Both enter linearly, so both integrate out exactly.
@@ -42,12 +42,12 @@ at ``A = 0`` where planet-free posteriors pile up, and ``ln L0`` is the no-plane
 
 **Cost** (why ~10 ms per call at 1e5 visibilities). Per call: the deprojected baseline lengths
 and phases (O(n)); the spiral's visibilities from the Fourier-series tables (one single-precision
-type-2 NUFFT, :mod:`.tables`); the data spread onto a ~900-point grid in ``q`` (2 Mlambda,
+type-2 NUFFT, :mod:`.interpolation`); the data spread onto a ~900-point grid in ``q`` (2 Mlambda,
 Rmax = 1.2") with 6-point Lagrange weights (:class:`~spiralbayes.axisymmetric.gp.QGridProjector`:
 frank's deprojected binning made exact — the normal matrix to 4e-10 of its largest element,
 measured), which turns the ``n x N^2`` normal matrix into an
 ``n_grid x N^2`` product; one Cholesky factorisation of the ``N x N`` (N = 200) precision.
-``benchmarks/bench_sample.py`` prints the measured split. :meth:`exact_log_likelihood` is the
+``benchmarks/bench_sample.py`` prints the measured split. :meth:`.exact_log_likelihood` is the
 plain NumPy reference (dense ``H`` at every datum, the exact type-3 perturbation).
 """
 
@@ -183,7 +183,7 @@ class ProfileMarginal:
     axisymmetric : AxisymmetricModel
         Its profile is the centring profile ``I0`` (its geometry is not used).
     prior : ProfilePrior, optional
-        Default :meth:`ProfilePrior.from_model` (frank's power spectrum).
+        Default :meth:`.ProfilePrior.from_model` (frank's power spectrum).
     reference_geometry : DiscGeometry, optional
         ``ln L`` is reported relative to its value there (default: the model's geometry).
     tolerance, order : float, int
@@ -356,7 +356,7 @@ class MarginalSpiralLikelihood:
         The profile-marginalised disc (shared by all templates; its centring profile is the
         spiral's profile ``I0``).
     perturbation : FastPerturbation
-        The spiral's visibilities from tables (:mod:`.tables`), built with ``base``'s profile.
+        The spiral's visibilities from tables (:mod:`.interpolation`), built with ``base``'s profile.
     amplitude_max : float
         The uniform amplitude prior ``[0, amplitude_max]``; ``None``: fixed ``A = 1`` (the paper).
     """
@@ -413,7 +413,7 @@ class MarginalSpiralLikelihood:
         return self.perturbation.quadrature_error
 
     def null_log_likelihood(self, geometry) -> float:
-        """The no-planet hypothesis at ``geometry`` (same constant as :meth:`__call__`)."""
+        """The no-planet hypothesis at ``geometry`` (same constant as ``__call__``)."""
         return self.base.log_likelihood(geometry)
 
     def exact_log_likelihood(self, theta, amplitude):

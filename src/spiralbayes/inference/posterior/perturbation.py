@@ -1,9 +1,9 @@
-"""The spiral perturbation's visibilities at the data, from the tables of :mod:`.tables`.
+"""The spiral perturbation's visibilities at the data, from the tables of :mod:`.interpolation`.
 
-:class:`FastPerturbation` owns one template's tables (built by :class:`.tables._TableBuilder`,
+:class:`FastPerturbation` owns one template's tables (built by ``interpolation._TableBuilder``,
 refined in ``r_p`` until the interpolation error at node midpoints is below ``rp_tolerance``) and
 evaluates ``cos i P_hat`` at the data with one type-2 NUFFT per call. Both the conditional
-likelihood (:mod:`.likelihood`) and the profile-marginalised one (:mod:`.marginal`) use it. The
+likelihood (:mod:`.likelihood`) and the profile-marginalised one (:mod:`.likelihood`) use it. The
 build logs each refinement round and shows a progress bar of node builds when asked.
 """
 
@@ -19,7 +19,7 @@ from ...exceptions import AccuracyWarning, InputError
 from ...geometry import DiscGeometry
 from ...model import profile_breaks, profile_support
 from ...units import ARCSEC, TWO_PI
-from .tables import PerturbationTable, _Cells, _TableBuilder
+from .interpolation import PerturbationTable, _Cells, _TableBuilder
 
 __all__ = ["FastPerturbation"]
 

@@ -102,7 +102,7 @@ class Priors:
             Override the r_p range [arcsec].
         widths : dict, optional
             Sigmas for ``inc``, ``PA`` [deg], ``dRA``, ``dDec`` [arcsec]; defaults
-            :data:`DEFAULT_WIDTHS`.
+            ``DEFAULT_WIDTHS``.
         amplitude_max : float or None
             Upper end of the amplitude prior (None: ``A = 1`` fixed).
         """

@@ -7,13 +7,13 @@ each template (:class:`TemplateRun`). With evidences ``Z_0`` and ``Z_T``, prior 
     P(planet | data) = P(planet) sum_T pi_T Z_T / [P(planet) sum_T pi_T Z_T + (1 - P(planet)) Z_0],
 
 the Bayes factor is ``B = sum_T pi_T Z_T / Z_0``, and ``P(T | data, planet) = pi_T Z_T / sum``.
-:attr:`PosteriorResult.verdict` says "inconclusive" when ``|ln B| <`` :data:`INCONCLUSIVE_LN_B`
+:attr:`PosteriorResult.verdict` says "inconclusive" when ``|ln B| <`` ``INCONCLUSIVE_LN_B``
 (= 1, the Jeffreys scale's "not worth more than a bare mention", B < e ~ 2.7 either way; Kass &
 Raftery 1995, Trotta 2008): the data do not decide between planet and no planet, and no position
 is reported. Otherwise "no planet preferred" when ``P(planet | data) < 0.5`` (no position
 reported as a finding), else the most probable template's planet position and amplitude.
 
-Samples (:data:`SAMPLE_NAMES`): ``r_p`` [arcsec], ``phi_p`` [rad, wrapped around its circular
+Samples (``SAMPLE_NAMES``): ``r_p`` [arcsec], ``phi_p`` [rad, wrapped around its circular
 mean], ``A`` (drawn exactly from its conditional posterior for each sample), ``inc``, ``PA``
 [deg], ``dRA``, ``dDec`` [arcsec].
 """
@@ -33,7 +33,7 @@ from .diagnostics import chain_inference_data
 from .priors import GEOMETRY_NAMES, Priors
 
 INCONCLUSIVE_LN_B = 1.0
-"""|ln B(planet : none)| below this is "inconclusive" (Jeffreys scale: B < e either way)."""
+"""``|ln B(planet : none)|`` below this is "inconclusive" (Jeffreys scale: B < e either way)."""
 
 __all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
 
@@ -77,7 +77,7 @@ class TemplateRun(ResultMixin):
     mode : {'mcmc', 'laplace'}
         Whether a chain was run or only the Laplace approximation.
     samples : ndarray, shape (n, 7)
-        Post-burn-in, thinned samples of :data:`SAMPLE_NAMES`.
+        Post-burn-in, thinned samples of ``SAMPLE_NAMES``.
     theta_map : ndarray, shape (6,)
         The optimum before sampling, ``(r_p, phi_p, inc, PA, dRA, dDec)``.
     covariance : ndarray, shape (6, 6)
@@ -110,7 +110,7 @@ class TemplateRun(ResultMixin):
     WHAT = "template posterior"
 
     def percentiles(self) -> dict:
-        """Median, 16/84 and 2.5/97.5 percentiles and std of each of :data:`SAMPLE_NAMES`."""
+        """Median, 16/84 and 2.5/97.5 percentiles and std of each of ``SAMPLE_NAMES``."""
         return _stats(self.samples, SAMPLE_NAMES)
 
     def summary(self) -> str:
@@ -299,7 +299,7 @@ class PosteriorResult(ResultMixin):
 
     @property
     def inconclusive(self) -> bool:
-        """True when ``|ln B| <`` :data:`INCONCLUSIVE_LN_B`: the data do not decide (Jeffreys scale)."""
+        """True when ``|ln B| <`` ``INCONCLUSIVE_LN_B``: the data do not decide (Jeffreys scale)."""
         return bool(np.isfinite(self.ln_bayes_factor) and abs(self.ln_bayes_factor) < INCONCLUSIVE_LN_B)
 
     @property

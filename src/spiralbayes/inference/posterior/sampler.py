@@ -7,7 +7,7 @@ pools, the evidences and the combination — and splitting it would scatter one 
 Hypotheses (:mod:`.results`): the disc alone ("no planet", parameters ``inc, PA, dRA, dDec``) and,
 for every template, the disc plus that spiral (``r_p`` [arcsec], ``phi_p`` [rad], amplitude ``A``
 and the same geometry). In both the frank profile is integrated out analytically, and in the
-spiral model the amplitude too (:mod:`.marginal`); priors in :mod:`.priors`.
+spiral model the amplitude too (:mod:`.likelihood`); priors in :mod:`.priors`.
 
 Procedure (:func:`sample_posterior`):
 
@@ -63,6 +63,8 @@ from pathlib import Path
 import numpy as np
 
 from ..._provenance import check_output_name, data_hash, provenance_record
+from ...settings import with_overrides
+from ..._threads import blas_threads
 from ..._version import __version__
 from ...axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
 from ...axisymmetric.gp import ProfilePrior
@@ -70,21 +72,17 @@ from ...exceptions import InputError
 from ...geometry import DiscGeometry
 from ...templates.template import template_metadata
 from ...units import wrap_angle
-from .chain_runner import _blas_single_thread, _set_mpi_rank, _writes_files, run_chain, walker_pool
+from .chain_runner import _set_mpi_rank, _writes_files, run_chain, walker_pool
 from .chain_runner import streams as chain_streams
 from .chains import ChainBackend, ChainState, ChainStore
-from .diagnostics import (
-    _apply_policy,
-    _convergence_message,
-    arviz_diagnostics,
-    chain_inference_data,
-)
+from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, chain_inference_data
 from .evidence import StudentT, hessian_cov, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .likelihood import MarginalSpiralLikelihood, ProfileMarginal, draw_amplitude
 from .optimise import find_map, fit_null_geometry
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
 from .results import NullRun, PosteriorResult, TemplateRun, wrap_phi
+from .settings import SamplingSettings
 from .stopping import StoppingRule, template_evidence
 
 __all__ = ["LogPosterior", "NullLogPosterior", "refit_axisymmetric", "sample_posterior"]
@@ -228,10 +226,10 @@ def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.nda
 
 
 def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_range, partners, settings):
-    s = settings
+    s, sampling = settings, settings["sampling"]
     t0 = time.perf_counter()
     name = template.name
-    streams = chain_streams(s["seed"], name)
+    streams = chain_streams(sampling.seed, name)
     store = ChainStore(chain_path, name)
     inputs = {**s["inputs"], "template": template_metadata(template), "template_hash": _template_hash(template),
               "mode": mode, "r_range": list(r_range)}
@@ -258,26 +256,26 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         samples = _with_amplitude(draws, terms[:, 1], terms[:, 2], priors, rng_amp)
         run = TemplateRun(name, meta, "laplace", samples, theta_map, cov, lnz_laplace, float("nan"), lnz_laplace,
                           {**info, "time_s": time.perf_counter() - t0}, str(chain_path), name)
-        store.write(ChainState(np.empty((0, s["n_walkers"], N_DIM)), np.empty((0, s["n_walkers"])), None,
-                               np.zeros(s["n_walkers"]), None, inputs, run.record(), samples))
+        n_walkers = sampling.n_walkers
+        store.write(ChainState(np.empty((0, n_walkers, N_DIM)), np.empty((0, n_walkers)), None,
+                               np.zeros(n_walkers), None, inputs, run.record(), samples))
         return run, likelihood
-    rule = StoppingRule(null, priors, _scales(priors, null)[1], min_ess=s["min_ess"], n_draws=s["evidence_draws"],
-                        seed=s["seed"], name=name, planet_free_rule=s["stop_when_planet_free"])
-    with walker_pool(s["pool"], s["processes"], logpost) as walkers:
+    rule = StoppingRule(null, priors, _scales(priors, null)[1], min_ess=sampling.min_ess,
+                        n_draws=sampling.evidence_draws, seed=sampling.seed, name=name,
+                        planet_free_rule=sampling.stop_when_planet_free)
+    with walker_pool(sampling.pool, sampling.processes, logpost) as walkers:
         if walkers.is_worker:  # an MPI worker rank
             return None, likelihood
-        backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors, streams=streams,
-                            initial=s["initial"], name=name, logpost=logpost, stop_check=rule,
-                            **{k: s[k] for k in ("n_walkers", "n_steps", "max_steps", "check_every", "flush_every",
-                                                 "min_ess", "moves", "progress")})
+        backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors, settings=sampling,
+                            streams=streams, name=name, progress=s["progress"], logpost=logpost, stop_check=rule)
         chain, blobs, accepted = backend.get_chain(), backend.get_blobs(), backend.accepted
         diag = rule(chain, walkers.log_prob, walkers.map)
         sl = slice(diag["burn_in"], None, diag["thin"])
         flat = chain[sl].reshape(-1, N_DIM)
         fb = blobs[sl].reshape(-1, 2)
         samples = _with_amplitude(flat, fb[:, 0], fb[:, 1], priors, rng_amp)
-        ev = template_evidence(walkers.log_prob, flat, null, priors, _scales(priors, null)[1], s["evidence_draws"],
-                               rng_evidence, walkers.map)
+        ev = template_evidence(walkers.log_prob, flat, null, priors, _scales(priors, null)[1],
+                               sampling.evidence_draws, rng_evidence, walkers.map)
     sd = (savage_dickey_log_bayes(fb[:, 0], fb[:, 1], priors.amplitude_max)
           if priors.amplitude_max is not None else float("nan"))
     diag = {**diag, **info, "evidence": ev, "acceptance": float(np.mean(accepted) / max(chain.shape[0], 1)),
@@ -290,7 +288,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
         log.warning("arviz diagnostics failed: %s", exc)
     store.write(_final_state(store, run, samples))
     if not diag["converged"]:
-        _apply_policy(s["convergence"], _convergence_message(name, diag))
+        _apply_policy(sampling.convergence, _convergence_message(name, diag))
     return run, likelihood
 
 
@@ -303,13 +301,8 @@ def _final_state(store, run, samples):
 
 # ---------------------------------------------------------------------------------------------
 def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors | None = None,
-                     run_name: str = "posterior", chains_dir="chains", n_walkers: int = 32,
-                     n_steps: int | None = None, max_steps: int = 20000, check_every: int = 500,
-                     flush_every: int = 100, convergence: str = "warn", min_ess: float = 400.0,
-                     processes: int | None = None, pool=None, seed: int = 0, moves=None, template_prior=None,
-                     planet_prior: float = 0.5, mcmc_templates=None, prune_delta_lnL: float = 25.0,
-                     evidence_draws: int = 2000, progress: bool = True, initial=None,
-                     likelihood_kwargs: dict | None = None, stop_when_planet_free: bool = True) -> PosteriorResult:
+                     settings: SamplingSettings | None = None, chains_dir="chains", progress: bool = True,
+                     **overrides) -> PosteriorResult:
     """Sample the posterior of every template, the no-planet hypothesis, and combine them.
 
     Parameters
@@ -325,56 +318,30 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
         Starts each template's optimiser from its best grid instances, and prunes templates
         (``prune_delta_lnL``).
     priors : Priors, optional
-        Default :meth:`Priors.default` (``axisymmetric``), including the amplitude prior.
-    run_name, chains_dir : str, path
-        Chains go to ``<chains_dir>/<run_name>.h5``; an existing file with the same inputs is
-        resumed (see the module docs).
-    n_walkers : int
-        emcee walkers (>= 2 x 6; default 32).
-    n_steps : int, optional
-        Total steps per walker. ``None``: run in chunks of ``check_every`` until converged
-        (> 50 tau and ESS >= ``min_ess`` for every parameter, or — see ``stop_when_planet_free`` —
-        for the geometry when the planet is not preferred) or ``max_steps``.
-    flush_every : int
-        Steps between atomic writes of the chain file (a kill loses at most these).
-    convergence : {'warn', 'raise', 'ignore'}
-        What to do when a chain fails the 50-tau / ESS test.
-    processes : int, optional
-        Run walkers in a multiprocessing pool of this size. ``pool``: ``"mpi"`` or any object with
-        ``map`` (then ``processes`` is ignored).
-    seed : int
-        Seed of every random stream (each template's own, derived from ``(seed, name)``).
-    moves : emcee moves, optional
-        Default :func:`.moves.default_moves` (differential evolution, ``phi_p`` wrapped).
-    template_prior : array_like, optional
-        Prior probabilities of the templates given a planet (default uniform).
-    planet_prior : float
-        Prior probability that there is a planet (default 0.5).
-    mcmc_templates : list of str, optional
-        Templates that get a chain; the others get a Laplace evidence only. Default: those within
-        ``prune_delta_lnL`` of the best scan peak (every template without a scan).
-    evidence_draws : int
-        Proposal draws of each importance-sampled evidence.
-    initial : array_like, optional
-        Explicit initial walkers (n_walkers, 6) for every template.
-    likelihood_kwargs : dict, optional
-        Table settings (``epsilon``, ``rp_tolerance``, ``oversample``, ``cell_factor``) and the
-        profile grid's ``tolerance``/``order`` (:mod:`.marginal`).
+        Default :meth:`.Priors.default` (``axisymmetric``), including the amplitude prior.
+    settings : SamplingSettings, optional
+        How to sample (walkers, steps, convergence, seed, pruning, pool, ...); default
+        ``SamplingSettings()``. Chains go to ``<chains_dir>/<settings.run_name>.h5``; an existing
+        file with the same inputs is resumed (see the module docs). ``settings.n_steps = None``
+        runs in chunks of ``check_every`` until converged (> 50 tau and ESS >= ``min_ess`` for
+        every parameter) or ``max_steps``.
+    chains_dir : str or path
+        Folder of the chain files.
     progress : bool
         Progress bars for the table builds and the steps (default True).
-    stop_when_planet_free : bool
-        Also stop a template's chain when its geometry has converged (> 50 tau, ESS) and its
-        Bayes factor against no planet, estimated at the check, is below the "planet preferred"
-        threshold (``ln B + 2 sigma < 1``): on planet-free data ``(r_p, phi_p)`` wander over their
-        flat prior with a long autocorrelation time that nothing reported depends on
-        (:mod:`.stopping`). Default True; False waits for every parameter.
+    **overrides
+        Fields of :class:`SamplingSettings` replacing those of ``settings`` (e.g. ``n_walkers=48``).
 
     Returns
     -------
     PosteriorResult
         ``p_planet``, ``ln_bayes_factor``, ``verdict``, per-template runs and the ``null`` run.
     """
-    templates = _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, flush_every)
+    s = with_overrides(settings, SamplingSettings, overrides, "sample_posterior")
+    run_name, n_walkers, seed, evidence_draws = s.run_name, s.n_walkers, s.seed, s.evidence_draws
+    pool, moves, likelihood_kwargs = s.pool, s.moves, s.likelihood_kwargs
+    template_prior, planet_prior = s.template_prior, s.planet_prior
+    templates = _check_templates(templates)
     vis = vis.standardised()
     priors = priors or Priors.default(axisymmetric)
     priors.check_data(vis, axisymmetric)
@@ -385,22 +352,18 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
     prior_t = prior_t / prior_t.sum()
     chain_path = Path(chains_dir) / f"{check_output_name(run_name, 'run_name')}.h5"
     chain_path.parent.mkdir(parents=True, exist_ok=True)
-    selected = _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL)
+    selected = _select_mcmc(names, scan, s.mcmc_templates, s.prune_delta_lnL)
     likelihood_kwargs = dict(likelihood_kwargs or {})
     profile_prior = ProfilePrior.from_model(axisymmetric)
     common = {"data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights), "n_data": int(vis.n),
               "model_hash": _model_hash(axisymmetric, profile_prior), "priors": priors.to_dict(), "seed": int(seed),
               "likelihood_kwargs": likelihood_kwargs, "spiralbayes": __version__}
-    settings = {"inputs": {**common, "n_walkers": int(n_walkers), "evidence_draws": int(evidence_draws),
-                           "moves": "wrapped DE" if moves is None else repr(moves)},
-                "n_walkers": n_walkers, "n_steps": n_steps, "max_steps": max_steps, "check_every": check_every,
-                "flush_every": flush_every, "min_ess": min_ess, "pool": pool, "processes": processes, "moves": moves,
-                "progress": progress, "seed": seed, "evidence_draws": evidence_draws, "initial": initial,
-                "convergence": convergence, "likelihood_kwargs": likelihood_kwargs,
-                "stop_when_planet_free": bool(stop_when_planet_free)}
+    run_settings = {"inputs": {**common, "n_walkers": int(n_walkers), "evidence_draws": int(evidence_draws),
+                               "moves": "wrapped DE" if moves is None else repr(moves)},
+                    "sampling": s, "progress": progress, "likelihood_kwargs": likelihood_kwargs}
     _set_mpi_rank(pool)
     overall = _Stages(len(templates) + 1, progress)
-    with _blas_single_thread():
+    with blas_threads(1, all_pools=True):
         overall.start("no planet: geometry mode and evidence")
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
                                {**common, "evidence_draws": int(evidence_draws)}, seed, evidence_draws,
@@ -412,7 +375,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
             overall.start(f"template {template.name} ({steps})")
             r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan, template.name)
             run, likelihood = _sample_one(vis, base, null, template, priors, scan=scan, chain_path=chain_path, mode=mode,
-                                          r_range=r_range, partners=partners, settings=settings)
+                                          r_range=r_range, partners=partners, settings=run_settings)
             if mode == "mcmc":  # its mirror shares the table (rebuilt on demand if read back from the file)
                 partners[_mirror_name(template)] = (likelihood.perturbation if likelihood is not None else
                                                     _deferred_table(base, template, r_range, null, likelihood_kwargs))
@@ -452,9 +415,7 @@ class _Stages:
         log.info("posterior: %d stages done in %.1f min", self.total, (time.perf_counter() - self.t0) / 60)
 
 
-def _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, flush_every) -> list:
-    if convergence not in ("warn", "raise", "ignore"):
-        raise InputError(f"convergence = {convergence!r}: use 'warn', 'raise' or 'ignore'")
+def _check_templates(templates) -> list:
     if hasattr(templates, "evaluate"):
         templates = [templates]
     templates = list(templates)
@@ -463,14 +424,6 @@ def _check_arguments(templates, n_walkers, n_steps, convergence, planet_prior, f
     names = [t.name for t in templates]
     if len(set(names)) != len(names) or NULL_GROUP in names:
         raise InputError(f"template names must be unique (and not {NULL_GROUP!r}), got {names}")
-    if n_walkers < 2 * N_DIM:
-        raise InputError(f"n_walkers = {n_walkers}: emcee needs at least 2 x {N_DIM} = {2 * N_DIM} walkers")
-    if n_steps is not None and n_steps < 1:
-        raise InputError(f"n_steps = {n_steps} must be a positive number of steps")
-    if not 0.0 < float(planet_prior) < 1.0:
-        raise InputError(f"planet_prior = {planet_prior!r} must lie strictly between 0 and 1")
-    if int(flush_every) < 1:
-        raise InputError(f"flush_every = {flush_every!r} must be a positive number of steps")
     return templates
 
 

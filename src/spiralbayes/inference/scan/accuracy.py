@@ -1,6 +1,6 @@
 """The scan's accuracy: its self-check against exact sums and the tolerance rule.
 
-Every template's ``cross`` and ``power`` carry error estimates (:mod:`.scan_engine`): the
+Every template's ``cross`` and ``power`` carry error estimates (:mod:`.engine`): the
 quadrature's bound, plus the power path's own error, which :func:`check_terms` measures once per
 scan by comparing the fast terms with exact sums (ΔV at every baseline by a double-precision
 NUFFT at ``EXACT_EPSILON``) at the largest radius of each uv level. :func:`warn_if_inaccurate`
@@ -20,8 +20,9 @@ import warnings
 
 import numpy as np
 
+from ..._threads import blas_threads
 from ...exceptions import AccuracyWarning
-from .engine import ScanContext, _one_blas_thread, _terms_at
+from .engine import ScanContext, _terms_at
 
 __all__ = ["CHECK_AZIMUTHS", "EXACT_EPSILON", "TOLERANCE", "check_terms", "exact_terms", "warn_if_inaccurate"]
 
@@ -65,7 +66,7 @@ def check_terms(context: ScanContext, template) -> dict:
     phi_index = np.linspace(0, context.n_phi_p, CHECK_AZIMUTHS, endpoint=False).astype(int)
     worst_p = worst_c = 0.0
     for i in sorted(groups.values()):
-        with _one_blas_thread():
+        with blas_threads(1):
             cross, power, quad, flux = _terms_at(context, template, context.r_p[i])
         c, p = exact_terms(context, flux, quad, phi_index)
         scale = np.maximum(np.abs(p), 1e-300)

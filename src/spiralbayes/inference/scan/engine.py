@@ -3,7 +3,7 @@
 For a template placed at ``(r_p, phi_p)`` with perturbation visibilities ΔV and residual
 ``R = V_O - V_A`` of the axisymmetric model,
 
-    Δχ² = chi2_AO - chi2_SO = 2 Re sum_k w_k R_k* ΔV_k - sum_k w_k |ΔV_k|^2 = 2 cross - power.
+    ``Δχ² = chi2_AO - chi2_SO = 2 Re sum_k w_k R_k* ΔV_k - sum_k w_k |ΔV_k|^2 = 2 cross - power``.
 
 Neither term needs one image and one 2-D FFT per planet position (the authors' galario loop).
 The perturbation is a set of point sources, the nodes of the product-integration rule of
@@ -17,14 +17,14 @@ planet in ``phi_p`` is a cyclic shift of the nodes:
 * ``power`` depends on the data only through the uv coverage and weights. Two paths, chosen by
   their cost (``power_path="auto"``): the *polar* path computes the perturbation's power spectrum
   on polar uv grids and sums it against the weights' angular coefficients
-  (:mod:`spiralbayes.inference.uv_levels`): its cost per template does not grow with N. The
+  (:mod:`spiralbayes.inference.scan.uv_levels`): its cost per template does not grow with N. The
   *direct* path evaluates ΔV at every baseline rotated by every planet azimuth (one type-3 NUFFT to
   ``N n_phi_p`` points per radius) and sums both terms exactly: cheaper for small N (the 196
   visibilities of the AS 209 sample), and it needs no uv grid at all.
 
 Accuracy rule and the error estimate
 ------------------------------------
-A Δχ² is reported to within ``0.05 + 1e-4 |Δχ²|`` (:data:`TOLERANCE`). The absolute part is what
+A Δχ² is reported to within ``0.05 + 1e-4 |Δχ²|`` (:data:`.TOLERANCE`). The absolute part is what
 matters near the detection threshold, where ``2 cross`` and ``power`` nearly cancel: with ``power``
 up to ~1e3 there, each term must be good to ~1e-5 relative, and 1e-6 leaves a factor 10 for the
 largest powers met in practice (a bright planet's own peak, where the relative part takes over).
@@ -34,11 +34,11 @@ Every template's terms carry an estimate of their error, stored in the scan resu
   (:meth:`~spiralbayes.quadrature.ProductQuadrature.error_bound`, times cos i):
   ``|δ cross| <= B sum w |R|`` and ``|δ power| <= 2 B sqrt(sum w · power) + B^2 sum w``;
 * the power algorithm's own error (interpolation in ``rho`` on the polar path, the NUFFT's
-  ``epsilon``), measured once per scan by :func:`~.scan_accuracy.check_terms` against exact
+  ``epsilon``), measured once per scan by :func:`~.accuracy.check_terms` against exact
   sums (ΔV at every baseline) at the largest radius of each uv level and four azimuths, and
-  added as ``CHECK_SAFETY`` times the worst relative discrepancy (:mod:`.scan_accuracy`).
+  added as ``CHECK_SAFETY`` times the worst relative discrepancy (:mod:`.accuracy`).
 
-``rule="midpoint"`` (the earlier cells of ``1 / (cell_factor u_max)``, second order: Σ w |ΔV|^2
+``rule="midpoint"`` (the earlier cells of ``1 / (cell_factor u_max)``, second order: ``Σ w |ΔV|^2``
 low by 3-9e-4 at ``cell_factor`` 20) is kept as a reference; it has no bound, so its error
 estimates are NaN. :func:`direct_delta_chi2` is the plain reference: ΔV for one instance at every
 baseline and the χ² sums.
@@ -55,6 +55,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..._threads import blas_threads
 from ...exceptions import InputError
 from ...fourier import NUFFT_EPSILON
 from ...geometry import DiscGeometry
@@ -68,7 +69,7 @@ from ...model import (
     profile_breaks,
     profile_support,
 )
-from ...quadrature import ProductQuadrature, TemplateSpectrum, one_blas_thread
+from ...quadrature import ProductQuadrature, TemplateSpectrum
 from ...units import ARCSEC
 from .statistics import chi2, delta_chi2_from_terms
 from .uv_levels import (
@@ -90,7 +91,7 @@ POWER_EPSILON = 1e-7
 """Accuracy of the power path's double-precision type-3 NUFFT."""
 POWER_PATHS = ("auto", "polar", "direct")
 CHECK_SAFETY = 3.0
-"""The power path's measured discrepancy (:func:`~.scan_accuracy.check_terms`) enters the error
+"""The power path's measured discrepancy (:func:`~.accuracy.check_terms`) enters the error
 estimates times this."""
 DIRECT_MAX_POINTS = 20_000_000
 """The direct path is not chosen when N n_phi_p exceeds this (memory of one radius' ΔV)."""
@@ -109,7 +110,7 @@ class ScanSettings:
     power_path : {"auto", "polar", "direct"}
         How ``power`` is computed (module docstring); "auto" takes the cheaper.
     rho_points, rho_oversample, theta_tolerance : int, float, float
-        The polar uv grids (:mod:`spiralbayes.inference.uv_levels`).
+        The polar uv grids (:mod:`spiralbayes.inference.scan.uv_levels`).
     power_epsilon : float
         Accuracy of the power term's NUFFT (double precision).
     multilevel : bool
@@ -454,15 +455,14 @@ def _terms_at(context: ScanContext, template, r_p: float) -> tuple[np.ndarray, n
 
 
 def _one_blas_thread():
-    """BLAS on one thread: the small matrix products here ran 20x slower with OpenBLAS threads
-    spinning on a busy 2-core machine (1.35 s instead of 0.06 s per template, measured)."""
-    return one_blas_thread()
+    """BLAS on one thread (:func:`spiralbayes._threads.blas_threads`), for the building blocks."""
+    return blas_threads(1)
 
 
 def scan_template(context: ScanContext, template) -> TemplateTerms:
     """``cross`` and ``power`` of one template over the context's ``r_p`` × ``phi_p`` grid, and
     their error estimates (module docstring), as a :class:`TemplateTerms` pair."""
-    with _one_blas_thread():
+    with blas_threads(1):  # small products: threads spinning cost more
         return _scan_template(context, template)
 
 
@@ -510,7 +510,7 @@ def perturbation_spectrum(context: ScanContext, flux: np.ndarray, quad) -> np.nd
 def cross_template(context: ScanContext, template) -> np.ndarray:
     """Only ``cross`` of one template over the context's grid (e.g. for another residual)."""
     out = np.empty((context.r_p.size, context.n_phi_p))
-    with _one_blas_thread():
+    with blas_threads(1):  # small products: threads spinning cost more
         for i, r_p in enumerate(context.r_p):
             quad = context.quadrature(template, r_p)
             out[i] = _cross_all_phi(context, context.flux(template, quad), quad)

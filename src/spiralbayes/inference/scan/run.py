@@ -1,17 +1,17 @@
 """The grid scan: Δχ² of every template at every planet position (Stevenson et al. 2024, sec. 2.3).
 
-:func:`scan` runs the fast engine (:mod:`spiralbayes.inference.scan_engine`, where the method and
+:func:`scan` runs the fast engine (:mod:`spiralbayes.inference.scan.engine`, where the method and
 its exactness are described) over a template bank and the (r_p, phi_p) grid, with checkpoints
 after every template, resume, progress bars and optional Dask parallelism; :class:`ScanResult`
 holds the two terms of Δχ² = 2 cross - power per template and position.
 
 Resume key
 ----------
-A checkpoint is resumed only when it was written for the same inputs: :func:`resume_key` records
+A checkpoint is resumed only when it was written for the same inputs: :func:`.resume_key` records
 a hash of the data, of the axisymmetric profile (its arrays, or the profile sampled on the
 scanned radii) and frank's settings, each template's content hash (x, phi, δ) and metadata, the
 (r_p, phi_p) grid, the geometry, the quadrature settings (the rule, ``cell_factor`` for the
-midpoint rule, and the power path's settings, :class:`~.scan_engine.ScanSettings`) and
+midpoint rule, and the power path's settings, :class:`~.engine.ScanSettings`) and
 spiralbayes' version, and, when morphology variants were scanned through their building blocks
 (:mod:`.building_blocks`), which; a checkpoint written with other settings, or before they were
 recorded, is refused. Any difference raises :class:`ResumeMismatchError` naming it; ``force_resume=True`` keeps
@@ -21,14 +21,14 @@ changes the last digits only.
 Accuracy
 --------
 Every template's ``cross`` and ``power`` come with error estimates (``cross_error``,
-``power_error``; :mod:`.scan_engine` says how they are made); :meth:`ScanResult.delta_chi2_error`
+``power_error``; :mod:`.engine` says how they are made); :meth:`ScanResult.delta_chi2_error`
 combines them and :func:`scan` raises an :class:`~spiralbayes.exceptions.AccuracyWarning` where
-the estimate exceeds ``0.05 + 1e-4 |Δχ²|`` (:mod:`.scan_accuracy`).
+the estimate exceeds ``0.05 + 1e-4 |Δχ²|`` (:mod:`.accuracy`).
 
 Why this module is long: the result class (with its best instance, format-1 reader and the error
 estimates), the runner and the resume key with its readable differences share one set of
 fields; split apart, each would have to know the others' layout. The numerics live elsewhere
-(:mod:`.scan_engine`, :mod:`.uv_levels`, :mod:`.scan_accuracy`).
+(:mod:`.engine`, :mod:`.uv_levels`, :mod:`.accuracy`).
 """
 
 from __future__ import annotations
@@ -282,7 +282,7 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
         Distance [pc], recorded for au axes.
     checkpoint : path, optional
         HDF5 file updated after every template; an existing one with the same inputs (see
-        :func:`resume_key`) is resumed, one for other inputs raises
+        :func:`.resume_key`) is resumed, one for other inputs raises
         :class:`~spiralbayes.exceptions.ResumeMismatchError`.
     client : dask.distributed.Client, str, or "local", optional
         Run templates in parallel on a Dask cluster (a scheduler address, an existing client, or
@@ -304,7 +304,7 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
         The quadrature of the perturbation (:func:`spiralbayes.model.make_quadrature`): the exact
         product rule (default) or the earlier midpoint cells (a reference; no error estimate).
     power_path : {"auto", "polar", "direct"}
-        How ``power`` is computed (:mod:`.scan_engine`): "auto" takes the cheaper for the data.
+        How ``power`` is computed (:mod:`spiralbayes.inference.scan.engine`): "auto" takes the cheaper for the data.
     allow_other_data : bool
         Scan with an axisymmetric model whose recorded data hash is not that of ``vis`` (e.g.
         injected signals); by default such a model is refused (InputError).
@@ -314,6 +314,8 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
         to the templates' float32 rounding, for about 1.3 times the cost of their generator templates);
         False scans every template on its own. Needs the product rule.
 
+    Notes
+    -----
     The result carries error estimates (:meth:`ScanResult.delta_chi2_error`); an
     :class:`~spiralbayes.exceptions.AccuracyWarning` says where they exceed
     ``0.05 + 1e-4 |Δχ²|``. The power path's own check is in ``provenance["power_check"]``.
@@ -569,7 +571,7 @@ def _record_forced_resume(fresh: ScanResult, old: ScanResult, checkpoint, diffs,
 
 
 def store_template_terms(result: ScanResult, index: int, terms, checkpoint) -> None:
-    """Keep one template's :class:`~.scan_engine.TemplateTerms` (and checkpoint)."""
+    """Keep one template's :class:`~.engine.TemplateTerms` (and checkpoint)."""
     result.cross[index], result.power[index] = terms
     result.cross_error[index] = getattr(terms, "cross_error", np.nan)
     result.power_error[index] = getattr(terms, "power_error", np.nan)

@@ -25,7 +25,7 @@ erred by up to 1.8e-5 of the power, dominated by the cubic interpolation in ``rh
 16 points at 3x oversampling in double precision gave <= 3e-8 in every case measured. The
 interpolation error is not bounded a priori (it depends on how much of ``G``'s ``rho`` bandwidth the
 perturbation uses), so the scan measures it against exact sums for its first template
-(:func:`spiralbayes.inference.scan_engine.check_terms`) and adds it to its error estimate.
+(:func:`spiralbayes.inference.scan.accuracy.check_terms`) and adds it to its error estimate.
 """
 
 from __future__ import annotations

@@ -1,12 +1,12 @@
 """A polar grid of the disc plane and the exact transform of brightness fields on it.
 
-The competing asymmetry models (:mod:`spiralbayes.asymmetries.fields`) are brightness
+The competing asymmetry models (:mod:`spiralbayes.alternatives.fields`) are brightness
 perturbations ``P(r, phi)`` [Jy/sr] in the disc plane. As for the spiral model
 (:mod:`spiralbayes.model`), their visibilities are a sum over the cells of a polar grid,
 
     ΔV(u, v) = cos i · exp(2 pi i (u dRA + v dDec)) · sum_c P_c A_c exp(2 pi i q · s_c),
 
-with ``q`` the baseline in the disc frame (:meth:`DiscGeometry.disc_frame_uv`), ``s_c`` the cell
+with ``q`` the baseline in the disc frame (:meth:`.DiscGeometry.disc_frame_uv`), ``s_c`` the cell
 centres and ``A_c`` their areas [sr]: a type-3 NUFFT (ducc0), planned once for fixed baselines.
 The sum is the exact transform of the gridded model (points of flux ``P_c A_c``), which is a
 valid sky brightness in its own right, and approximates the continuous field by the midpoint
@@ -17,7 +17,7 @@ azimuthal sums are exact for band-limited fields (periodic trapezoid rule). In r
 midpoint rule errs by at most ``~ (pi q dr)^2 / 24`` (0.4 % at the longest baseline for the
 default ``cell_factor = 10``) and is far better for smooth fields that vanish before the grid's
 edge: against order-m Hankel transforms of such fields, 3e-8 relative RMS (the NUFFT's accuracy;
-``tests/asymmetries/test_grid.py``).
+``tests/alternatives/test_grid.py``).
 
 :meth:`FieldTransform.gradient_map` is the adjoint: the map ``g_c`` with
 ``d/dP_c Re sum_k y_k* ΔV_k = g_c``, which turns the gradient of χ² with respect to every cell

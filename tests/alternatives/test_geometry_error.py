@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from spiralbayes.asymmetries import HankelTable, geometry_visibilities, offset_geometry
+from spiralbayes.alternatives import HankelTable, geometry_visibilities, offset_geometry
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.geometry import DiscGeometry
-from tests.asymmetries.test_fields import ring_profile
+from tests.alternatives.test_fields import ring_profile
 
 GEOMETRY = DiscGeometry(inc=35.0, PA=70.0, dRA=0.004, dDec=-0.002)
 

@@ -1,4 +1,4 @@
-"""Image-space baselines: the statistics on synthetic images (always), tclean on simulated data (``casa``)."""
+"""Image-plane comparisons: the statistics on synthetic images (always), tclean on simulated data (``casa``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from spiralbayes.baselines import (
+from spiralbayes.image_plane import (
     CleanImage,
     default_clean_grid,
     gap_depth,
@@ -148,7 +148,7 @@ def casa():
 @pytest.mark.casa
 def test_clean_image_of_a_point_source(casa, tmp_path):
     """tclean puts 10 mJy 0.1" east; its natural beam matches the package's PSF fit."""
-    from spiralbayes.baselines import clean_image
+    from spiralbayes.image_plane import clean_image
     from spiralbayes.simulate import fit_beam, observe, uv_coverage
     from spiralbayes.units import ARCSEC
 
@@ -171,7 +171,7 @@ def test_clean_image_of_a_point_source(casa, tmp_path):
 def test_clean_residuals_of_an_axisymmetric_disc_show_nothing(casa, tmp_path):
     """Data = the axisymmetric model's own visibilities + noise: no residual detection and no gap."""
     from spiralbayes.axisymmetric import AxisymmetricModel
-    from spiralbayes.baselines import clean_residuals
+    from spiralbayes.image_plane import clean_residuals
     from spiralbayes.simulate import DiscModel, observe, preset_coverage
 
     disc = DiscModel(tau_ref=3.0)

@@ -2,9 +2,9 @@
 
 Stevenson et al. (2024, sec. 5) name what besides a planet's spiral can improve on an
 axisymmetric fit: arcs and vortices, lopsided or eccentric discs, and geometry errors (the last
-is :mod:`spiralbayes.asymmetries.geometry_error`). Each model here is a perturbation
+is :mod:`spiralbayes.alternatives.geometry_error`). Each model here is a perturbation
 ``P(r, phi)`` [Jy/sr] of the axisymmetric profile ``I_A(r)`` with a few parameters, evaluated
-on a :class:`~spiralbayes.asymmetries.grid.DiscGrid`; like the spiral templates (whose ``delta``
+on a :class:`~spiralbayes.alternatives.grid.DiscGrid`; like the spiral templates (whose ``delta``
 has zero azimuthal mean by construction) every field has its mean over azimuth removed on each
 ring, because frank's profile already holds the axisymmetric part of the data.
 
@@ -35,7 +35,7 @@ Models (``r`` and radii in arcsec, angles in rad, ``phi`` the disc azimuth of
     ``atan(1 / |kappa|)``). Parameters ``(c_c, c_s, r_c, sigma_r, kappa)``.
 
 Each model gives ``field(theta)`` and its Jacobian ``d field / d theta`` in closed form
-(``tests/asymmetries/test_fields.py`` checks them against finite differences), so that the
+(``tests/alternatives/test_fields.py`` checks them against finite differences), so that the
 maximum-likelihood fits (:mod:`spiralbayes.inference.detection.alternatives`) get exact gradients from one
 adjoint transform.
 """

@@ -127,7 +127,7 @@ class AxisymmetricTable:
         return np.take(self.values, i) + t * np.take(self.slopes, i)
 
     def max_error(self, axisymmetric, n: int = 20000, seed: int = 0) -> float:
-        """Largest |table - exact| at ``n`` random q, relative to the peak |V_A|."""
+        """Largest ``|table - exact|`` at ``n`` random q, relative to the peak ``|V_A|``."""
         q = np.random.default_rng(seed).uniform(0, self.q_max, n)
         exact = _face_on_curve(axisymmetric, q)
         return float(np.max(np.abs(self(q) - exact)) / np.max(np.abs(self.values)))

@@ -7,9 +7,9 @@ profile ``I_A`` unchanged, seen under ``(inc + d_inc, PA + d_PA, dRA + d_dRA, dD
     V(u, v) = cos i' · H(q') · exp(2 pi i (u dRA' + v dDec')),
 
 with ``q'`` the baseline deprojected with the new geometry and ``H`` the profile's face-on
-Hankel transform (frank's, :meth:`AxisymmetricModel.visibilities`). ``H`` is tabulated once on a
+Hankel transform (frank's, :meth:`.AxisymmetricModel.visibilities`). ``H`` is tabulated once on a
 grid of ``points_per_period`` points per ``1 / r_max`` in ``q`` and interpolated with a cubic
-spline (relative error ~1e-7, measured in ``tests/asymmetries/test_geometry_error.py``), so one
+spline (relative error ~1e-7, measured in ``tests/alternatives/test_geometry_error.py``), so one
 evaluation at 36k baselines costs about a millisecond; the Jacobian with respect to the four
 offsets is analytic (``dq'/d inc = -u_r^2 sin i cos i / q'``, ``dq'/d PA = u_r v_r sin^2 i / q'``
 with ``(u_r, v_r)`` the PA-rotated baselines).

@@ -1,4 +1,4 @@
-"""Image-space baselines: CLEAN residuals and gap depth, the methods the visibility scan is compared with.
+"""Image-plane comparisons: CLEAN residuals and gap depth, the methods the visibility scan is compared with.
 
 Stevenson et al. (2024, sec. 3.3, Figs 7 and 12) compare their visibility-space search with what
 an observer does in the image plane: CLEAN the data, remove the axisymmetric (frank) model

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from spiralbayes.asymmetries import DiscGrid, FieldTransform, field_visibilities_dft, remove_ring_mean
+from spiralbayes.alternatives import DiscGrid, FieldTransform, field_visibilities_dft, remove_ring_mean
 from spiralbayes.exceptions import InputError
 from spiralbayes.geometry import DiscGeometry
 from spiralbayes.units import ARCSEC

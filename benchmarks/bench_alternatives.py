@@ -11,8 +11,8 @@ a planet behind a 10 mas error, then the geometry follow-up), fits frank at the 
 scans the 1 M_th tau0 = 3 beta = 10 pair (25 x 90), fits the alternatives and prints a Markdown
 table of the verdicts.
 
-    python benchmarks/bench_asymmetries.py            # timing only (a few minutes)
-    python benchmarks/bench_asymmetries.py --table    # also the outcomes (~10 min more)
+    python benchmarks/bench_alternatives.py            # timing only (a few minutes)
+    python benchmarks/bench_alternatives.py --table    # also the outcomes (~10 min more)
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 
 from spiralbayes import DiscGeometry, detect, fit_alternatives, fit_axisymmetric, scan
-from spiralbayes.inference.detection.refit import rescan_at_fitted_geometry
+from spiralbayes.inference.detection.follow_up import rescan_at_fitted_geometry
 from spiralbayes.simulate import DiscModel, eccentric_ring, lopsided_disc, simulate_observation, vortex_arc
 from spiralbayes.templates import default_bank, make_template
 

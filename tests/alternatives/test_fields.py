@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from spiralbayes.asymmetries import FIELD_MODELS, DiscGrid, ProfileContext
+from spiralbayes.alternatives import FIELD_MODELS, DiscGrid, ProfileContext
 
 GRID = DiscGrid(0.8, 80, 128)
 

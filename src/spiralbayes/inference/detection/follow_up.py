@@ -6,7 +6,7 @@ planet itself is never reported (Stevenson et al. 2024, App. A; issues 13 and 15
 alternative of test 3 measures the error; :func:`rescan_at_fitted_geometry` takes its geometry,
 refits the axisymmetric profile there with the same frank hyperparameters, rescans the same
 templates and grid, refits the alternatives and returns the new verdict
-(``tests/inference/test_refit.py`` checks that the planet is then detected).
+(``tests/inference/detection/test_scenarios.py`` checks that the planet is then detected).
 """
 
 from __future__ import annotations

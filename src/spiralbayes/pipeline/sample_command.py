@@ -1,0 +1,89 @@
+"""``spiralbayes sample``: the posterior from a configuration, with its summary and figures."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from .._provenance import check_output_name, to_json
+from ..axisymmetric import AxisymmetricModel
+from ..config import describe_config
+from ..inference.posterior.priors import DEFAULT_WIDTHS, Priors
+from ..inference.posterior.results import PosteriorResult
+from ..inference.posterior.sampler import sample_posterior
+from ..inference.posterior.settings import SamplingSettings
+from ..plotting.posterior import plot_corner, plot_hypotheses, plot_template_probabilities
+from ..settings import from_config
+from .reuse import reusable_axisymmetric, reusable_scan
+from .inputs import _geometry, load_axisymmetric, load_data, load_templates
+from .outputs import _save_figure, _write_text
+
+__all__ = ["run_sample_config"]
+
+log = logging.getLogger(__name__)
+
+
+def _priors(config: dict, axisym: AxisymmetricModel) -> Priors:
+    p = config["priors"]
+    widths = {name: p[f"{name}_sigma"] for name in DEFAULT_WIDTHS}
+    r_p = None
+    if p["r_p_min"] or p["r_p_max"]:
+        default = Priors.default(axisym, widths=widths).r_p
+        r_p = (p["r_p_min"] or default[0], p["r_p_max"] or default[1])
+    return Priors.default(axisym, r_p=r_p, widths=widths, amplitude_max=p["amplitude_max"] or None)
+
+
+def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult:
+    """Run :func:`~spiralbayes.inference.posterior.sampler.sample_posterior` from a merged configuration.
+
+    The axisymmetric model is ``[frank] model``, else ``OUTPUT/axisymmetric.h5`` written by a scan
+    of the same configuration, else a new frank fit; the scan (walker starts, template pruning) is
+    ``[sample] scan``, else ``OUTPUT/scan.h5`` when present. Saved files are reused only when
+    made from these data, geometry and frank settings (:mod:`.reuse`); otherwise the run is refused
+    before any sampling, naming what differs. Writes, in ``[output] dir``:
+    ``chains/<run_name>.h5`` (the chains), ``<run_name>_posterior.h5`` (the result),
+    ``<run_name>_summary.json`` (with the verdict: P(planet | data), the Bayes factor),
+    ``<run_name>_corner.png`` (r_p in au at ``[geometry] distance``), ``<run_name>_hypotheses.png``,
+    ``<run_name>_templates.png`` and ``<run_name>_config.toml`` (the configuration used).
+    """
+    out_dir = Path(config["output"]["dir"])
+    out_dir.mkdir(parents=True, exist_ok=True)
+    s = config["sample"]
+    run_name = check_output_name(s["run_name"], "sample.run_name")
+    vis = load_data(config["data"], _geometry(config))
+    scanned = out_dir / "axisymmetric.h5"
+    if not config["frank"]["model"] and scanned.exists():
+        axisym = reusable_axisymmetric(scanned, vis, config)
+    else:
+        axisym = load_axisymmetric(config, vis, progress=progress)
+    templates = load_templates(config["templates"])
+    scan_path = s["scan"] or (out_dir / "scan.h5" if (out_dir / "scan.h5").exists() else "")
+    scan_result = reusable_scan(scan_path, vis, axisym) if scan_path else None
+    _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))
+    sampling = from_config(SamplingSettings, s, run_name=run_name)
+    result = sample_posterior(vis, axisym, templates, scan=scan_result, priors=_priors(config, axisym),
+                              settings=sampling, chains_dir=out_dir / "chains", progress=progress)
+    result.save(out_dir / f"{run_name}_posterior.h5")
+    summary = {**result.to_dict(), "summary": _summary_with_units(result.percentiles())}
+    _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))
+    _save_figure(plot_corner(result, distance=config["geometry"]["distance"]), out_dir / f"{run_name}_corner.png")
+    _save_figure(plot_hypotheses(result), out_dir / f"{run_name}_hypotheses.png")
+    _save_figure(plot_template_probabilities(result), out_dir / f"{run_name}_templates.png")
+    return result
+
+
+_SUMMARY_UNITS = {"r_p": ("r_p_arcsec", 1.0), "phi_p": ("phi_p_deg", 180.0 / np.pi), "A": ("A", 1.0),
+                  "inc": ("inc_deg", 1.0), "PA": ("PA_deg", 1.0), "dRA": ("dRA_arcsec", 1.0),
+                  "dDec": ("dDec_arcsec", 1.0)}
+
+
+def _summary_with_units(stats: dict) -> dict:
+    """The posterior statistics with the unit in each key and phi_p in degrees (as the text reports it)."""
+    out = {}
+    for name, values in stats.items():
+        key, scale = _SUMMARY_UNITS.get(name, (name, 1.0))
+        out[key] = {k: v * scale if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+                    for k, v in values.items()} if isinstance(values, dict) else values
+    return out

@@ -1,0 +1,134 @@
+"""``spiralbayes scan``: the scan, test 3 and the geometry follow-up from a configuration."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from ..config import describe_config
+from ..exceptions import InputError
+from ..inference.detection.alternatives import fit_alternatives
+from ..inference.detection.settings import AlternativesSettings
+from ..inference.detection.follow_up import GeometryFollowUp, rescan_at_fitted_geometry
+from ..inference.detection.verdict import DELTA_BIC_THRESHOLD, detect
+from ..inference.scan.run import ScanResult, scan
+from ..settings import from_config
+from .inputs import _geometry, load_axisymmetric, load_data, load_templates
+from .outputs import _write_text, write_scan_outputs
+
+__all__ = ["ScanRun", "check_dask_address", "run_scan", "run_scan_config"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ScanRun:
+    """What :func:`run_scan` produced: the verdict, scan, alternatives, geometry follow-up, files."""
+
+    verdict: object
+    scan: object
+    alternatives: object
+    follow_up: GeometryFollowUp | None
+    files: list
+
+
+def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool = False):
+    """Run a scan described by a merged configuration (:func:`spiralbayes.config.load_config`).
+
+    Returns ``(verdict, scan, files)`` of the scan at the configured geometry; :func:`run_scan`
+    (which this calls) also returns the alternatives and the geometry follow-up.
+    """
+    run = run_scan(config, progress=progress, force_resume=force_resume)
+    return run.verdict, run.scan, run.files
+
+
+def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False) -> ScanRun:
+    """The scan of a configuration, the alternatives of test 3, the verdict and, when needed, the follow-up.
+
+    A checkpoint left in ``[output] dir`` is checked for integrity before anything slow runs,
+    and resumed only if it was written for the same inputs (``force_resume`` overrides; see
+    :func:`~spiralbayes.inference.scan.run.scan`). Writes the scan's outputs to ``[output] dir``
+    (:func:`write_scan_outputs`). With ``[alternatives] refit_geometry`` on, no detection and the
+    geometry alternative significant (ΔBIC > 10), frank is refitted at the fitted geometry and the
+    scan, alternatives and verdict are repeated there
+    (:func:`~spiralbayes.inference.detection.follow_up.rescan_at_fitted_geometry`), with their outputs and
+    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
+    """
+    out_dir = Path(config["output"]["dir"])
+    s = config["scan"]
+    checkpoint = out_dir / "scan_checkpoint.h5" if s["checkpoint"] else None
+    if checkpoint is not None and checkpoint.exists():
+        ScanResult.load(checkpoint)  # a truncated or foreign file fails now, not after the frank fit
+    check_dask_address(s["dask"])
+    vis = load_data(config["data"], _geometry(config))
+    axisym = load_axisymmetric(config, vis, progress=progress)
+    templates = load_templates(config["templates"])
+    grid = config["grid"]
+    r_p = np.linspace(grid["r_p_min"], grid["r_p_max"], grid["n_r_p"])
+    out_dir.mkdir(parents=True, exist_ok=True)
+    amplitude = "free" if s["amplitude"] == "free" else None
+    result = scan(vis, axisym, templates, axisym.geometry, r_p=r_p, n_phi_p=grid["n_phi_p"],
+                  distance=config["geometry"]["distance"], checkpoint=checkpoint, client=s["dask"] or None,
+                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume,
+                  rule=s["quadrature"], power_path=s["power_path"])
+    a = config["alternatives"]
+    alt_kwargs = {"settings": from_config(AlternativesSettings, a, nthreads=s["nthreads"]), "progress": progress}
+    alts = fit_alternatives(vis, axisym, axisym.geometry, **alt_kwargs) if a["fit"] else None
+    detect_kwargs = {"alternative_threshold": a["threshold"]}
+    verdict = detect(result, amplitude, alternatives=alts, **detect_kwargs)
+    plots = config["output"]["plots"]
+    files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
+                               axisymmetric=axisym, templates=templates)
+    files.append(axisym.save(out_dir / "axisymmetric.h5"))
+    forced = result.provenance.get("forced_resume")
+    note = "" if not forced else ("# FORCED RESUME (--force-resume): the numbers kept from the checkpoint were computed "
+                                  "with other inputs: " + "; ".join(forced["differences"]) + "\n")
+    files.append(_write_text(out_dir / "config_used.toml", note + describe_config(config)))
+    follow = None
+    if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
+        follow = rescan_at_fitted_geometry(vis, axisym, templates, alts, previous_scan=result, amplitude=amplitude,
+                                           nthreads=s["nthreads"], progress=progress, alternative_kwargs=alt_kwargs,
+                                           detect_kwargs=detect_kwargs, client=s["dask"] or None,
+                                           cell_factor=s["cell_factor"])
+        sub = out_dir / "refit_geometry"
+        files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
+                                    vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
+        files.append(follow.axisymmetric.save(sub / "axisymmetric.h5"))
+    return ScanRun(verdict, result, alts, follow, files)
+
+
+DASK_CONNECT_TIMEOUT_S = 3.0
+
+
+def check_dask_address(address: str, timeout: float = DASK_CONNECT_TIMEOUT_S) -> None:
+    """Refuse an unreachable Dask scheduler before anything slow runs (frank, the scan set-up).
+
+    ``""`` (serial) and ``"local"`` (a LocalCluster) need no check; ``tcp://host:port`` (or
+    ``host:port``) must accept a TCP connection within ``timeout`` seconds.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    if not address or address == "local":
+        return
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    try:
+        host, port = parts.hostname, parts.port or 8786
+    except ValueError:
+        raise InputError(f"scan.dask = {address!r} is not a scheduler address (tcp://host:8786, 'local' or "
+                         "empty)") from None
+    if not host:
+        raise InputError(f"scan.dask = {address!r} is not a scheduler address (tcp://host:8786, 'local' or empty)")
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise InputError(f"scan.dask = {address!r}: no Dask scheduler answers at {host}:{port} within {timeout:g} s "
+                         f"({exc.__class__.__name__}); start one (dask scheduler), use 'local', or leave it empty "
+                         "for a serial scan") from None
+
+
+def _geometry_error_significant(alternatives) -> bool:
+    return "geometry" in alternatives.fits and alternatives.delta_bic()["geometry"] > DELTA_BIC_THRESHOLD

@@ -1,0 +1,102 @@
+"""Settings dataclasses: each option's default and description written once, for code and TOML alike.
+
+A stage's options (sampling, limits, alternatives, the scan) are the fields of a frozen
+dataclass. Each field carries its description (with units) in its metadata; the configuration
+schema (:data:`spiralbayes.config.SCHEMA`) is generated from these fields, so a default changed
+here changes ``--print-config``, the TOML defaults and the function's default together.
+
+TOML has no ``None``: a field whose default is ``None`` (meaning "automatic") states the value
+that spells it in the file (``toml=0``, ``toml=[]``); :func:`from_config` maps it back.
+
+A public function takes ``settings=`` and the few arguments a notebook user changes; its old
+keyword arguments still work as ``**overrides`` (:func:`with_overrides`)::
+
+    sample_posterior(vis, disc, bank, settings=SamplingSettings(n_walkers=48), n_steps=2000)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+__all__ = ["config_options", "from_config", "option", "with_overrides"]
+
+_NO_TOML = object()
+
+
+def option(default, doc: str, *, toml=_NO_TOML, config: bool = True):
+    """A dataclass field with its description.
+
+    Parameters
+    ----------
+    default : object
+        The default (immutable: a tuple rather than a list).
+    doc : str
+        One line with the unit and what the value does; shown by ``--print-config``.
+    toml : object, optional
+        How the TOML file spells a ``None`` default (e.g. ``0`` for "automatic").
+    config : bool
+        Whether the option appears in the configuration file (False: code only, e.g. a pool).
+    """
+    metadata = {"doc": doc, "config": config}
+    if toml is not _NO_TOML:
+        metadata["toml"] = toml
+    return dataclasses.field(default=default, metadata=metadata)
+
+
+def _toml_default(f: dataclasses.Field):
+    value = f.metadata["toml"] if "toml" in f.metadata else f.default
+    return list(value) if isinstance(value, tuple) else value
+
+
+def config_options(cls, names=None) -> dict[str, tuple[object, str]]:
+    """``{key: (TOML default, description)}`` of the configuration fields of a settings class.
+
+    Parameters
+    ----------
+    cls : type
+        A settings dataclass whose fields were made with :func:`option`.
+    names : iterable of str, optional
+        Only these fields, in this order (default: every configuration field, in field order).
+    """
+    by_name = {f.name: f for f in dataclasses.fields(cls) if f.metadata.get("config")}
+    keys = list(by_name) if names is None else list(names)
+    return {key: (_toml_default(by_name[key]), by_name[key].metadata["doc"]) for key in keys}
+
+
+def from_config(cls, section: dict, **extra):
+    """A settings object from a configuration section (keys that are not fields are ignored).
+
+    TOML spellings of ``None`` defaults (``toml=`` of :func:`option`) become ``None`` and lists
+    become tuples; ``extra`` sets fields the section does not hold (e.g. a thread count).
+    """
+    values = {}
+    for f in dataclasses.fields(cls):
+        if f.name not in section:
+            continue
+        value = section[f.name]
+        if "toml" in f.metadata and value == f.metadata["toml"]:
+            value = None
+        values[f.name] = tuple(value) if isinstance(value, list) else value
+    return cls(**{**values, **extra})
+
+
+def with_overrides(settings, cls, overrides: dict, where: str):
+    """``settings`` (default ``cls()``) with the keyword arguments ``overrides`` applied.
+
+    Raises
+    ------
+    TypeError
+        ``settings`` is not a ``cls``, or an override names no field of it (the message lists them).
+    """
+    if settings is None:
+        settings = cls()
+    elif not isinstance(settings, cls):
+        raise TypeError(f"{where}: settings must be a {cls.__name__}, got {type(settings).__name__}")
+    if not overrides:
+        return settings
+    names = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(overrides) - set(names))
+    if unknown:
+        raise TypeError(f"{where}() got unknown keyword argument(s) {unknown}; the {cls.__name__} options are "
+                        f"{names}")
+    return dataclasses.replace(settings, **overrides)
