@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # tests.templates.fidelity (beam smoothing)
 import fargo3d_library_cases as lib  # noqa: E402
 import make_fargo3d_references as ref3  # noqa: E402  (remap, steadiness, outputs_available)
 import reference_common as rc  # noqa: E402
@@ -131,6 +132,37 @@ def relaxation_test(runs_dir: Path) -> dict | str:
     return res
 
 
+def equal_time_check(case: lib.Case, runs_dir: Path, n: int, x, phi, valid, dsigma) -> dict | None:
+    """A numerical check run against the library set-up it repeats, at the same output (orbit).
+
+    For the resolution check (``res14``) the 7-cells-per-H run of the same planet may be a library
+    case or the longer run that starts identically (``orbits200``); whichever holds output ``n``
+    is reduced at ``n`` onto the same grid, and the raw and beam-smoothed δ maps (τ0 = 0.3) are
+    compared: RMS ratio (this case / the library set-up) and normalised cross-correlation.
+    """
+    from spiralbayes.templates import SpiralTemplate
+    from tests.templates.fidelity import smoothed_image
+
+    same = [c for c in lib.CASES if c is not case and c.role in ("library", "orbits200") and
+            (c.mu, c.h_p, c.beta, c.stokes, c.softening) == (case.mu, case.h_p, case.beta, case.stokes, case.softening)]
+    base = next((c for c in same if (runs_dir / c.name / f"gasdens{n}.dat").exists()), None)
+    if base is None:
+        return None
+    ref = reduce_output(runs_dir / base.name, n, x, phi, valid)["dsigma"]
+    sig = x**-rc.SIGMA_SLOPE
+    maps = [np.zeros((x.size, phi.size)) for _ in range(2)]
+    for m, d in zip(maps, (ref, dsigma)):
+        m[valid] = brightness(x[valid], phi, d[valid], sig[valid], case.h_p, 0.3, None)
+    a, b = maps[0][valid], maps[1][valid]
+    sa, sb = (smoothed_image(SpiralTemplate(x=x, phi=phi, delta=m, mass=case.mu, tau0=0.3, beta=case.beta,
+                                            h_p=case.h_p), 0.3) for m in maps)
+    ncc = lambda u, v: float(np.sum(u * v) / np.sqrt(np.sum(u * u) * np.sum(v * v)))  # noqa: E731
+    return {"against": f"{base.name} output {n} ({base.cells_per_h:g} cells per H)", "tau0": 0.3,
+            "raw_rms_ratio": round(float(np.sqrt(np.mean(b**2) / np.mean(a**2))), 4), "raw_ncc": round(ncc(a, b), 4),
+            "beam_rms_ratio": round(float(np.sqrt(np.sum(sb**2) / np.sum(sa**2))), 4),
+            "beam_ncc": round(ncc(sa, sb), 4)}
+
+
 def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
     """The reduced record of one case, or None if it has fewer than ``min_output`` outputs."""
     run = runs_dir / case.name
@@ -170,6 +202,10 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
         datasets["dsigma_gas"] = _quantise(gas["dsigma"])
         extra["dust_over_gas_arm_rms"] = round(arm_rms(d, x, valid) / arm_rms(gas["dsigma"], x, valid), 4)
         extra["diagnostics_gas"] = rc.diagnostics(x, phi, gas["dsigma"], case.h_p, valid)
+    if case.role == "res14":
+        check = equal_time_check(case, runs_dir, n, x, phi, valid, d)
+        if check is not None:
+            extra["equal_time_check"] = check
     reader = reader_check(run, n, fluid, x, phi, datasets["delta_tau0.3"], valid, beta)
     timing = run_timing(runs_dir, case)
     orbits = main["t"] / lib.TWO_PI

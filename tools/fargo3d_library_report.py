@@ -122,7 +122,9 @@ def main() -> None:
             print("-", line)
         for g in groups:  # numerical checks and longer runs against the library case they repeat
             base = next((b for b in groups if g.startswith(b + "_") and f[g].attrs["variant"] in CHECK_ROLES), None)
-            if base is not None:
+            if base is not None and "equal_time_check" in f[g].attrs:  # a check run stopped early
+                print(f"- {g}, at equal time: {f[g].attrs['equal_time_check']}")
+            elif base is not None:
                 print(f"- {g} vs {base}: {json.dumps({k: round(v, 3) for k, v in compare(f, base, g).items()})}"
                       + (f"; gap {gap_depth(f, base):.3f} -> {gap_depth(f, g):.3f}" if "orbits" in g else ""))
         for g in groups:

@@ -19,7 +19,7 @@ observation, 50 au, 30° inclination: ``tests/templates/variant_fit.py``) to the
 in each variant's ``fitted_to``, with the two powers chosen on a grid, then shrunk by one factor so
 that the variant's amplitude fit to each of those maps is at least ``1 / margin`` (a variant that
 carries less power than the spiral it stands for cannot exclude it). **Hydrodynamics is the
-reference** (issue 22): ``hydro`` is fitted to every finished FARGO3D reference run (the two runs of
+reference** (docs/limits.md §4d): ``hydro`` is fitted to every finished FARGO3D reference run (the two runs of
 ``fargo3d_isothermal.h5`` and the library's ``role = library`` runs: isothermal gas at H/r 0.07 and
 0.10, β = 10 against the β = 10 generator, gas + dust), at every τ0 they were reduced for; wakeflow
 is a second witness with its own variant. The references are ``tests/data/references/``
