@@ -13,6 +13,7 @@ from .verdict import (
     detect,
     handedness_ratio,
     localisation,
+    mass_range,
     mirror_index,
     one_sidedness,
 )
@@ -26,11 +27,12 @@ from .alternatives import (
 )
 from .refit import GeometryFollowUp, frank_settings, rescan_at_fitted_geometry
 
-from .planet_peak import COMPACT_ALTERNATIVES, apply_planet_peak, spiral_with_planet_peak
+from .planet_peak import COMPACT_ALTERNATIVES, apply_planet_peak, detect_with_planet_peak, spiral_with_planet_peak
 
 __all__ = [
     "spiral_with_planet_peak",
     "apply_planet_peak",
+    "detect_with_planet_peak",
     "COMPACT_ALTERNATIVES",
     "ALTERNATIVES_KIND",
     "AlternativeFit",
@@ -46,6 +48,7 @@ __all__ = [
     "handedness_ratio",
     "linear_amplitudes",
     "localisation",
+    "mass_range",
     "mirror_index",
     "one_sidedness",
     "rescan_at_fitted_geometry",
