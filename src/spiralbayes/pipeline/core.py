@@ -22,8 +22,9 @@ from ..config import describe_config, geometry_given
 from ..exceptions import ConfigError, InputError
 from ..geometry import DiscGeometry
 from ..inference.detection.alternatives import fit_alternatives
+from ..inference.detection.planet_peak import detect_with_planet_peak
 from ..inference.detection.refit import GeometryFollowUp, rescan_at_fitted_geometry
-from ..inference.detection.verdict import DELTA_BIC_THRESHOLD, detect, mirror_index
+from ..inference.detection.verdict import DELTA_BIC_THRESHOLD, mirror_index
 from ..inference.posterior.priors import DEFAULT_WIDTHS, Priors
 from ..inference.posterior.results import PosteriorResult
 from ..inference.posterior.sampler import sample_posterior
@@ -193,7 +194,7 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
         t3 = time.perf_counter()
         alts = fit_alternatives(vis, axisym, geometry, progress=progress)
         timings["alternatives_s"] = time.perf_counter() - t3
-    verdict = detect(result, alternatives=alts)
+    verdict = detect_with_planet_peak(result, vis, axisym, templates, geometry, alternatives=alts)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = write_scan_outputs(result, verdict, out_dir, alternatives=alts, vis=vis, axisymmetric=axisym,
                                templates=templates)
@@ -298,8 +299,9 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     alt_kwargs = {"models": a["models"] or None, "n_starts": a["n_starts"], "nthreads": s["nthreads"],
                   "progress": progress}
     alts = fit_alternatives(vis, axisym, axisym.geometry, **alt_kwargs) if a["fit"] else None
-    detect_kwargs = {"alternative_threshold": a["threshold"]}
-    verdict = detect(result, amplitude, alternatives=alts, **detect_kwargs)
+    detect_kwargs = {"alternative_threshold": a["threshold"], "mstar": config["limits"]["mstar"]}
+    verdict = detect_with_planet_peak(result, vis, axisym, templates, axisym.geometry, amplitude, alternatives=alts,
+                                      **detect_kwargs)
     plots = config["output"]["plots"]
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
                                axisymmetric=axisym, templates=templates)
