@@ -22,6 +22,8 @@ KNOWN_FAILURES = {
     ("fargo3dlib:h0.07_mu3", 3.0): "detected, phi_p 8 deg off (two azimuth steps)",
     ("wakeflow:h0.05_mu1", 0.3): "test 3 margin 5.5 against the arc (spiral + compact peak), below 10",
     ("fargo3dlib:h0.07_mu1", 0.3): "bank best Delta BIC -2 against the own map's 43",
+    ("fargo3dlib:h0.07_mu1_st0.03", 0.3): "bank best Delta BIC -22 against the own map's 137",
+    ("fargo3d:h0.07_mu1", 0.3): "bank best Delta BIC -33 against the own map's 63",
 }
 """Cases that fail the acceptance as measured, with why (non-strict: a refit of the variants may fix them)."""
 
