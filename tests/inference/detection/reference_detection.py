@@ -183,7 +183,7 @@ def format_table(rows) -> str:
         margin = "-" if r["test3_margin"] is None else f"{r['test3_margin']:.0f} ({r['best_alternative']})"
         if r["test3_spiral_model"] == "spiral + compact peak at the planet":
             margin += " +peak"
-        mr = "-" if r["mass_range_mth"] is None else "–".join(f"{m:g}" for m in r["mass_range_mth"])
+        mr = "-" if r["mass_range_mth"] is None else "–".join(sorted({f"{m:g}" for m in r["mass_range_mth"]}, key=float))
         if r["detected"]:
             verdict = "detected" + ("" if accepted(r) or not required(r) else " (misplaced)")
         else:

@@ -24,6 +24,7 @@ KNOWN_FAILURES = {
     ("fargo3dlib:h0.07_mu1", 0.3): "bank best Delta BIC -2 against the own map's 43",
     ("fargo3dlib:h0.07_mu1_st0.03", 0.3): "bank best Delta BIC -22 against the own map's 137",
     ("fargo3d:h0.07_mu1", 0.3): "bank best Delta BIC -33 against the own map's 63",
+    ("wakeflow:h0.10_mu0.3", 0.3): "bank best Delta BIC 9 against the own map's 32 (test 1 fails)",
 }
 """Cases that fail the acceptance as measured, with why (non-strict: a refit of the variants may fix them)."""
 
