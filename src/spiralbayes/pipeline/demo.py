@@ -12,7 +12,7 @@ from .._provenance import check_output_name
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..geometry import DiscGeometry
 from ..inference.detection.alternatives import fit_alternatives
-from ..inference.detection.verdict import detect
+from ..inference.detection.planet_peak import detect_with_planet_peak
 from ..inference.scan.run import scan
 from ..plotting.axisymmetric import plot_binned_visibilities, plot_profile
 from ..simulate import DiscModel, simulate_observation
@@ -83,7 +83,7 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
         t3 = time.perf_counter()
         alts = fit_alternatives(vis, axisym, geometry, progress=progress)
         timings["alternatives_s"] = time.perf_counter() - t3
-    verdict = detect(result, alternatives=alts)
+    verdict = detect_with_planet_peak(result, vis, axisym, templates, geometry, alternatives=alts)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = write_scan_outputs(result, verdict, out_dir, alternatives=alts, vis=vis, axisymmetric=axisym,
                                templates=templates)

@@ -78,9 +78,13 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
     files.append(_write_text(out_dir / "table3.md", table))
     files.append(_write_text(out_dir / "table3.csv", table_csv(limits, comps[0] if len(comps) == 1 else None,
                                                                  name=name, thresholds=thresholds)))
+    several = len(limits.families) > 1  # then the first line is the limit that holds for every family
     files.append(_write_text(out_dir / "limits_summary.txt",
-                             "\n".join(limits.summary(f) for f in limits.families) + "\n"))
+                             "\n".join(([limits.summary()] if several else [])
+                                       + [limits.summary(f) for f in limits.families]) + "\n"))
     if plots:
+        if several:
+            files.append(save_figure(plot_mass_radius(limits), out_dir / "mass_radius_all_families.png"))
         for fam in limits.families:
             slug = _slug(fam.label)
             files.append(save_figure(plot_excluded_fraction(limits, fam), out_dir / f"excluded_fraction_{slug}.png"))

@@ -12,7 +12,8 @@ from ..exceptions import InputError
 from ..inference.detection.alternatives import fit_alternatives
 from ..inference.detection.settings import AlternativesSettings
 from ..inference.detection.follow_up import GeometryFollowUp, rescan_at_fitted_geometry
-from ..inference.detection.verdict import DELTA_BIC_THRESHOLD, detect
+from ..inference.detection.planet_peak import detect_with_planet_peak
+from ..inference.detection.verdict import DELTA_BIC_THRESHOLD
 from ..inference.scan.run import ScanResult, scan
 from ..settings import from_config
 from .inputs import _geometry, load_axisymmetric, load_data, load_templates
@@ -76,8 +77,9 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     a = config["alternatives"]
     alt_kwargs = {"settings": from_config(AlternativesSettings, a, nthreads=s["nthreads"]), "progress": progress}
     alts = fit_alternatives(vis, axisym, axisym.geometry, **alt_kwargs) if a["fit"] else None
-    detect_kwargs = {"alternative_threshold": a["threshold"]}
-    verdict = detect(result, amplitude, alternatives=alts, **detect_kwargs)
+    detect_kwargs = {"alternative_threshold": a["threshold"], "mstar": config["limits"]["mstar"]}
+    verdict = detect_with_planet_peak(result, vis, axisym, templates, axisym.geometry, amplitude, alternatives=alts,
+                                      **detect_kwargs)
     plots = config["output"]["plots"]
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
                                axisymmetric=axisym, templates=templates)

@@ -272,8 +272,8 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
     """Assemble the scan, decide (tests 1-3), write the scan's outputs as ``spiralbayes scan`` does."""
     if setup.finished:
         return json.loads((job.out_dir / "verdict.json").read_text())
-    from ..inference.detection import detect
     from ..inference.detection.follow_up import rescan_at_fitted_geometry
+    from ..inference.detection.planet_peak import detect_with_planet_peak
     from ..inference.scan.accuracy import warn_if_inaccurate
     from .outputs import _write_text, write_scan_outputs
     from .scan_command import _geometry_error_significant
@@ -290,8 +290,9 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
         result.save(out / "scan_checkpoint.h5")
     warn_if_inaccurate(result)
     amplitude = "free" if s["amplitude"] == "free" else None
-    detect_kwargs = {"alternative_threshold": a["threshold"]}
-    verdict = detect(result, amplitude, alternatives=alts, **detect_kwargs)
+    detect_kwargs = {"alternative_threshold": a["threshold"], "mstar": config["limits"]["mstar"]}
+    verdict = detect_with_planet_peak(result, prep.vis, axisym, templates, axisym.geometry, amplitude,
+                                      alternatives=alts, **detect_kwargs)
     plots = config["output"]["plots"]
     write_scan_outputs(result, verdict, out, plots, amplitude, alternatives=alts, vis=prep.vis, axisymmetric=axisym,
                        templates=templates)

@@ -142,3 +142,32 @@ def test_radii_within_a_beam_of_a_detected_planet_are_not_excluded(planted_plane
     # far from the planet nothing changes
     np.testing.assert_array_equal(guarded.excluded()[:, ~near], plain.excluded()[:, ~near])
     assert "near_planet" in guarded.flags.tolist()
+
+
+def test_spiralbayes_limits_writes_the_robust_summary_and_plot_on_several_families(tmp_path):
+    """`spiralbayes limits` (pipeline.limits.run_limits) on the default bank's layout: no family= needed;
+    the summary's first line is the limit over every family, then one line per family."""
+    from spiralbayes.pipeline.limits import run_limits
+
+    a_up = {"compromise": (2.0, 0.5, 0.1), "hydro": (2.0, 2.0, 0.5)}
+    scan = multi_family_scan(variants=("compromise", "hydro"), a_up=a_up)
+    run = run_limits(None, None, None, scan, tmp_path, limits_config={"completeness": False, "resolution": 0.05},
+                     distance=140.0, plots=True)
+    lines = (tmp_path / "limits_summary.txt").read_text().splitlines()
+    assert lines[0] == run.limits.summary() and "Over all 6 template families" in lines[0]
+    assert lines[1:] == [run.limits.summary(f) for f in run.limits.families]
+    assert (tmp_path / "mass_radius_all_families.png").stat().st_size > 0
+    single = run_limits(None, None, None, multi_family_scan(h_ps=(0.07,)), tmp_path / "one",
+                        limits_config={"completeness": False, "resolution": 0.05}, distance=140.0, plots=False)
+    assert (tmp_path / "one" / "limits_summary.txt").read_text().splitlines() == [single.limits.summary()]
+
+
+def test_a_familys_own_summary_quotes_jupiter_masses_with_its_own_h_p():
+    """limits.summary(family) on a scan of several H/r: the excluded ranges' M_Jup use that family's h_p
+    (it raised "several h_p" before)."""
+    limits = compute_limits(multi_family_scan())
+    for fam in limits.families:
+        lo, hi = limits.excluded_ranges(fam, 3.0)[0]
+        m = [f"{x:.2g}" for x in mth_to_mjup(3.0, np.array([lo, hi]), 0.8, h_ref=fam.key["h_p"], r_ref=50.0,
+                                              flaring=0.25, distance=140.0)]
+        assert f"({m[0]}-{m[1]} M_Jup)" in limits.summary(fam)

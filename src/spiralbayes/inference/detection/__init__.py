@@ -14,6 +14,7 @@ from .verdict import (
     detect,
     handedness_ratio,
     localisation,
+    mass_range,
     mirror_index,
     one_sidedness,
 )
@@ -28,11 +29,12 @@ from .alternatives import (
 )
 from .follow_up import GeometryFollowUp, frank_settings, rescan_at_fitted_geometry
 
-from .planet_peak import COMPACT_ALTERNATIVES, apply_planet_peak, spiral_with_planet_peak
+from .planet_peak import COMPACT_ALTERNATIVES, apply_planet_peak, detect_with_planet_peak, spiral_with_planet_peak
 
 __all__ = [
     "spiral_with_planet_peak",
     "apply_planet_peak",
+    "detect_with_planet_peak",
     "COMPACT_ALTERNATIVES",
     "ALTERNATIVES_KIND",
     "AlternativeFit",
@@ -49,6 +51,7 @@ __all__ = [
     "handedness_ratio",
     "linear_amplitudes",
     "localisation",
+    "mass_range",
     "mirror_index",
     "one_sidedness",
     "rescan_at_fitted_geometry",

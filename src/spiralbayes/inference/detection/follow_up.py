@@ -20,7 +20,8 @@ from ...axisymmetric import fit_axisymmetric
 from ...axisymmetric.model import DEFAULT_HYPERPARAMETERS
 from ...geometry import DiscGeometry
 from .alternatives import AlternativesResult, fit_alternatives
-from .verdict import Verdict, detect
+from .planet_peak import detect_with_planet_peak
+from .verdict import Verdict
 from ..scan.run import ScanResult, scan
 
 __all__ = ["GeometryFollowUp", "frank_settings", "rescan_at_fitted_geometry"]
@@ -101,5 +102,6 @@ def rescan_at_fitted_geometry(vis, axisymmetric, templates, alternatives: Altern
     if refit_alternatives:
         kwargs = {"nthreads": nthreads, **(alternative_kwargs or {})}
         new_alts = fit_alternatives(vis, new_axisym, geometry, **kwargs)
-    verdict = detect(new_scan, amplitude, alternatives=new_alts, **(detect_kwargs or {}))
+    verdict = detect_with_planet_peak(new_scan, vis, new_axisym, templates, geometry, amplitude, alternatives=new_alts,
+                                      **(detect_kwargs or {}))
     return GeometryFollowUp(geometry, new_axisym, new_scan, new_alts, verdict)

@@ -30,6 +30,13 @@ and local peak area pass test 2 — so that a planet behind a false peak (e.g. f
 error) is not hidden.
 Its ``localisation`` is the area of its own connected region above half its Δχ² (for the global
 peak of a map with one peak this equals the paper's measure above).
+
+The planet's mass is reported as a **range** (:func:`mass_range`, issue 22): no template is the true
+spiral, and templates of other morphology variants and H/r explain a real spiral almost as well as
+the best one, so its single label would claim more than the data say. The range covers every
+template of the best one's hand whose best Δχ² near the best instance is within ``mass_band``
+(ΔBIC 10 by default) of it; in M_Jup each template's mass uses its own ``h_p``
+(``M_th = h_p³ M_*``, Stevenson et al. 2024 eq. 1).
 """
 
 from __future__ import annotations
@@ -42,14 +49,19 @@ import numpy as np
 from ...exceptions import InputError
 from ...results import ResultMixin, fields_dict
 from .settings import AlternativesSettings
+from ...units import M_JUP, M_SUN
 
-__all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "localisation", "mirror_index",
-           "one_sidedness"]
+__all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "localisation", "mass_range",
+           "mirror_index", "one_sidedness"]
 
 DELTA_BIC_THRESHOLD = 10.0
 ALTERNATIVE_THRESHOLD = AlternativesSettings.threshold
 """Test 3: the spiral's BIC must be lower than the best alternative's by more than this."""
 CANDIDATES_PER_TEMPLATE = 5
+MASS_BAND = 10.0
+"""Templates within this ΔBIC of the best (near its position) make the reported mass range."""
+DEFAULT_MSTAR = 0.8
+"""Stellar mass [M_sun] for Jupiter masses when none is given (the config's default, Stevenson et al. 2024)."""
 
 
 def mirror_index(result, template: int) -> int | None:
@@ -175,6 +187,63 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max
     return best
 
 
+def mass_range(result, amplitude=None, *, band: float = MASS_BAND, window: tuple = (2, 3),
+               mstar: float = DEFAULT_MSTAR) -> dict | None:
+    """Planet masses of every template that explains the best instance nearly as well as the best one.
+
+    A template belongs to the range when it has the best template's hand and its largest Δχ² within
+    ``window`` = (radius, azimuth) grid steps of the best instance is at least the best Δχ² minus
+    ``band`` (all templates have the same number of parameters, so this is a ΔBIC band).
+
+    Parameters
+    ----------
+    result : ScanResult
+    amplitude : None or "free"
+    band : float
+        Width of the ΔBIC band.
+    window : (int, int)
+        Half-widths of the neighbourhood in radius and azimuth steps (azimuth periodic): templates
+        of other morphologies peak a step or two apart at the same planet.
+    mstar : float
+        Stellar mass [M_sun] for Jupiter masses.
+
+    Returns
+    -------
+    dict or None
+        ``mth`` [min, max] M_p/M_th; ``mjup`` [min, max] M_Jup (each template's own ``h_p``; None when
+        no member has one); ``band``, ``mstar``; ``members``: name, mass, h_p, variant and ΔBIC below
+        the best of each member. None when the best template has no mass.
+    """
+    if not np.isfinite(band) or band < 0:
+        raise InputError(f"mass band must be a non-negative ΔBIC, got {band!r}")
+    dchi2 = result.delta_chi2(amplitude)
+    best = result.peak(amplitude=amplitude)
+    meta = result.templates[best.template_index]
+    if meta.get("mass") is None:
+        return None
+    n_phi = len(result.phi_p)
+    rows = slice(max(best.i_rp - window[0], 0), best.i_rp + window[0] + 1)
+    cols = [(best.i_phi + d) % n_phi for d in range(-window[1], window[1] + 1)]
+    members = []
+    for t, m in enumerate(result.templates):
+        if m.get("mass") is None or m.get("hand") != meta.get("hand"):
+            continue
+        local = np.nanmax(dchi2[t, rows][:, cols])
+        if local >= best.delta_chi2 - band:
+            h_p = m.get("h_p")
+            mjup = (float(m["mass"]) * float(h_p) ** 3 * mstar * M_SUN / M_JUP
+                    if h_p is not None and np.isfinite(h_p) else None)
+            members.append({"template": m["name"], "mass": float(m["mass"]), "h_p": h_p, "variant": m.get("variant"),
+                            "mjup": mjup, "below_best": float(best.delta_chi2 - local)})
+    masses = [x["mass"] for x in members]
+    mjups = [x["mjup"] for x in members if x["mjup"] is not None]
+    return {"mth": [min(masses), max(masses)], "mjup": [min(mjups), max(mjups)] if mjups else None,
+            "band": float(band), "mstar": float(mstar),
+            "variants": sorted({str(x["variant"] or "compromise") for x in members}),
+            "h_ps": sorted({float(x["h_p"]) for x in members if x["h_p"] is not None}),
+            "members": sorted(members, key=lambda x: x["below_best"])}
+
+
 def _alternatives_summary(alternatives, spiral_delta_bic: float) -> dict:
     """Each alternative's Δχ², ΔBIC against the axisymmetric model and against the best spiral."""
     n = alternatives.n_data
@@ -192,7 +261,10 @@ class Verdict(ResultMixin):
     ``ΔBIC_spiral − ΔBIC_alternative`` (positive favours the spiral); ``alternatives`` holds each
     alternative's Δχ², ΔBIC against the axisymmetric model and the spiral's ΔBIC minus it,
     parameter count and fitted parameters; ``candidate`` the best
-    handed, compact candidate when the global peak fails test 2 (:func:`.best_handed_candidate`).
+    handed, compact candidate when the global peak fails test 2 (:func:`.best_handed_candidate`);
+    ``test3_spiral_model`` which spiral hypothesis test 3 scored ("spiral", or "spiral + compact peak
+    at the planet" from :func:`.apply_planet_peak`);
+    ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass_range`).
     """
 
     detected: bool
@@ -217,6 +289,7 @@ class Verdict(ResultMixin):
     candidate: dict | None = None
     test3_spiral_model: str | None = None
     planet_peak: dict | None = None
+    mass_range: dict | None = None
 
     KIND = "spiralbayes.Verdict"
     WHAT = "verdict"
@@ -253,11 +326,23 @@ class Verdict(ResultMixin):
             text += (f" The peak is compact and handed ({hand})." if self.test2_passed else
                      f" However {hand}, so the improvement is not attributed to a planet-driven spiral "
                      "(e.g. an arc or a geometry error).")
+        text += self._mass_sentence() if self.test1_passed else ""
         text += self._test3_sentence()
         if self.candidate is not None:
             text += self._candidate_sentence()
         return text + (" A planet-driven spiral is detected." if self.detected
                        else " No planet-driven spiral is claimed.")
+
+    def _mass_sentence(self) -> str:
+        m = self.mass_range
+        if not m:
+            return ""
+        mth = _span(m["mth"], "M_th")
+        mjup = "" if m["mjup"] is None else f" ({_span(m['mjup'], 'M_Jup', '.2g')} for M_* = {m['mstar']:g} M_sun)"
+        h = "/".join(f"{h:g}" for h in m["h_ps"])
+        return (f" Planet mass {mth}{mjup}: the range of the {len(m['members'])} templates of that hand within "
+                f"Delta BIC {m['band']:g} of the best near its position (morphologies {', '.join(m['variants'])}; "
+                f"H/r {h}, each its own M_th), not a single template's label.")
 
     def _test3_sentence(self) -> str:
         if self.test3_passed is None:
@@ -293,6 +378,11 @@ class Verdict(ResultMixin):
                 "posterior over planet position and free geometry (sb.sample_posterior).")
 
 
+def _span(values, unit: str, fmt: str = "g") -> str:
+    lo, hi = (format(v, fmt) for v in values)
+    return f"{lo} {unit}" if lo == hi else f"{lo}-{hi} {unit}"
+
+
 def _check_same_data(result, alternatives) -> None:
     same_n = alternatives.n_data == result.n_data
     if not same_n or not np.isclose(alternatives.chi2_AO, result.chi2_AO, rtol=1e-6, atol=1e-6):
@@ -305,7 +395,8 @@ def _check_same_data(result, alternatives) -> None:
 def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
            max_handedness_ratio: float = 0.5, max_localisation: float = 0.1,
            bic_threshold_value: float = DELTA_BIC_THRESHOLD,
-           alternative_threshold: float = ALTERNATIVE_THRESHOLD) -> Verdict:
+           alternative_threshold: float = ALTERNATIVE_THRESHOLD, mass_band: float = MASS_BAND,
+           mstar: float = DEFAULT_MSTAR) -> Verdict:
     """Decide whether a scan detects a planet-driven spiral.
 
     Tests 1 and 2 are the paper's (module docstring). With ``alternatives`` (an
@@ -324,6 +415,10 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
         Tests 1 and 2.
     alternative_threshold : float
         Test 3: smallest ``ΔBIC_spiral − ΔBIC_best alternative`` that prefers the spiral.
+    mass_band : float
+        ΔBIC band of the reported mass range (:func:`mass_range`).
+    mstar : float
+        Stellar mass [M_sun] for the mass range in M_Jup.
     """
     best = result.peak(amplitude=amplitude)
     t = best.template_index
@@ -331,13 +426,16 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
     loc = localisation(result, t, amplitude)
     test1 = bool(best.delta_bic > bic_threshold_value)
     test2 = bool(np.isfinite(ratio) and ratio < max_handedness_ratio and loc < max_localisation)
-    extra = {"alternative_threshold": float(alternative_threshold)}
+    # a mass is worth reporting only for a significant spiral
+    extra = {"alternative_threshold": float(alternative_threshold),
+             "mass_range": mass_range(result, amplitude, band=mass_band, mstar=mstar) if test1 else None}
     if alternatives is not None:
         _check_same_data(result, alternatives)
         alt = alternatives.best
         alt_bic = float(alt.delta_bic(alternatives.n_data))
         margin = float(best.delta_bic) - alt_bic
-        extra.update(test3_passed=bool(margin > alternative_threshold), best_alternative=alt.name,
+        extra.update(test3_passed=bool(margin > alternative_threshold), test3_spiral_model="spiral",
+                     best_alternative=alt.name,
                      best_alternative_label=alt.label, alternative_delta_bic=alt_bic,
                      delta_bic_vs_alternative=margin,
                      alternatives=_alternatives_summary(alternatives, float(best.delta_bic)))

@@ -159,7 +159,7 @@ def describe_family_limits(limits, family=None) -> str:
     out = []
     for mass in THRESHOLDS:
         ranges = limits.excluded_ranges(fam, mass)
-        where = "; ".join(_range_text(limits, lo, hi, mass) for lo, hi in ranges) or "no radius"
+        where = "; ".join(_range_text(limits, lo, hi, mass, fam) for lo, hi in ranges) or "no radius"
         out.append(f"Planets of >= {mass:g} M_th (template family {fam.label}) are ruled out at "
                    f"{limits.cl:.0%} confidence at {where}.")
     return " ".join(out)

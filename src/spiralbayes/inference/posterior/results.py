@@ -11,7 +11,10 @@ the Bayes factor is ``B = sum_T pi_T Z_T / Z_0``, and ``P(T | data, planet) = pi
 (= 1, the Jeffreys scale's "not worth more than a bare mention", B < e ~ 2.7 either way; Kass &
 Raftery 1995, Trotta 2008): the data do not decide between planet and no planet, and no position
 is reported. Otherwise "no planet preferred" when ``P(planet | data) < 0.5`` (no position
-reported as a finding), else the most probable template's planet position and amplitude.
+reported as a finding), else the most probable template's planet position and amplitude, and the
+planet mass as a credible range over the templates (:meth:`PosteriorResult.mass_range`: the
+marginal ``P(M_p | data, planet)`` summed over morphology variants, H/r, τ0, β and hand — issue 22:
+no single template's label is the planet's mass).
 
 Samples (``SAMPLE_NAMES``): ``r_p`` [arcsec], ``phi_p`` [rad, wrapped around its circular
 mean], ``A`` (drawn exactly from its conditional posterior for each sample), ``inc``, ``PA``
@@ -28,12 +31,16 @@ import numpy as np
 from ..._provenance import json_safe
 from ...exceptions import InputError
 from ...results import ResultMixin
-from ...units import wrap_angle
+from ...units import M_JUP, M_SUN, wrap_angle
 from .diagnostics import chain_inference_data
 from .priors import GEOMETRY_NAMES, Priors
 
 INCONCLUSIVE_LN_B = 1.0
 """``|ln B(planet : none)|`` below this is "inconclusive" (Jeffreys scale: B < e either way)."""
+MASS_LEVEL = 0.95
+"""Credibility of the reported mass range."""
+DEFAULT_MSTAR = 0.8
+"""Stellar mass [M_sun] for Jupiter masses when none is given (the config's default)."""
 
 __all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
 
@@ -330,14 +337,64 @@ class PosteriorResult(ResultMixin):
                 f"r_p = {s['r_p']['median']:.4f} (+{s['r_p']['hi'] - s['r_p']['median']:.4f} "
                 f"-{s['r_p']['median'] - s['r_p']['lo']:.4f}) arcsec, phi_p = {wrap_angle(np.degrees(s['phi_p']['median']), 0.0, 360.0):.1f} "
                 f"+- {np.degrees(s['phi_p']['std']):.1f} deg, A = {s['A']['median']:.2f} "
-                f"(+{s['A']['hi'] - s['A']['median']:.2f} -{s['A']['median'] - s['A']['lo']:.2f})")
+                f"(+{s['A']['hi'] - s['A']['median']:.2f} -{s['A']['median'] - s['A']['lo']:.2f})"
+                + self._mass_clause())
+
+    def _mass_clause(self) -> str:
+        m = self.mass_range()
+        if m is None:
+            return ""
+        span = [f"{x:g}" for x in m["mth"]]
+        text = f"; planet mass {span[0] if span[0] == span[1] else '-'.join(span)} M_th"
+        if m["mjup"] is not None:
+            j = [f"{x:.2g}" for x in m["mjup"]]
+            text += f" ({j[0] if j[0] == j[1] else '-'.join(j)} M_Jup for M_* = {m['mstar']:g} M_sun)"
+        return text + f" ({100 * m['level']:g} % credible, over morphology variants and H/r)"
+
+    def mass_range(self, level: float = MASS_LEVEL, mstar: float = DEFAULT_MSTAR) -> dict | None:
+        """Credible range of the planet mass given a planet, over all templates.
+
+        In M_th: the smallest set of masses whose marginal probability (:meth:`marginals`) reaches
+        ``level``, most probable first; its smallest and largest mass. In M_Jup: the same over the
+        (mass, H/r) pairs, each converted with its own H/r (``M_th = h_p³ M_*``). None when no
+        template has a mass.
+
+        Returns
+        -------
+        dict or None
+            ``mth``, ``mjup`` ([min, max]; ``mjup`` None when no template has an H/r), ``level``,
+            ``mstar`` [M_sun], ``probability`` (the sets' probabilities in M_th and M_Jup).
+        """
+        if not 0 < level <= 1:
+            raise InputError(f"mass credibility level must be in (0, 1], got {level!r}")
+        probs = self.template_probabilities
+        by_mass: dict = {}
+        by_pair: dict = {}
+        for r in self.runs:
+            mass, h_p = r.metadata.get("mass"), r.metadata.get("h_p")
+            if mass is None:
+                continue
+            by_mass[float(mass)] = by_mass.get(float(mass), 0.0) + probs[r.name]
+            if h_p is not None and np.isfinite(h_p):
+                key = (float(mass), float(h_p))
+                by_pair[key] = by_pair.get(key, 0.0) + probs[r.name]
+        if not by_mass:
+            return None
+        masses, p_mass = _credible_set(by_mass, level)
+        out = {"mth": [min(masses), max(masses)], "mjup": None, "level": float(level), "mstar": float(mstar),
+               "probability": {"mth": p_mass, "mjup": None}}
+        if by_pair:
+            pairs, p_pair = _credible_set(by_pair, level)
+            mj = [m * h**3 * mstar * M_SUN / M_JUP for m, h in pairs]
+            out["mjup"], out["probability"]["mjup"] = [min(mj), max(mj)], p_pair
+        return out
 
     def marginals(self) -> dict:
-        """``P(value | data, planet)`` of each value of hand, mass, beta, tau0 and h_p (summed over templates;
-        templates whose value is unknown are left out of that parameter's table)."""
+        """``P(value | data, planet)`` of each value of hand, mass, beta, tau0, h_p and morphology variant
+        (summed over templates; templates without a variant are left out of its marginal)."""
         probs = self.template_probabilities
         out: dict = {}
-        for key in ("hand", "mass", "beta", "tau0", "h_p"):
+        for key in ("hand", "mass", "beta", "tau0", "h_p", "variant"):
             table: dict = {}
             for r in self.runs:
                 value = r.metadata.get(key)
@@ -389,6 +446,7 @@ class PosteriorResult(ResultMixin):
                           "provenance": self.provenance, "planet_prior": self.planet_prior, "verdict": self.verdict,
                           "p_planet": self.p_planet, "ln_bayes_factor": self.ln_bayes_factor,
                           "template_probabilities": self.template_probabilities, "marginals": self.marginals(),
+                          "mass_range": self.mass_range(),
                           "null": None if self.null is None else self.null.to_dict(),
                           "runs": [r.to_dict() for r in self.runs]})
 
@@ -407,3 +465,18 @@ def _read_format_1(f) -> PosteriorResult:
 
 
 PosteriorResult.LEGACY_READERS = {1: _read_format_1}
+def _credible_set(probabilities: dict, level: float) -> tuple[list, float]:
+    """The most probable keys whose probabilities first reach ``level``, and their total."""
+    chosen, total = [], 0.0
+    for key, p in sorted(probabilities.items(), key=lambda kv: -kv[1]):
+        chosen.append(key)
+        total += p
+        if total >= level * (1 - 1e-12):
+            break
+    return chosen, float(total)
+
+
+def _json_keys(d):
+    if isinstance(d, dict):
+        return {str(k): _json_keys(v) for k, v in d.items()}
+    return d
