@@ -89,3 +89,23 @@ def test_without_tomllib_the_config_is_read_with_tomli(tmp_path):
             f"assert used is tomli, used\nprint(load_config({str(config)!r})['grid']['n_phi_p'])\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split()[-1] == "46"
+
+
+def test_the_variant_bank_is_a_built_in_name_not_a_path(tmp_path, monkeypatch):
+    """``[templates] bank = "variants"`` stays a name (not resolved against the file) and loads
+    :func:`~spiralbayes.templates.variants.variant_bank`, selected like the default bank."""
+    from spiralbayes.config import load_config
+    from spiralbayes.pipeline import inputs
+    from spiralbayes.templates import TemplateBank
+    from spiralbayes.templates.variants import variant_template
+
+    path = tmp_path / "c.toml"
+    path.write_text('[data]\npath = "d.txt"\n[geometry]\ninc = 30\nPA = 60\n[templates]\nbank = "variants"\n'
+                    'mass = [1.0]\n')
+    config = load_config(path)
+    assert config["templates"]["bank"] == "variants"
+    small = TemplateBank([variant_template(m, 0.3, 0.0, "R", v, h_p=0.07, n_x=60, n_phi=90)
+                          for v in ("compromise", "hydro") for m in (0.3, 1.0)])
+    monkeypatch.setattr(inputs, "variant_bank", lambda: small)
+    chosen = inputs.load_templates(config["templates"])
+    assert sorted(t.name for t in chosen) == ["hydro_m1_tau0.3_b0_h0.07_R", "wake_m1_tau0.3_b0_h0.07_R"]

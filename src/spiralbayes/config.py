@@ -69,7 +69,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
     "templates": {
-        "bank": ("default", "'default' (the built-in 192-template wake bank: the paper's 64 for H/r = 0.05, 0.07, 0.10; cached) or the path of a TemplateBank HDF5 file"),
+        "bank": ("default", "'default' (the built-in 192-template wake bank: the paper's 64 for H/r = 0.05, 0.07, 0.10; cached), 'variants' (the same grid in three morphologies, compromise, hydro and wakeflow: 576 templates, limits robust over morphology; docs/limits.md) or the path of a TemplateBank HDF5 file"),
         "mass": ([], "planet masses M_p/M_th to keep (empty: all)"),
         "tau0": ([], "initial optical depths at r_p to keep (empty: all)"),
         "beta": ([], "cooling times t_c Omega to keep (empty: all)"),
@@ -135,6 +135,8 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
 :class:`~spiralbayes.inference.limits.settings.LimitSettings`."""
 
 
+BUILT_IN_BANKS = ("default", "variants")
+"""``[templates] bank`` values that name a built-in bank rather than a file."""
 PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("sample", "scan"), ("output", "dir"))
 """Every path option; relative ones are resolved against the configuration file's folder (``~`` is
 expanded). ``templates.bank = "default"`` names the built-in bank, not a file."""
@@ -347,7 +349,7 @@ def load_config(path, schema: dict = SCHEMA) -> LoadedConfig:
     config.source = str(path)
     for section, key in PATH_KEYS:
         value = config.get(section, {}).get(key)
-        if not value or (section, key, value) == ("templates", "bank", "default"):
+        if not value or (section, key) == ("templates", "bank") and value in BUILT_IN_BANKS:
             continue
         resolved = Path(value).expanduser()
         config[section][key] = str(resolved if resolved.is_absolute() else (path.parent / resolved).resolve())

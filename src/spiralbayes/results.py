@@ -6,7 +6,7 @@ A result (a scan, a verdict, limits, completeness, a forecast, a posterior, ...)
 * ``to_dict()`` gives its content as JSON-safe values (``json.dumps`` accepts it; NaN becomes
   ``None``), plus derived quantities a reader would want;
 * ``save(path)`` writes it to HDF5 atomically and ``load(path)`` reads it back, both through the one
-  dataclass-driven layout of :mod:`spiralbayes._hdf5`;
+  dataclass-driven layout of ``spiralbayes._hdf5``;
 * prints on one line (``repr``);
 * where it ranks candidates (scan instances, alternative models, templates), exposes the winner
   as the read-only property ``best``: an object with attributes, not a dict
@@ -66,7 +66,7 @@ class ResultMixin:
     A subclass sets ``KIND`` (the file's ``kind`` attribute) and ``WHAT`` (words for messages),
     optionally ``LEGACY_READERS`` (``{format_version: reader(open h5py file)}`` for files written
     before the dataclass layout), and writes its own ``summary``. Decorate it with
-    ``@dataclass(repr=False)`` to keep the one-line :meth:`__repr__`.
+    ``@dataclass(repr=False)`` to keep the one-line ``__repr__``.
     """
 
     KIND: str = ""
@@ -74,7 +74,7 @@ class ResultMixin:
     LEGACY_READERS: dict = {}
 
     def save(self, path) -> Path:
-        """Write to HDF5, atomically (:func:`spiralbayes._hdf5.save_dataclass`)."""
+        """Write to HDF5, atomically (``spiralbayes._hdf5.save_dataclass``)."""
         return save_dataclass(self, path, self.KIND)
 
     @classmethod

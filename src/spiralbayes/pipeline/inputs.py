@@ -11,6 +11,7 @@ from ..exceptions import ConfigError, InputError
 from ..geometry import DiscGeometry
 from ..io import load_visibilities
 from ..templates import TemplateBank, default_bank
+from ..templates.variants import variant_bank
 from ..visibilities import estimate_weights
 
 __all__ = ["load_axisymmetric", "load_data", "load_templates", "select_templates"]
@@ -65,7 +66,10 @@ def load_data(data: dict, geometry: DiscGeometry | None = None):
 
 def load_templates(templates: dict) -> list:
     """The templates chosen by the ``[templates]`` section of a configuration."""
-    bank = default_bank() if templates["bank"] == "default" else TemplateBank.load(templates["bank"])
+    if templates["bank"] == "variants":  # robust to the spiral's morphology (docs/limits.md §4d)
+        bank = variant_bank()
+    else:
+        bank = default_bank() if templates["bank"] == "default" else TemplateBank.load(templates["bank"])
     return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"],
                             templates.get("h_p", ()))
 

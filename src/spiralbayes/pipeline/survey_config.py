@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._provenance import content_hash
-from ..config import PATH_KEYS, SCHEMA, merge_config
+from ..config import BUILT_IN_BANKS, PATH_KEYS, SCHEMA, merge_config
 from ..exceptions import ConfigError, MissingFileError
 
 __all__ = ["BANK_SCHEMA", "DISC_KEYS", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey", "parse_survey"]
@@ -149,7 +149,7 @@ def _deep_merge(base: dict, over: dict) -> dict:
 def _resolve(config: dict, root: Path) -> dict:
     for section, key in PATH_KEYS:
         value = config.get(section, {}).get(key)
-        if not value or (section, key, value) == ("templates", "bank", "default"):
+        if not value or (section, key) == ("templates", "bank") and value in BUILT_IN_BANKS:
             continue
         p = Path(value).expanduser()
         config[section][key] = str(p if p.is_absolute() else (root / p).resolve())

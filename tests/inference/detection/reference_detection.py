@@ -143,7 +143,7 @@ def evaluate(case: Case, tau0: float, seed: int = SEED, keep: dict | None = None
 
 def row(case: Case, tau0: float, own, bank, verdict) -> dict:
     """The table's numbers from the scans and the verdict."""
-    o = own.best()
+    o = own.best.to_dict()
     best = bank.templates[bank.template_index(verdict.template)]
     masses = list(BANK_MASSES)
     r_true, phi_true = R_P_AU / DISTANCE, np.radians(PHI_P_DEG)

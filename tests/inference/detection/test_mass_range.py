@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from spiralbayes.asymmetries import DiscGrid
+from spiralbayes.alternatives import DiscGrid
 from spiralbayes.exceptions import InputError
 from spiralbayes.inference.detection import apply_planet_peak, detect, mass_range
 from spiralbayes.inference.detection.alternatives import AlternativeFit, AlternativesResult

@@ -67,6 +67,6 @@ def test_the_verdict_and_json_carry_the_range():
     assert r.planet_preferred
     lo, hi = (f"{x:.2g}" for x in r.mass_range()["mjup"])
     assert f"planet mass 0.3-3 M_th ({lo}-{hi} M_Jup for M_* = 0.8 M_sun) (95 % credible" in r.verdict
-    d = json.loads(json.dumps(r.to_json(), allow_nan=False))
+    d = json.loads(json.dumps(r.to_dict(), allow_nan=False))
     assert d["mass_range"]["mth"] == [0.3, 3.0]
     assert "planet mass" not in result(ln_z0=10.0).verdict  # no planet preferred: no mass quoted

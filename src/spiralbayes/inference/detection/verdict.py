@@ -31,7 +31,7 @@ error) is not hidden.
 Its ``localisation`` is the area of its own connected region above half its Δχ² (for the global
 peak of a map with one peak this equals the paper's measure above).
 
-The planet's mass is reported as a **range** (:func:`mass_range`, issue 22): no template is the true
+The planet's mass is reported as a **range** (:func:`.mass_range`; docs/verdict.md): no template is the true
 spiral, and templates of other morphology variants and H/r explain a real spiral almost as well as
 the best one, so its single label would claim more than the data say. The range covers every
 template of the best one's hand whose best Δχ² near the best instance is within ``mass_band``

@@ -15,7 +15,7 @@ writes everything so far to the chain file. Why not emcee's own ``HDFBackend``: 
 step into the file in place, so a kill during a write can leave a damaged file, and it restores
 emcee's random state but not the other streams of a run. Here the sampler runs ``flush_every``
 steps in memory, then the whole file is copied, updated and renamed into place
-(:func:`spiralbayes._provenance.atomic_path`): a kill loses at most the current batch, and the
+(``spiralbayes._provenance.atomic_path``): a kill loses at most the current batch, and the
 file on disk is always a consistent snapshot that holds the random state at its last step. A
 resumed run (:meth:`ChainBackend.restore`) therefore continues exactly as the uninterrupted one
 would have (tested by killing a subprocess, ``tests/test_faults_sampling.py``).
@@ -178,7 +178,7 @@ class ChainBackend(Backend):
             self.blobs = _resized(self.blobs, size)
 
     def state(self) -> ChainState:
-        """The steps so far (copies trimmed to :attr:`iteration`) as a :class:`ChainState`."""
+        """The steps so far (copies trimmed to ``iteration``) as a :class:`ChainState`."""
         n = self.iteration
         return ChainState(self.chain[:n].copy(), self.log_prob[:n].copy(),
                           None if self.blobs is None else self.blobs[:n].copy(), self.accepted.copy(),

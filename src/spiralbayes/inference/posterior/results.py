@@ -13,7 +13,7 @@ Raftery 1995, Trotta 2008): the data do not decide between planet and no planet,
 is reported. Otherwise "no planet preferred" when ``P(planet | data) < 0.5`` (no position
 reported as a finding), else the most probable template's planet position and amplitude, and the
 planet mass as a credible range over the templates (:meth:`PosteriorResult.mass_range`: the
-marginal ``P(M_p | data, planet)`` summed over morphology variants, H/r, τ0, β and hand — issue 22:
+marginal ``P(M_p | data, planet)`` summed over morphology variants, H/r, τ0, β and hand, because
 no single template's label is the planet's mass).
 
 Samples (``SAMPLE_NAMES``): ``r_p`` [arcsec], ``phi_p`` [rad, wrapped around its circular

@@ -4,7 +4,7 @@ The default run checks a template's chain every ``check_every`` steps. It stops 
 holds (:class:`StoppingRule`):
 
 1. **Every parameter** (the planet's position and the geometry) is longer than
-   :data:`~.diagnostics.TAU_FACTOR` = 50 autocorrelation times with ESS >= ``min_ess``
+   ``TAU_FACTOR`` = 50 autocorrelation times with ESS >= ``min_ess``
    (:func:`.diagnostics.convergence_diagnostics`) — what a planet needs, since its position is
    reported.
 2. **The planet is not preferred and everything reported has converged.** The geometry
