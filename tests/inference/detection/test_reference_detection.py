@@ -25,6 +25,10 @@ KNOWN_FAILURES = {
     ("fargo3dlib:h0.07_mu1_st0.03", 0.3): "bank best Delta BIC -22 against the own map's 137",
     ("fargo3d:h0.07_mu1", 0.3): "bank best Delta BIC -33 against the own map's 63",
     ("wakeflow:h0.10_mu0.3", 0.3): "bank best Delta BIC 9 against the own map's 32 (test 1 fails)",
+    # measured after the hydro variant was refitted to the whole library (mass-dependent scale): the
+    # wakeflow variant wins at the wrong azimuth
+    ("fargo3d:h0.07_mu1", 3.0): "detected with wakeflow_m1_tau3_b0_h0.07_R 36 deg and one r_p step off "
+                                "(Delta BIC 51 against the own map's 204; tests 1-3 pass)",
 }
 """Cases that fail the acceptance as measured, with why (non-strict: a refit of the variants may fix them)."""
 
