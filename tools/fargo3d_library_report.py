@@ -70,8 +70,9 @@ def table(f) -> str:
         rms = [v for k, v in st.items() if k.startswith("rms")]
         arm = [v["arm_peak_median_rel_change"] for k, v in st.items() if k.startswith("arm")]
         rows.append(f"| {name} | {a['nx_phi']}×{a['ny_r']} ({a['cells_per_H']:.1f}) | {a['orbits']:.0f} | "
-                    f"{a['wall_time_s'] / 60:.0f} | {' / '.join(f'{v:.3f}' for v in rms)}; "
-                    f"{' / '.join(f'{v:.3f}' for v in arm)} | {a['arm_rms']:.4f} | {a['near_planet_peak']:.3f} | "
+                    f"{a['wall_time_s'] / 60:.0f} | "
+                    + (f"{' / '.join(f'{v:.3f}' for v in rms)}; {' / '.join(f'{v:.3f}' for v in arm)}" if rms else "–")
+                    + f" | {a['arm_rms']:.4f} | {a['near_planet_peak']:.3f} | "
                     f"{a['run_state']} |")
     return "\n".join(rows)
 
