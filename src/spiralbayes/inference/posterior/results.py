@@ -474,9 +474,3 @@ def _credible_set(probabilities: dict, level: float) -> tuple[list, float]:
         if total >= level * (1 - 1e-12):
             break
     return chosen, float(total)
-
-
-def _json_keys(d):
-    if isinstance(d, dict):
-        return {str(k): _json_keys(v) for k, v in d.items()}
-    return d

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..._threads import blas_threads
 from ...quadrature import ProductQuadrature, TemplateSpectrum
 from ...templates.variants import Variant
 from .engine import (
@@ -55,7 +56,6 @@ from .engine import (
     _cross_all_phi,
     _error_estimates,
     _node_transform,
-    _one_blas_thread,
 )
 from .uv_levels import power_all_phi
 
@@ -277,7 +277,7 @@ def scan_group(context: ScanContext, group) -> dict[int, TemplateTerms]:
     """``cross``, ``power`` and their error estimates of every member of ``group`` (a
     :class:`VariantGroup` or a list of them, whose transforms are then shared) over the context's
     grid, by row of the scan."""
-    with _one_blas_thread():
+    with blas_threads(1):
         return _scan_groups(context, group if isinstance(group, list) else [group])
 
 
@@ -353,7 +353,7 @@ def check_pairs(context: ScanContext, group: VariantGroup) -> float:
         TemplateSpectrum(g.template) for g in group.generators]
     worst = 0.0
     radii = context.algorithm_error.get("r_p") or [float(context.r_p[-1])]
-    with _one_blas_thread():
+    with blas_threads(1):
         for r_p in radii:
             quad = context.quadrature(group.generators[0].template, r_p)
             level = context.level(quad)

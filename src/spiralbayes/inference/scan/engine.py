@@ -454,11 +454,6 @@ def _terms_at(context: ScanContext, template, r_p: float) -> tuple[np.ndarray, n
     return cross, power, quad, flux
 
 
-def _one_blas_thread():
-    """BLAS on one thread (:func:`spiralbayes._threads.blas_threads`), for the building blocks."""
-    return blas_threads(1)
-
-
 def scan_template(context: ScanContext, template) -> TemplateTerms:
     """``cross`` and ``power`` of one template over the context's ``r_p`` × ``phi_p`` grid, and
     their error estimates (module docstring), as a :class:`TemplateTerms` pair."""
