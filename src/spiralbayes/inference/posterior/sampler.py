@@ -359,7 +359,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
               "model_hash": _model_hash(axisymmetric, profile_prior), "priors": priors.to_dict(), "seed": int(seed),
               "likelihood_kwargs": likelihood_kwargs, "spiralbayes": __version__}
     run_settings = {"inputs": {**common, "n_walkers": int(n_walkers), "evidence_draws": int(evidence_draws),
-                               "moves": "wrapped DE" if moves is None else repr(moves)},
+                               "moves": "wrapped DE, joint and block moves" if moves is None else repr(moves)},
                     "sampling": s, "progress": progress, "likelihood_kwargs": likelihood_kwargs}
     _set_mpi_rank(pool)
     overall = _Stages(len(templates) + 1, progress)
