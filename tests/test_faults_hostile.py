@@ -270,6 +270,16 @@ def test_frank_with_fewer_visibilities_than_collocation_points_warns(setup):
         fit_axisymmetric(few, GEOMETRY, N=80, Rmax=1.2, progress=False, max_iter=20, convergence_failure="ignore")
 
 
+def test_frank_that_does_not_converge_is_one_error_of_ours(setup):
+    """Not a bare RuntimeError (the CLI printed a traceback): ConvergenceError naming what to check."""
+    from spiralbayes.axisymmetric import fit_axisymmetric
+    from spiralbayes.exceptions import ConvergenceError, SpiralbayesError
+
+    with pytest.raises(ConvergenceError, match=r"max_iter = 3 iterations.*\[frank\] Rmax = 1.2 arcsec") as info:
+        fit_axisymmetric(setup.vis, GEOMETRY, N=80, Rmax=1.2, progress=False, max_iter=3)
+    assert isinstance(info.value, SpiralbayesError) and "\n" not in str(info.value)
+
+
 def test_a_config_without_geometry_refuses_to_fit_frank_face_on(setup, tmp_path, monkeypatch):
     import spiralbayes.pipeline.inputs as inputs
     from spiralbayes.config import load_config
@@ -511,7 +521,9 @@ def test_cli_errors_and_warnings_are_single_lines_of_ours(tmp_path):
     import subprocess
     import sys
 
-    table = tmp_path / "heavy.txt"  # weights 1e12 too large: a DataWarning, then frank's spectrum overflows
+    # weights 1e12 too large: a DataWarning, then frank fails: its power spectrum overflows, or (with other
+    # numpy/BLAS builds) it does not converge; either is one line of ours naming the settings
+    table = tmp_path / "heavy.txt"
     vis = load_visibilities(AS209)
     _table(table, vis.with_weights(vis.weights * 1e12, "heavy"))
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[1] / "src"),

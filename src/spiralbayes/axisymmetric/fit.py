@@ -12,7 +12,7 @@ import numpy as np
 
 from .._provenance import data_hash, provenance_record
 from .._threads import blas_threads as _limit_blas  # the parameter is called blas_threads
-from ..exceptions import DataWarning, InputError
+from ..exceptions import ConvergenceError, DataWarning, InputError
 from ..geometry import DiscGeometry
 from ..units import ARCSEC
 from ..visibilities import Visibilities
@@ -224,7 +224,7 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
         msg = (f"frank did not converge within max_iter = {max_iter} iterations; increase max_iter, "
                "or alpha (convergence is slow for alpha close to 1)")
         if convergence_failure == "raise":
-            raise RuntimeError(msg + "; or pass convergence_failure='warn' to keep the last iterate")
+            raise ConvergenceError(_no_convergence_message(vis, N, Rmax, max_iter, alpha))
         if convergence_failure == "warn":
             log.warning(msg)
 
@@ -269,6 +269,14 @@ def _bad_power_spectrum_message(vis: Visibilities, N: int, Rmax: float, p0: floa
             "weights (V in Jy, weights 1/sigma^2 in Jy^-2; [data] estimate_weights = true re-estimates them), "
             "the geometry and phase centre ([geometry] inc, PA, dRA, dDec), and [frank] Rmax = "
             f"{Rmax:g} arcsec (larger than the disc), N = {N}, p0 = {p0:g} Jy^2 (default 1e-15)")
+
+
+def _no_convergence_message(vis: Visibilities, N: int, Rmax: float, max_iter: int, alpha: float) -> str:
+    return (f"frank did not converge within max_iter = {max_iter} iterations fitting {vis.n} visibilities: most "
+            "often the data's units or weights (V in Jy, weights 1/sigma^2 in Jy^-2; [data] estimate_weights = true "
+            "re-estimates them) or the geometry ([geometry] inc, PA, dRA, dDec); else [frank] Rmax = "
+            f"{Rmax:g} arcsec, N = {N}, alpha = {alpha:g} (convergence is slow for alpha close to 1); "
+            "fit_axisymmetric(..., max_iter=..., convergence_failure='warn') keeps the last iterate")
 
 
 def _power_spectrum(sol):
