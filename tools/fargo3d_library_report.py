@@ -12,6 +12,7 @@ Spiral power E = Σ S² over the face-on image S = (δ · I_axi) ⊛ beam (the f
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-LIB = REPO / "tests/data/references/fargo3d_library.h5"
+LIB = Path(os.environ.get("SPIRALBAYES_LIBRARY", REPO / "tests/data/references/fargo3d_library.h5"))
 CHECK_ROLES = ("soft0.35", "res14", "orbits200")  # group suffixes of runs that repeat a library case
 
 
