@@ -221,10 +221,10 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     n_iter = int(fitter.iteration_diagnostics["num_iterations"])
     converged = n_iter <= max_iter
     if not converged:
-        msg = (f"frank did not converge within max_iter = {max_iter} iterations; increase max_iter, "
-               "or alpha (convergence is slow for alpha close to 1)")
+        msg = _no_convergence_message(vis, N, Rmax, max_iter, alpha)
         if convergence_failure == "raise":
-            raise ConvergenceError(_no_convergence_message(vis, N, Rmax, max_iter, alpha))
+            raise ConvergenceError(msg + "; fit_axisymmetric(..., max_iter=..., convergence_failure='warn') keeps "
+                                   "the last iterate")
         if convergence_failure == "warn":
             log.warning(msg)
 
@@ -275,8 +275,7 @@ def _no_convergence_message(vis: Visibilities, N: int, Rmax: float, max_iter: in
     return (f"frank did not converge within max_iter = {max_iter} iterations fitting {vis.n} visibilities: most "
             "often the data's units or weights (V in Jy, weights 1/sigma^2 in Jy^-2; [data] estimate_weights = true "
             "re-estimates them) or the geometry ([geometry] inc, PA, dRA, dDec); else [frank] Rmax = "
-            f"{Rmax:g} arcsec, N = {N}, alpha = {alpha:g} (convergence is slow for alpha close to 1); "
-            "fit_axisymmetric(..., max_iter=..., convergence_failure='warn') keeps the last iterate")
+            f"{Rmax:g} arcsec, N = {N}, alpha = {alpha:g} (convergence is slow for alpha close to 1)")
 
 
 def _power_spectrum(sol):

@@ -57,6 +57,7 @@ class WrappedDEMove(RedBlueMove):
                              f"{coords.shape[1]} of the walkers; give indices 0-{coords.shape[1] - 1}")
         ndim = coords.shape[1] if self.block is None else len(self.block)
         self.g0 = self.gamma0 if self.gamma0 is not None else 2.38 / np.sqrt(2 * ndim)
+        self.frozen = None if self.block is None else np.setdiff1d(np.arange(coords.shape[1]), self.block)
 
     def get_proposal(self, s, c, random):
         others = np.concatenate(c, axis=0)
@@ -66,9 +67,8 @@ class WrappedDEMove(RedBlueMove):
         diffs = others[a] - others[b]
         p = self.periodic
         diffs[:, p] = wrap_angle(diffs[:, p])
-        if self.block is not None:
-            outside = np.setdiff1d(np.arange(diffs.shape[1]), self.block)
-            diffs[:, outside] = 0.0
+        if self.frozen is not None:
+            diffs[:, self.frozen] = 0.0
         gamma = self.g0 * (1.0 + self.sigma * random.randn(ns, 1))
         q = s + gamma * diffs
         q[:, p] = wrap_angle(q[:, p], 0.0)
