@@ -54,6 +54,9 @@ class Case:
         Mass-ramp length in orbits.
     role : str
         What the case is for.
+    batch : str
+        The run set it was planned in (``issue21``: the library; ``issue22``: 3 M_th at H/r 0.05 and
+        0.10, added so that the 3 M_th morphology has references at more than one H/r).
     """
 
     name: str
@@ -66,6 +69,7 @@ class Case:
     orbits: float = 20.0
     taper: float = 5.0
     role: str = "library"
+    batch: str = "issue21"
 
     @property
     def setup(self) -> str:
@@ -121,6 +125,10 @@ CASES: list[Case] = [  # run order: the most distinct cases per CPU hour first (
     # longer evolution (gap growth): the 1 and 3 M_th runs continued to 200 orbits
     _case("lib_mu1_h007_long", 1.0, 0.07, orbits=200.0, role="orbits200"),
     _case("lib_mu3_h007_long", 3.0, 0.07, orbits=200.0, role="orbits200"),
+    # a second run set (issue 22): the 3 M_th planet at the two other H/r, so that leaving one run
+    # set out still leaves an early-time 3 M_th reference
+    _case("lib_mu3_h010", 3.0, 0.10, batch="issue22"),
+    _case("lib_mu3_h005", 3.0, 0.05, batch="issue22"),
 ]
 BY_NAME = {c.name: c for c in CASES}
 

@@ -211,7 +211,7 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
     orbits = main["t"] / lib.TWO_PI
     p = params
     attrs = {
-        "run": case.name, "variant": case.group.split("_", 2)[2] if case.group.count("_") >= 2 else "",
+        "run": case.name, "batch": case.batch, "variant": case.group.split("_", 2)[2] if case.group.count("_") >= 2 else "",
         "mu_Mth": case.mu, "mu_M1": 1.5 * case.mu, "h_p": case.h_p, "q_planet": case.q_planet,
         "beta": case.beta, "stokes": case.stokes, "dust_to_gas": 0.01 if case.stokes else 0.0,
         "gamma": float(p.get("GAMMA", 1.0)) if beta else 1.0, "fluid": fluid, "setup": case.setup,

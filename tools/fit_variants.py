@@ -3,11 +3,13 @@
 For each reference case (``tests/templates/fidelity.py:acceptance_cases``: wakeflow, the FARGO3D
 runs of ``fargo3d_isothermal.h5`` and the library's finished ``role = library`` runs) × each τ0
 it was reduced for: the noise-free inner products at the truth of the reference S with the
-generator's template T of the same (M_p, H/r, τ0, β) and the near-planet peak B
-(``tests/templates/variant_fit.py``). ``hydro`` is fitted to every FARGO3D case, ``wakeflow`` to
-the wakeflow maps (:func:`tests.templates.variant_fit.fit_source`: least squares, powers of M_p on a
-grid, shrunk so that every map has ``A_hat >= 1/margin``; the binding map is printed). Prints the
-constants, the A_up table at the truth (noise-free) and the leave-one-source-out A_hat table.
+generator's template T of the same (M_p, H/r, τ0, β), the near-planet peak B and the broad wake W
+(``tests/templates/variant_fit.py``). ``hydro`` is fitted to every FARGO3D case (T, B, W),
+``wakeflow`` to the wakeflow maps (T, B) (:func:`tests.templates.variant_fit.fit_source`: least
+squares, powers of M_p on a grid, one shrink per reference mass so that every map has
+``A_hat >= 1/margin``, margin 0.8; the binding maps are printed). Prints the constants, the A_up
+table at the truth (noise-free) and the leave-one-source-out table (noise-free A_up of the held-out
+maps).
 
     PYTHONPATH=src:. python tools/fit_variants.py [--cache FILE.json] [--exclude CASE ...]
 """
@@ -19,7 +21,6 @@ import json
 import logging
 import os
 
-import numpy as np
 
 from tests.templates import fidelity as F
 from tests.templates import variant_fit as VF
@@ -43,14 +44,14 @@ def main() -> None:
         ups = [VF.upper_limit(g, 1.0, 0.0)[1]] + [VF.upper_limit(g, *VF.fitted_amplitudes(f, case.mu))[1]
                                                     for f in fits.values()]
         log.info("%-34s tau0=%-4g %s  robust %.3f", case.label, tau0, " ".join(f"{u:6.3f}" for u in ups), max(ups))
-    log.info("leave one source out: best A_hat (noise-free) of the held-out maps over compromise + refitted variants")
+    log.info("leave one source out: best A_up (noise-free) of the held-out maps over compromise + refitted variants")
     for source in VF.SOURCES:
         held = [r for r in rows if VF.calibration_source(r[0]) == source]
         refit = VF.fit_variants([r for r in rows if VF.calibration_source(r[0]) != source])
-        worst = min((max([VF.upper_limit(g, 1.0, 0.0)[0]] + [VF.upper_limit(g, *VF.fitted_amplitudes(f, c.mu))[0]
+        worst = min((max([VF.upper_limit(g, 1.0, 0.0)[1]] + [VF.upper_limit(g, *VF.fitted_amplitudes(f, c.mu))[1]
                                                              for f in refit.values()]), c.label, t)
                     for c, t, g in held)
-        log.info("%-20s %d maps; worst held-out best A_hat %.3f (%s tau0 %g)", source, len(held), *worst)
+        log.info("%-20s %d maps; worst held-out robust A_up %.3f (%s tau0 %g)", source, len(held), *worst)
 
 
 def _rows(cache, exclude):

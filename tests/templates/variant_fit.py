@@ -27,6 +27,13 @@ def truth_products(planted, templates, tau0: float) -> tuple[np.ndarray, np.ndar
     return np.asarray(result.cross[:, i, j], float), np.asarray(result.power[:, i, j], float)
 
 
+GRAM_VERSION = 2
+"""Bumped when the blocks of :func:`compute_case_gram` change (2: the broad wake W added)."""
+BROAD_WIDTH = 3.0
+"""Width of the broad wake W the variants are fitted with (``Variant.broad_width``)."""
+BLOCKS = ("T", "B", "W")
+"""The building blocks of a variant, in the order of amplitude tuples ``(scale, blob, broad)``."""
+
 SETUPS = ("fiducial", "c4")
 """The observations the variants must cover: ``fiducial`` (this module's docstring: the fiducial
 synthetic observation, 50 au, beam 0.061″) and ``c4`` (docs/limits.md §4c: ALMA C-4 alone, planet at
@@ -38,7 +45,8 @@ def _disk_key(case: F.Case, tau0: float, setup: str = "fiducial") -> str:
     from spiralbayes.templates.wake import GENERATOR_VERSION, WakeSettings
 
     st = (F.REF_DIR / case.file).stat()
-    key = f"{case.file}:{case.group}|{tau0:g}|{st.st_size}-{st.st_mtime_ns}|v{GENERATOR_VERSION}|{WakeSettings().key()}"
+    key = (f"{case.file}:{case.group}|{tau0:g}|{st.st_size}-{st.st_mtime_ns}|v{GENERATOR_VERSION}|{WakeSettings().key()}"
+           f"|blocks{GRAM_VERSION}")
     return key if setup == "fiducial" else f"{key}|{setup}"
 
 
@@ -77,17 +85,20 @@ def case_gram(case: F.Case, tau0: float, setup: str = "fiducial") -> dict:
 @lru_cache(maxsize=None)
 def compute_case_gram(case: F.Case, tau0: float) -> dict:
     """Inner products of the reference S with the variant blocks (T: the compromise template of the
-    case's mass, h_p and β — the β = 10 generator for the β = 10 runs; B: the near-planet blob), and
-    among them: keys ``SS, ST, SB, TT, BB, TB``."""
-    from spiralbayes.templates.variants import blob_template, variant_template
+    case's mass, h_p and β — the β = 10 generator for the β = 10 runs; B: the near-planet blob; W:
+    the broad wake), and among them: keys ``SS, ST, SB, SW, TT, BB, WW, TB, TW, BW``."""
+    from spiralbayes.templates.variants import blob_template, broad_template, variant_template
 
     beta = case.beta
     ref = F.reference_template(case, tau0)
     t = variant_template(case.mu, tau0, beta, "R", "compromise", h_p=case.h_p)
     b = blob_template(case.mu, tau0, beta, "R", h_p=case.h_p)
-    cross, power = truth_products(ref, [t, b], tau0)
-    tb, _ = truth_products(t, [b], tau0)
-    return {"SS": power[0], "ST": cross[1], "SB": cross[2], "TT": power[1], "BB": power[2], "TB": tb[1]}
+    w = broad_template(case.mu, tau0, beta, "R", h_p=case.h_p, width=BROAD_WIDTH)
+    cross, power = truth_products(ref, [t, b, w], tau0)
+    tx, _ = truth_products(t, [b, w], tau0)
+    bw, _ = truth_products(b, [w], tau0)
+    return {"SS": power[0], "ST": cross[1], "SB": cross[2], "SW": cross[3], "TT": power[1], "BB": power[2],
+            "WW": power[3], "TB": tx[1], "TW": tx[2], "BW": bw[1]}
 
 
 @lru_cache(maxsize=None)
@@ -98,7 +109,7 @@ def compute_c4_gram(case: F.Case, tau0: float) -> dict:
     from spiralbayes.inference.scan.engine import ScanContext, cross_template, scan_template, with_residual
     from spiralbayes.model import perturbation_visibilities
     from spiralbayes.simulate import DiscModel
-    from spiralbayes.templates.variants import blob_template, variant_template
+    from spiralbayes.templates.variants import blob_template, broad_template, variant_template
     from tests._support import limits_setup as L
 
     r_p, i_phi = 0.3, 10
@@ -111,6 +122,7 @@ def compute_c4_gram(case: F.Case, tau0: float) -> dict:
     ref = F.reference_template(case, tau0)
     t = variant_template(case.mu, tau0, case.beta, "R", "compromise", h_p=case.h_p, **L.GRID)
     b = blob_template(case.mu, tau0, case.beta, "R", h_p=case.h_p, **L.GRID)
+    w = broad_template(case.mu, tau0, case.beta, "R", h_p=case.h_p, width=BROAD_WIDTH, **L.GRID)
 
     def dv(planted):
         return perturbation_visibilities(vis.u, vis.v, L.GEOMETRY, ctx.profile, planted, r_p, phi_p,
@@ -123,19 +135,37 @@ def compute_c4_gram(case: F.Case, tau0: float) -> dict:
         return float(scan_template(ctx, template)[1][0, i_phi])
 
     ss = float(np.sum(vis.weights * np.abs(dv(ref)) ** 2))  # the reference reaches beyond the scan's grid
-    return {"SS": ss, "ST": cross(ref, t), "SB": cross(ref, b), "TT": power(t), "BB": power(b),
-            "TB": cross(t, b)}
+    return {"SS": ss, "ST": cross(ref, t), "SB": cross(ref, b), "SW": cross(ref, w), "TT": power(t),
+            "BB": power(b), "WW": power(w), "TB": cross(t, b), "TW": cross(t, w), "BW": cross(b, w)}
 
 
-def upper_limit(g: dict, scale: float, blob: float) -> tuple[float, float]:
-    """``(A_hat, A_up)`` at the truth of the template ``scale T + blob B``."""
-    st = scale * g["ST"] + blob * g["SB"]
-    tt = scale**2 * g["TT"] + blob**2 * g["BB"] + 2 * scale * blob * g["TB"]
+def gram_matrix(g: dict) -> np.ndarray:
+    """The blocks' Gram matrix ``<X, Y>`` in :data:`BLOCKS` order (W absent from an old gram: zero)."""
+    def get(a, b):
+        return g.get(a + b, g.get(b + a, 0.0))
+
+    return np.array([[get(a, b) for b in BLOCKS] for a in BLOCKS], dtype=float)
+
+
+def cross_vector(g: dict, control: bool = False) -> np.ndarray:
+    """``<S, X>`` for the blocks X (``control``: S = T)."""
+    return gram_matrix(g)[0] if control else np.array([g.get("S" + b, 0.0) for b in BLOCKS], dtype=float)
+
+
+def _amplitudes(scale: float, blob: float, broad: float = 0.0) -> np.ndarray:
+    return np.array([scale, blob, broad], dtype=float)
+
+
+def upper_limit(g: dict, scale: float, blob: float, broad: float = 0.0) -> tuple[float, float]:
+    """``(A_hat, A_up)`` at the truth of the template ``scale T + blob B + broad W``."""
+    c = _amplitudes(scale, blob, broad)
+    st = float(c @ cross_vector(g))
+    tt = float(c @ gram_matrix(g) @ c)
     a_hat = st / tt
     return float(a_hat), float(a_hat + Z95 / np.sqrt(tt))
 
 
-MARGIN = 0.9
+MARGIN = 0.8
 """A variant fitted to a source has A_hat >= 1/MARGIN on every map of that source."""
 
 BLOB_SLOPES = (0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
@@ -143,60 +173,96 @@ SCALE_SLOPES = tuple(np.round(np.arange(-0.8, 0.01, 0.05), 2))
 """The grids of the two powers of M_p/M_th (blob and scale) the fit chooses from."""
 
 
-def _blocks(case, g, scale_slope, blob_slope):
-    fs, fb = case.mu**scale_slope, case.mu**blob_slope
-    gram = np.array([[fs * fs * g["TT"], fs * fb * g["TB"]], [fs * fb * g["TB"], fb * fb * g["BB"]]])
-    return gram, np.array([fs * g["ST"], fb * g["SB"]]), fs, fb
+def _design(case, g, scale_slope, blob_slope):
+    """Gram matrix and cross vector of the mass-scaled blocks ``(μ^a T, μ^c B, μ^a W)``."""
+    f = np.array([case.mu**scale_slope, case.mu**blob_slope, case.mu**scale_slope])
+    return gram_matrix(g) * np.outer(f, f), cross_vector(g) * f, f
 
 
-def residual(g: dict, scale: float, blob: float) -> float:
-    """``|S − scale T − blob B|² / |S|²`` (visibility-weighted)."""
-    return float((g["SS"] - 2 * (scale * g["ST"] + blob * g["SB"]) + scale**2 * g["TT"] + blob**2 * g["BB"]
-                  + 2 * scale * blob * g["TB"]) / g["SS"])
+def residual(g: dict, scale: float, blob: float, broad: float = 0.0) -> float:
+    """``|S − scale T − blob B − broad W|² / |S|²`` (visibility-weighted)."""
+    c = _amplitudes(scale, blob, broad)
+    return float((g["SS"] - 2 * c @ cross_vector(g) + c @ gram_matrix(g) @ c) / g["SS"])
 
 
-def fit_source(rows, slopes=BLOB_SLOPES, scale_slopes=(0.0,), margin: float = MARGIN) -> dict:
-    """rows: (case, tau0, gram). For each pair of powers, least squares of (scale, blob) with the
-    weights ``1/|S|²`` (every map counts alike), then the largest shrink ``k <= margin`` that leaves
-    every map with ``A_hat >= 1/margin``; the pair whose shrunk variant has the smallest mean
-    residual is kept. Returns the constants (``scale_final``, ``blob_final`` after the shrink), the
-    shrink ``k`` and the binding map."""
+def fit_source(rows, slopes=BLOB_SLOPES, scale_slopes=(0.0,), margin: float = MARGIN, broad: bool = True) -> dict:
+    """rows: (case, tau0, gram). For each pair of powers, least squares of (scale, blob, broad) with
+    the weights ``1/|S|²`` (every map counts alike), then for each reference mass the largest shrink
+    ``k_m <= margin`` that leaves every map of that mass with ``A_hat >= 1/margin``
+    (:func:`mass_factors`); the pair whose shrunk variant has the smallest mean residual is kept.
+    Returns the constants (``scale_final``, ``blob_final``, ``broad_final``: before the shrink), the
+    shrinks ``mass_factors`` (``k``: the smallest) and the binding map (overall and per mass). ``broad=False``: T and B only (broad = 0)."""
+    use = [0, 1, 2] if broad else [0, 1]
     best = None
     for a in scale_slopes:
         for c in slopes:
-            gram, y = np.zeros((2, 2)), np.zeros(2)
+            gram, y = np.zeros((3, 3)), np.zeros(3)
             for case, _, g in rows:
-                gg, yy, _, _ = _blocks(case, g, a, c)
+                gg, yy, _ = _design(case, g, a, c)
                 gram += gg / g["SS"]
                 y += yy / g["SS"]
-            scale, blob = np.linalg.solve(gram, y)
-            a_hats = [upper_limit(g, scale * case.mu**a, blob * case.mu**c)[0] for case, _, g in rows]
-            k = min(margin, margin * min(a_hats))
-            loss = float(np.mean([residual(g, k * scale * case.mu**a, k * blob * case.mu**c) for case, _, g in rows]))
+            coef = np.zeros(3)
+            coef[use] = np.linalg.solve(gram[np.ix_(use, use)], y[use])
+            scale, blob, w = coef
+
+            def amps(case, k=1.0):
+                return k * scale * case.mu**a, k * blob * case.mu**c, k * w * case.mu**a
+
+            a_hats = [upper_limit(g, *amps(case))[0] for case, _, g in rows]
+            factors = mass_factors(rows, a_hats, margin)
+            k_row = [_factor(factors, case.mu) for case, _, _ in rows]
+            loss = float(np.mean([residual(g, *amps(case, k)) for (case, _, g), k in zip(rows, k_row)]))
             if best is None or loss < best["loss"]:
                 binding = rows[int(np.argmin(a_hats))]
                 best = {"scale": float(scale), "scale_slope": float(a), "blob": float(blob), "slope": float(c),
-                        "k": float(k), "loss": loss, "scale_final": float(k * scale), "blob_final": float(k * blob),
-                        "binding": f"{binding[0].label} tau0={binding[1]:g}"}
+                        "broad": float(w), "k": float(min(factors.values())), "mass_factors": factors,
+                        "loss": loss, "scale_final": float(scale), "blob_final": float(blob), "broad_final": float(w),
+                        "binding": f"{binding[0].label} tau0={binding[1]:g}",
+                        "binding_by_mass": {m: min(((ah, f"{r[0].label} tau0={r[1]:g}") for r, ah in zip(rows, a_hats)
+                                                    if np.isclose(r[0].mu, m)))[1] for m in factors}}
     return best
 
 
-def fitted_amplitudes(fit: dict, mu: float) -> tuple[float, float]:
-    """(scale, blob) of a :func:`fit_source` variant at ``mu = M_p/M_th``."""
-    return fit["scale_final"] * mu ** fit.get("scale_slope", 0.0), fit["blob_final"] * mu ** fit["slope"]
+def mass_factors(rows, a_hats, margin: float = MARGIN) -> dict:
+    """The shrink per reference mass: ``k_m = min(margin, margin min Â)`` over the maps of mass ``m``
+    (so that each has ``Â >= 1/margin``)."""
+    out: dict = {}
+    for (case, _, _), a_hat in zip(rows, a_hats):
+        m = float(case.mu)
+        out[m] = min(out.get(m, margin), margin * a_hat)
+    return dict(sorted(out.items()))
 
 
-def variant_amplitudes(variant, mu: float) -> tuple[float, float]:
-    """(scale, blob) of a :class:`~spiralbayes.templates.variants.Variant` at ``mu``."""
-    return variant.scale_at(mu), variant.blob_amplitude(mu)
+def _factor(factors: dict, mu: float) -> float:
+    from spiralbayes.templates.variants import Variant
+
+    return Variant("fit", mass_factors=tuple(factors.items())).factor_at(mu)
 
 
-SOURCES = ("wakeflow", "fargo3d_isothermal", "library_gas", "library_beta10", "library_dust")
+def fitted_amplitudes(fit: dict, mu: float) -> tuple[float, float, float]:
+    """(scale, blob, broad) of a :func:`fit_source` variant at ``mu = M_p/M_th``."""
+    k = _factor(fit["mass_factors"], mu) if fit.get("mass_factors") else 1.0
+    law = mu ** fit.get("scale_slope", 0.0)
+    return (k * fit["scale_final"] * law, k * fit["blob_final"] * mu ** fit["slope"],
+            k * fit.get("broad_final", 0.0) * law)
+
+
+def variant_amplitudes(variant, mu: float) -> tuple[float, float, float]:
+    """(scale, blob, broad) of a :class:`~spiralbayes.templates.variants.Variant` at ``mu``."""
+    return variant.scale_at(mu), variant.blob_amplitude(mu), variant.broad_at(mu)
+
+
+SOURCES = ("wakeflow", "fargo3d_isothermal", "library_gas", "library_beta10", "library_dust", "library_long",
+           "library_gas2")
 """The calibration sources of the leave-one-source-out test (docs/limits.md §4d): each is one
 code or one physics the others do not have — wakeflow (semi-analytic wakes); the two older
 40-orbit FARGO3D runs (inner edge 0.27 r_p, 16 cells per H); the library's isothermal gas runs
 (the mass and H/r grid); its β = 10 runs (another thermodynamics, another generator family); its
-gas + dust run (the dust's response)."""
+gas + dust run (the dust's response); its two 200-orbit runs (the 1 and 3 M_th planets after ten
+times the library's 20 orbits: another stage of the disc's evolution, a separate run set); and the
+second run set of isothermal gas (``batch = issue22``: 3 M_th at H/r 0.05 and 0.10, 20 orbits),
+made because the first set held the only early-time 3 M_th spiral, so that holding it out left
+the variants no 3 M_th reference at that stage."""
 
 
 def calibration_source(case) -> str:
@@ -205,6 +271,10 @@ def calibration_source(case) -> str:
         return "wakeflow"
     if case.source == "fargo3d":
         return "fargo3d_isothermal"
+    if case.role == "orbits200":
+        return "library_long"
+    if case.batch == "issue22":
+        return "library_gas2"
     if case.beta > 0:
         return "library_beta10"
     if "_st" in case.group:
@@ -219,12 +289,14 @@ def reference_rows(cases=None) -> list:
 
 def fit_variants(rows) -> dict:
     """The refitted variants from ``rows``: ``hydro`` from every non-wakeflow row (scale slope
-    fitted), ``wakeflow`` from the wakeflow rows (one scale); a source without rows gives none."""
+    fitted, with the broad wake), ``wakeflow`` from the wakeflow rows (one scale; T and B only:
+    wakeflow's wakes are the narrow ones, and a variant without W keeps the scan's shared peak
+    recoverable, :mod:`spiralbayes.inference.scan.building_blocks`); a source without rows gives none."""
     out = {}
     hydro = [r for r in rows if r[0].source != "wakeflow"]
     wake = [r for r in rows if r[0].source == "wakeflow"]
     if hydro:
         out["hydro"] = fit_source(hydro, scale_slopes=SCALE_SLOPES)
     if wake:
-        out["wakeflow"] = fit_source(wake, slopes=(0.0, 0.5, 1.0))
+        out["wakeflow"] = fit_source(wake, slopes=(0.0, 0.5, 1.0), broad=False)
     return out

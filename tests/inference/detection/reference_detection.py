@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.templates.fidelity import REF_DIR, Case, reference_cases, reference_template
+from tests.templates.fidelity import REF_DIR, REFERENCE_ROLES, Case, reference_cases, reference_template
 
 log = logging.getLogger(__name__)
 
@@ -59,9 +59,11 @@ def _library_roles() -> dict:
 
 
 def detection_cases() -> list[Case]:
-    """Every wakeflow and ``fargo3d_isothermal`` case, and the library cases of role ``library`` whose
-    run is complete. Left out: the library's numerical checks (softening, resolution: the same
-    planet as ``h0.07_mu1``) and runs still under way (``complete`` false)."""
+    """Every wakeflow and ``fargo3d_isothermal`` case, and the library cases of a reference role
+    (``library``, ``orbits200``) whose run is complete and quasi-steady (:attr:`Case.is_reference`).
+    Left out: the library's numerical checks (softening, resolution: the same planet as
+    ``h0.07_mu1``), runs still under way (``complete`` false) and the vortex-dominated H/r 0.10
+    3 M_th map (:data:`~tests.templates.fidelity.MAX_CHANGE`)."""
     import h5py
 
     roles = _library_roles()
@@ -70,7 +72,7 @@ def detection_cases() -> list[Case]:
         if case.file == "fargo3d_library.h5":
             with h5py.File(REF_DIR / case.file, "r") as f:
                 complete = bool(f[case.group].attrs.get("complete", True))
-            if roles.get(case.group, "library") != "library" or not complete:
+            if roles.get(case.group, "library") not in REFERENCE_ROLES or not complete or not case.is_reference:
                 continue
         out.append(case)
     return out

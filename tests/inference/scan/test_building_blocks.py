@@ -75,8 +75,17 @@ def test_the_default_variants_form_groups_sharing_one_peak(bank):
     groups, plain = building_block_groups(bank)
     assert plain == []
     assert sorted(i for g in groups for i in g.indices) == list(range(len(bank)))
-    # one near-planet peak per (mass, τ0, H/r): shared by both β and both hands
-    assert len(groups) == 2 and all(len(g.generators) == 4 for g in groups)
+    # one near-planet peak per (mass, τ0, H/r): shared by both β and both hands; per (β, hand) the
+    # generator T (compromise, wakeflow) and the hydro variant's own T' = δ - a B (its broad wake)
+    assert VARIANTS["hydro"].broad != 0.0 and VARIANTS["wakeflow"].broad == 0.0
+    assert len(groups) == 2 and all(len(g.generators) == 8 for g in groups)
+    hydro = {i for i, t in enumerate(bank) if t.provenance["variant"] == "hydro"}
+    for g in groups:
+        for gen in g.generators:
+            rows = {m[0] for m in gen.members}
+            assert rows <= hydro or not rows & hydro  # a hydro member is a generator of its own
+            if rows <= hydro:
+                assert len(rows) == 1 and gen.members[0][1] == 1.0
 
 
 @pytest.mark.parametrize("power_path", ["polar", "direct"])
@@ -117,9 +126,11 @@ def test_building_blocks_match_the_plain_scan_on_a_whole_grid(data, bank, power_
 
 @pytest.mark.parametrize("variant", ["wakeflow", "hydro"])
 def test_a_template_that_is_not_its_variant_is_scanned_plainly(data, bank, variant):
-    """A template whose δ was changed after it was made keeps its provenance but fails the check; when
-    it is the one the peak is recovered from (the variant with the largest |a| at 1 M_th), the others
-    fail instead."""
+    """A template whose δ was changed after it was made keeps its provenance. The peak B is recovered
+    from the variant without a broad wake (wakeflow; its right hand): changed, the other members in
+    the span of T and B fail the check instead. The hydro variant (broad wake) is a generator of its
+    own, ``δ - a B`` from its stored δ, so it stays exact, changed or not, and nothing is scanned
+    plainly."""
     templates = _one_mass(bank)
     k = next(i for i, t in enumerate(templates) if t.provenance["variant"] == variant and t.hand == "R")
     delta = np.array(templates[k].delta)
@@ -127,8 +138,8 @@ def test_a_template_that_is_not_its_variant_is_scanned_plainly(data, bank, varia
     templates[k] = replace(templates[k], delta=delta)
     groups, plain = building_block_groups(templates)
     others = [i for i, t in enumerate(templates) if t.provenance["variant"] != "compromise" and i != k]
-    source = max(("wakeflow", "hydro"), key=lambda v: abs(VARIANTS[v].blob_amplitude(1.0)))
-    assert plain == (others if variant == source else [k])
+    in_span = [i for i in others if templates[i].provenance["variant"] == "wakeflow"]
+    assert plain == (in_span if variant == "wakeflow" else [])
     fast = _scan(data, templates)
     reference = _scan(data, templates, building_blocks=False)
     np.testing.assert_array_equal(fast.cross[plain], reference.cross[plain])

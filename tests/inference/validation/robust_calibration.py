@@ -38,7 +38,9 @@ def loso_variants(held_out: str) -> list[Variant]:
     out = [Variant("compromise")]
     for name, f in VF.fit_variants(rows).items():
         out.append(Variant(name, scale=f["scale_final"], scale_slope=f["scale_slope"], blob=f["blob_final"],
-                           blob_slope=f["slope"], note=f"refitted without {held_out}; binding {f['binding']}"))
+                           blob_slope=f["slope"], broad=f["broad_final"], broad_width=VF.BROAD_WIDTH,
+                           mass_factors=tuple(f["mass_factors"].items()),
+                           note=f"refitted without {held_out}; binding {f['binding']}"))
     return out
 
 
@@ -112,8 +114,8 @@ def truth_instance_rates(g: dict, amplitudes, power: float, n: int, seed: int = 
     observation, where the variants were fitted), from the noise-free inner products ``g``.
 
     The noise is scaled so that the compromise template has ``Σ w |ΔV|² = power``; the cross terms
-    of the variants' true-mass templates ``V_i = s_i T + b_i B`` (``amplitudes``: one ``(s_i, b_i)``
-    each, the compromise ``(1, 0)`` first) are then jointly Gaussian with mean ``f <S, V_i>`` and
+    of the variants' true-mass templates ``V_i = s_i T + b_i B + w_i W`` (``amplitudes``: one
+    ``(s_i, b_i[, w_i])`` each, the compromise ``(1, 0)`` first) are then jointly Gaussian with mean ``f <S, V_i>`` and
     covariance ``f <V_i, V_j>`` (``f = power / <T, T>``), so ``n`` realisations are exact draws.
     A realisation wrongly excludes when every variant's ``A_up < 1`` at the truth — necessary for
     ``M_lim <= M_true`` (which also needs every azimuth and the heavier masses to exclude), so the
@@ -122,13 +124,12 @@ def truth_instance_rates(g: dict, amplitudes, power: float, n: int, seed: int = 
     """
     from tests.templates.variant_fit import Z95
 
-    amp = np.asarray(amplitudes, dtype=float)
-    s, b = amp[:, 0], amp[:, 1]
-    st, sb = (g["TT"], g["TB"]) if control else (g["ST"], g["SB"])
-    gram = (np.outer(s, s) * g["TT"] + (np.outer(s, b) + np.outer(b, s)) * g["TB"] + np.outer(b, b) * g["BB"])
+    amp = np.zeros((len(amplitudes), len(VF.BLOCKS)))
+    for i, a in enumerate(amplitudes):
+        amp[i, :len(a)] = a
     f = power / g["TT"]
-    mean = f * (s * st + b * sb)
-    cov = f * gram
+    mean = f * amp @ VF.cross_vector(g, control)
+    cov = f * amp @ VF.gram_matrix(g) @ amp.T
     rng = np.random.default_rng(seed)
     cross = rng.multivariate_normal(mean, cov, size=n, method="eigh")
     pw = np.diag(cov)

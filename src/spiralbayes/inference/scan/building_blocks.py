@@ -3,7 +3,10 @@ each near-planet peak instead of one per variant.
 
 A morphology variant (:mod:`spiralbayes.templates.variants`) is ``δ = s T + a B``: a generator
 template ``T`` (mass, τ0, β, H/r, hand) times ``s`` plus a near-planet peak ``B`` (mass, τ0, H/r,
-peak width; no β, and the same for both hands when it is mirror-symmetric) times ``a``. The
+peak width; no β, and the same for both hands when it is mirror-symmetric) times ``a``. A variant
+with a broad wake (``s T + w W + a B``) is not in that span: its member becomes a generator of its
+own, ``T' = δ - a B`` with ``s = 1``, sharing the group's ``B`` (one more plain scan per such
+member, and its cross-power pass; ``B`` still recovered from a variant without a broad wake). The
 perturbation visibilities are linear in δ, so at every planet position
 
     cross = s cross_T + a cross_B,
@@ -42,7 +45,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -63,7 +66,7 @@ __all__ = ["VariantGroup", "scan_group", "building_block_groups"]
 
 log = logging.getLogger(__name__)
 
-STRUCTURE_VERSION = 1
+STRUCTURE_VERSION = 2
 """Recorded in the resume key of a scan that used building blocks."""
 ROUNDING_UNITS = 8.0
 """A member passes when ``|δ_j - s_j T - a_j B| <= ROUNDING_UNITS 2^-24 (max|δ_j| + |a_j / a_k| max|δ_k|)``
@@ -97,8 +100,10 @@ def _grid_key(template) -> str:
     return hashlib.sha1(x.tobytes() + phi.tobytes() + str(np.shape(template.delta)).encode()).hexdigest()
 
 
-def _coefficients(template) -> tuple[float, float, float] | None:
-    """``(s, a, width)`` of a variant template from its provenance, or None."""
+def _coefficients(template) -> tuple | None:
+    """``(s, a, width, broad)`` of a variant template from its provenance, or None: ``δ = s T + a B``
+    (+ a broad wake when ``broad`` is true: such a member is not in the span of ``T`` and ``B`` and
+    becomes a generator of its own, ``δ - a B``, sharing ``B``; module docstring)."""
     prov = getattr(template, "provenance", None) or {}
     c = prov.get("variant_constants")
     if not isinstance(c, dict):
@@ -106,18 +111,18 @@ def _coefficients(template) -> tuple[float, float, float] | None:
     try:
         v = Variant(str(prov.get("variant", "")), scale=float(c["scale"]),
                     scale_slope=float(c.get("scale_slope", 0.0)), blob=float(c["blob"]),
-                    blob_slope=float(c["blob_slope"]), blob_width=float(c["blob_width_Hp"]))
+                    blob_slope=float(c["blob_slope"]), blob_width=float(c["blob_width_Hp"]),
+                    broad=float(c.get("broad", 0.0)), broad_width=float(c.get("broad_width", 3.0)),
+                    mass_factors=tuple((float(m), float(k)) for m, k in c.get("mass_factors", ())))
         s, a = v.scale_at(float(template.mass)), v.blob_amplitude(float(template.mass))
     except (KeyError, TypeError, ValueError):
         return None
     if not (np.isfinite(s) and np.isfinite(a)):
         return None
-    return s, a, float(v.blob_width)
+    return s, a, float(v.blob_width), v.broad != 0.0
 
 
 def _mirror_delta(template, delta: np.ndarray) -> np.ndarray:
-    from dataclasses import replace
-
     return np.asarray(replace(template, delta=delta, brightness=None).mirror().delta, dtype=float)
 
 
@@ -136,12 +141,14 @@ def building_block_groups(templates) -> tuple[list[VariantGroup], list[int]]:
         by_t.setdefault(key, []).append((i, *coef))
     by_blob: dict = {}
     for key, members in by_t.items():
-        base = next((m for m in members if m[1] == 1.0 and m[2] == 0.0), None)
+        base = next((m for m in members if m[1] == 1.0 and m[2] == 0.0 and not m[4]), None)
         if base is None:  # no generator template in the bank to build on
             plain.extend(m[0] for m in members)
             continue
         mass, tau0, _, h_p, hand, grid = key
         T = templates[base[0]]
+        plain.extend(m[0] for m in members if m[4] and m[2] == 0.0)  # a broad wake alone: nothing to share
+        members = [m for m in members if not (m[4] and m[2] == 0.0)]
         zero = [m for m in members if m[2] == 0.0]
         widths = sorted({m[3] for m in members if m[2] != 0.0})
         if not widths:
@@ -158,9 +165,11 @@ def building_block_groups(templates) -> tuple[list[VariantGroup], list[int]]:
 def _build_groups(templates, gens, plain: list) -> list[VariantGroup]:
     """The groups of one peak (mass, τ0, H/r, width): recover ``B``, share it between the hands when
     it is mirror-symmetric, check every member."""
-    candidates = [(abs(m[2]), hand, T, m) for hand, T, chosen in gens for m in chosen if m[2] != 0.0]
+    candidates = [(abs(m[2]), hand, T, m) for hand, T, chosen in gens for m in chosen if m[2] != 0.0 and not m[4]]
     if not candidates:
-        return [VariantGroup(None, [Generator(T, [(m[0], m[1], m[2]) for m in chosen]) for _, T, chosen in gens])]
+        plain.extend(m[0] for _, _, chosen in gens for m in chosen if m[4])
+        return [VariantGroup(None, [Generator(T, [(m[0], m[1], m[2]) for m in chosen if not m[4]])
+                                    for _, T, chosen in gens])]
     _, hand0, T0, k = max(candidates, key=lambda c: (c[0], c[1] == "R"))
     dk = np.asarray(templates[k[0]].delta, dtype=float)
     blob = (dk - k[1] * np.asarray(T0.delta, dtype=float)) / k[2]
@@ -170,14 +179,19 @@ def _build_groups(templates, gens, plain: list) -> list[VariantGroup]:
     mirrored = _mirror_delta(T0, blob)
     symmetric = float(np.max(np.abs(mirrored - blob))) <= ROUNDING_UNITS * 2.0 ** -24 * scale_k
     blobs[other] = blob if symmetric else mirrored
-    from dataclasses import replace
-
     out: dict = {}
     work, other_work = np.empty_like(blob), np.empty_like(blob)
     for hand, T, chosen in gens:
         Td = np.asarray(T.delta, dtype=float)
-        kept = []
-        for index, s, a, _ in chosen:
+        kept, own = [], []
+        for index, s, a, _, broad in chosen:
+            if broad:  # its own generator δ - a B, sharing B (module docstring)
+                delta = np.asarray(templates[index].delta, dtype=float) - a * blobs[hand]
+                own.append(Generator(replace(templates[index], delta=delta, brightness=None,
+                                             name=f"blocks:{templates[index].name}:T",
+                                             provenance={"recovered_from": templates[index].name}),
+                                     [(index, 1.0, a)]))
+                continue
             if a != 0.0:  # in place: this check touches every cell of 384 maps for the default bank
                 np.multiply(Td, s, out=work)
                 work += np.multiply(blobs[hand], a, out=other_work)
@@ -197,6 +211,7 @@ def _build_groups(templates, gens, plain: list) -> list[VariantGroup]:
                                              provenance={"recovered_from": templates[k[0]].name}), [])
         if kept:
             out[slot].generators.append(Generator(T, kept))
+        out[slot].generators.extend(own)
     return [g for g in out.values() if g.generators]
 
 
