@@ -151,6 +151,22 @@ def test_limits_from_config_reuses_the_scan_and_writes_table3(tmp_path, capsys, 
     assert len(list(out.glob("completeness_*.h5"))) == 1 and len(list(out.glob("mass_radius_*.png"))) == 1
     limits = ExclusionLimits.load(out / "limits.h5")
     assert limits.flags[0] == "unresolved" and limits.cl == 0.95
+    assert "near_planet" not in limits.flags.tolist()
+    # the scan's verdict.json beside scan.h5: radii near its planet and its significant asymmetry
+    # models are flagged, not excluded; an older verdict.json belongs to another scan and is ignored
+    import os
+
+    for verdict, flag in (({"test1_passed": True, "r_p": float(r[-1])}, "near_planet"),
+                          ({"test1_passed": False, "r_p": float(r[-1]), "alternatives": {"arc": {
+                              "delta_bic": 30.0, "params": {"r_c": float(r[2]), "sigma_r": 0.01}}}}, "near_asymmetry")):
+        (out / "verdict.json").write_text(json.dumps(verdict))
+        assert main(["-q", "limits", str(tmp_path / "run.toml")]) == 0
+        flags = ExclusionLimits.load(out / "limits.h5").flags.tolist()
+        assert flags == ["unresolved"] + [flag] * 3, flags  # every resolved radius lies within the 0.2" beam
+    stale = (out / "scan.h5").stat().st_mtime - 60
+    os.utime(out / "verdict.json", (stale, stale))
+    assert main(["-q", "limits", str(tmp_path / "run.toml")]) == 0
+    assert "near_planet" not in ExclusionLimits.load(out / "limits.h5").flags.tolist()
     (tmp_path / "bad.toml").write_text('[data]\npath = "obs.h5"\n[limits]\ncl = 1.5\n'
                                        f'[templates]\nbank = "bank.h5"\n[output]\ndir = "{out}"\n'
                                        f"[grid]\nr_p_min = {r[0]}\nr_p_max = {r[-1]}\nn_r_p = {r.size}\n"

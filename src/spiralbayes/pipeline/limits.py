@@ -41,8 +41,13 @@ def _slug(text: str) -> str:
 
 
 def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict | None = None, name: str = "disc",
-               distance: float | None = None, progress: bool = True, plots: bool = True) -> LimitsRun:
-    """Exclusion limits, completeness (optional), Table 3 (Markdown, CSV), HDF5 and plots in ``out_dir``."""
+               distance: float | None = None, progress: bool = True, plots: bool = True,
+               verdict=None) -> LimitsRun:
+    """Exclusion limits, completeness (optional), Table 3 (Markdown, CSV), HDF5 and plots in ``out_dir``.
+
+    ``verdict`` (the scan's detection verdict or its dict, ``verdict.json``): radii near its planet or
+    candidate and near its significant asymmetry models are flagged, not excluded
+    (:func:`~spiralbayes.inference.limits.compute_limits`'s ``planets``)."""
     from ..inference.limits.recovery import completeness, injection_engine
     from ..inference.limits.exclusion import compute_limits
     from ..inference.limits.settings import LimitSettings
@@ -54,7 +59,7 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     limits = compute_limits(result, settings=from_config(LimitSettings, lc), vis=vis, axisymmetric=axisym,
-                            distance=distance)
+                            distance=distance, planets=verdict)
     files = [limits.save(out_dir / "limits.h5")]
     comps = []
     if lc["completeness"]:
@@ -131,7 +136,27 @@ def run_limits_config(config: dict, *, progress: bool = True) -> LimitsRun:
     _write_text(out_dir / "config_used_limits.toml", describe_config(config))
     name = config["limits"]["name"] or Path(config["data"]["path"]).stem
     return run_limits(vis, axisym, templates, result, out_dir, limits_config=config["limits"], name=name,
-                      distance=config["geometry"]["distance"], progress=progress, plots=config["output"]["plots"])
+                      distance=config["geometry"]["distance"], progress=progress, plots=config["output"]["plots"],
+                      verdict=scan_verdict(out_dir))
+
+
+def scan_verdict(out_dir) -> dict | None:
+    """The detection verdict the scan command wrote beside ``scan.h5`` (``verdict.json``), or None
+    when there is none or it is older than the scan (then it belongs to another scan)."""
+    import json
+
+    out_dir = Path(out_dir)
+    path, scan_file = out_dir / "verdict.json", out_dir / "scan.h5"
+    if not path.exists() or not scan_file.exists():
+        return None
+    if path.stat().st_mtime < scan_file.stat().st_mtime:
+        log.warning("%s is older than %s: not used to flag radii near the detection", path, scan_file)
+        return None
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        log.warning("cannot read %s (%s): radii near the detection are not flagged", path, exc)
+        return None
 
 
 def run_limits_demo(out_dir="spiralbayes-limits-demo", *, seed: int = 3, progress: bool = True) -> LimitsRun:

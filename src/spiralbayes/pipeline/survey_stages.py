@@ -328,7 +328,7 @@ def stage_limits(job, prep: Prepared, axisym, templates, verdict: dict) -> str:
         _write_text(out / "config_used_limits.toml", describe_config(config))
         run_limits(prep.vis, axisym, templates, result, out, limits_config=config["limits"],
                    name=config["limits"]["name"], distance=config["geometry"]["distance"], progress=False,
-                   plots=config["output"]["plots"])
+                   plots=config["output"]["plots"], verdict=verdict)
         mark(out, "limits", key)
     return str(out / "limits.h5")
 

@@ -171,3 +171,48 @@ def test_a_familys_own_summary_quotes_jupiter_masses_with_its_own_h_p():
         m = [f"{x:.2g}" for x in mth_to_mjup(3.0, np.array([lo, hi]), 0.8, h_ref=fam.key["h_p"], r_ref=50.0,
                                               flaring=0.25, distance=140.0)]
         assert f"({m[0]}-{m[1]} M_Jup)" in limits.summary(fam)
+
+
+def _verdict_with_alternative(delta_bic: float, r_c: float = 0.45, sigma_r: float = 0.02) -> dict:
+    """A planet-free verdict (test 1 failed) whose lopsided-ring alternative has this ΔBIC."""
+    return {"test1_passed": False, "r_p": 0.25, "candidate": None,
+            "alternatives": {"lopsided": {"label": "lopsided ring", "delta_chi2": delta_bic + 46.0,
+                                          "delta_bic": delta_bic, "n_params": 4,
+                                          "params": {"r_c": r_c, "sigma_r": sigma_r, "amplitude": 0.1}},
+                             "geometry": {"label": "geometry error", "delta_bic": 50.0, "params": {"d_inc_deg": 1.0}}}}
+
+
+def test_radii_near_a_significant_asymmetry_are_flagged_not_excluded(planted_planet_limits, tmp_path):
+    """An alternative with ΔBIC > 10 (here a lopsided ring at 0.45″, σ_r 0.02″) flags the radii within
+    one beam of r_c ± 2σ_r; one below the threshold, or without an annulus (geometry), flags nothing."""
+    from spiralbayes.inference.limits import asymmetry_bands
+
+    _, result = planted_planet_limits
+    beam = 0.05
+    plain = compute_limits(result, resolution=0.0)
+    guarded = compute_limits(result, resolution=0.0, planets=_verdict_with_alternative(25.0), planet_beam=beam)
+    band = (result.r_p >= 0.41 - beam - 1e-12) & (result.r_p <= 0.49 + beam + 1e-12)
+    assert band.tolist() == [False, False, False, False, True, True]
+    assert set(guarded.flags[band]) == {"near_asymmetry"} and np.all(np.isnan(guarded.m_lim[:, band]))
+    assert not guarded.excluded().any(axis=0)[band].any()
+    np.testing.assert_array_equal(guarded.excluded()[:, ~band], plain.excluded()[:, ~band])
+    assert "lopsided at 0.41-0.49 arcsec, Delta BIC 25" in guarded.summary()
+    assert "asymmetr" not in plain.summary()
+    weak = compute_limits(result, resolution=0.0, planets=_verdict_with_alternative(8.0), planet_beam=beam)
+    np.testing.assert_array_equal(weak.flags, plain.flags)
+    bands = asymmetry_bands(_verdict_with_alternative(25.0))
+    assert [b["model"] for b in bands] == ["lopsided"]
+    assert bands[0]["r_min"] == pytest.approx(0.41) and bands[0]["r_max"] == pytest.approx(0.49)
+    back = type(guarded).load(guarded.save(tmp_path / "limits.h5"))
+    assert back.provenance["near_asymmetries"] == bands and back.summary() == guarded.summary()
+
+
+def test_a_verdict_dict_flags_the_planet_as_the_verdict_does(planted_planet_limits):
+    from spiralbayes.inference.detection import detect
+
+    _, result = planted_planet_limits
+    verdict = detect(result)
+    a = compute_limits(result, resolution=0.0, planets=verdict, planet_beam=0.08)
+    b = compute_limits(result, resolution=0.0, planets=verdict.to_dict(), planet_beam=0.08)
+    np.testing.assert_array_equal(a.flags, b.flags)
+    assert "near_planet" in b.flags.tolist()

@@ -20,6 +20,7 @@ from .exclusion import (
     bright_extent,
     z_score,
 )
+from .guards import ASYMMETRY_THRESHOLD, asymmetry_bands, planet_radii
 from .injection import Injection, InjectionEngine, brute_force_injection, injected_cross_reference
 from .recovery import (
     CompletenessResult,
@@ -56,6 +57,9 @@ __all__ = [
     "InjectionEngine",
     "LimitSettings",
     "amplitude_upper_limit",
+    "ASYMMETRY_THRESHOLD",
+    "asymmetry_bands",
+    "planet_radii",
     "bright_extent",
     "brute_force_injection",
     "compare_setups",

@@ -34,7 +34,13 @@ the planet lie within about one beam of the star: the scan cannot tell a spiral 
 axisymmetric or compact residual, the paper's small-r_p caveat), and ``"beyond_bright_extent"``
 when ``r_p`` exceeds the radius holding ``extent_fraction`` (95 %) of the disc's flux (half of
 the template, the outer arm, would lie where ``I_A ≈ 0`` and the model ``I_A (1 + delta)`` says
-nothing about a planet there: the large-r_p caveat).
+nothing about a planet there: the large-r_p caveat). Given the detection verdict (``planets``),
+``"near_planet"`` within one beam of a detected or candidate planet, and ``"near_asymmetry"``
+within one beam of the annulus ``r_c ± 2 σ_r`` of every competing asymmetry model (test 3's arc,
+lopsided ring, m = 2, eccentric ring) with ΔBIC > 10 against the axisymmetric disc: the limits
+assume that the residual holds noise and perhaps a spiral, and a disc with unmodelled asymmetric
+emission there (a vortex-dominated gap edge, say) breaks that — no template stands for it
+(docs/limits.md §4d).
 """
 
 from __future__ import annotations
@@ -50,6 +56,7 @@ from ...exceptions import InputError
 from ...results import ResultMixin
 from ...settings import with_overrides
 from ...units import mth_to_mjup
+from . import guards
 from .families import Family, select_family, template_families
 from .settings import LimitSettings
 from .table3 import describe_family_limits, runs
@@ -60,7 +67,7 @@ __all__ = ["ExclusionLimits", "amplitude_upper_limit", "compute_limits", "data_r
 LIMITS_KIND = "spiralbayes.ExclusionLimits"
 FLAG_UNRESOLVED = "unresolved"
 FLAG_EXTENT = "beyond_bright_extent"
-FLAG_NEAR_PLANET = "near_planet"
+FLAG_NEAR_PLANET, FLAG_NEAR_ASYMMETRY = guards.FLAG_NEAR_PLANET, guards.FLAG_NEAR_ASYMMETRY
 METHODS = ("all_phi", "marginal")
 
 log = logging.getLogger(__name__)
@@ -316,18 +323,6 @@ def _read_format_1(f) -> ExclusionLimits:
 ExclusionLimits.LEGACY_READERS = {1: _read_format_1}
 
 
-def _planet_radii(planets) -> list[float]:
-    """Radii [arcsec] of the detected or candidate planets in ``planets`` (a Verdict or radii)."""
-    if planets is None:
-        return []
-    if hasattr(planets, "test1_passed"):  # a detection Verdict
-        out = [float(planets.r_p)] if planets.test1_passed else []
-        if getattr(planets, "candidate", None):
-            out.append(float(planets.candidate["r_p"]))
-        return out
-    return [float(r) for r in np.atleast_1d(np.asarray(planets, dtype=float))]
-
-
 def _flags(r_p, resolution: float, resolution_factor: float, bright_radius: float) -> np.ndarray:
     flags = np.full(r_p.size, "", dtype=object)
     flags[r_p < resolution_factor * resolution] = FLAG_UNRESOLVED
@@ -390,11 +385,13 @@ def compute_limits(scan_result, *, settings: LimitSettings | None = None, vis=No
         The scan's axisymmetric model, for the bright extent.
     distance : float, optional
         [pc]; default the scan's.
-    planets : Verdict or sequence of float, optional
-        Detected or candidate planets not in the scan's model: a :func:`.detect` verdict (its peak
-        when test 1 passes, and its candidate) or radii [arcsec]. Radii within ``planet_beam`` of
-        one are flagged ``"near_planet"``, not excluded (:mod:`.robust`). Leave it out when the
-        planet is in the model (scan the residual of a fit that includes it).
+    planets : Verdict, dict or sequence of float, optional
+        Detected or candidate planets not in the scan's model: a :func:`.detect` verdict or its
+        ``to_dict()`` (its peak when test 1 passes, and its candidate) or radii [arcsec]. Radii
+        within ``planet_beam`` of one are flagged ``"near_planet"``, not excluded (:mod:`.robust`).
+        Leave it out when the planet is in the model (scan the residual of a fit that includes it).
+        A verdict with test 3's alternatives also flags ``"near_asymmetry"`` the radii within
+        ``planet_beam`` of each significant asymmetry model's annulus (:mod:`.guards`).
     **overrides
         Fields of :class:`LimitSettings` replacing those of ``settings`` (e.g. ``cl=0.99``).
 
@@ -429,12 +426,7 @@ def compute_limits(scan_result, *, settings: LimitSettings | None = None, vis=No
             f"every scanned r_p ({r_p.min():.3g}-{r_p.max():.3g} arcsec) lies outside the data: below "
             f"{resolution_factor:g} x the resolution ({resolution:.3g} arcsec) or beyond the disc's bright "
             f"extent ({bright_radius:.3g} arcsec); scan radii between these")
-    near = _planet_radii(planets)
-    if near:
-        from .robust import near_planet_mask
-
-        flags = np.where(near_planet_mask(r_p, near, resolution if planet_beam is None else planet_beam)
-                         & (flags == ""), FLAG_NEAR_PLANET, flags)
+    flags, near, bands = guards.guard_flags(r_p, flags, planets, resolution if planet_beam is None else planet_beam)
     upper = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, method)
     per_instance = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, "instance")
     fraction = np.mean(per_instance < 1.0, axis=-1)
@@ -457,7 +449,7 @@ def compute_limits(scan_result, *, settings: LimitSettings | None = None, vis=No
             "flaring": float(flaring), "h_ref_from_family": h_ref is None}
     distance = scan_result.distance if distance is None else distance
     prov = provenance_record(scan=scan_result.provenance.get("data_hash"), method=method, cl=cl, hand=hand,
-                             near_planets=near)
+                             near_planets=near, near_asymmetries=bands)
     return ExclusionLimits(list(scan_result.templates), r_p, np.asarray(scan_result.phi_p), float(cl), method, hand,
                            upper, fraction, flags, families, m_lim, status.astype(str), distance, disc,
                            float(resolution), float(bright_radius), float(resolution_factor), prov)

@@ -127,7 +127,7 @@ def _range_text_over(limits, lo: float, hi: float, mass: float) -> str:
 def describe_over_families(limits) -> str:
     """Sentences for :meth:`.ExclusionLimits.summary` without ``family=``: the robust limit over every
     family, the set named, and the price of robustness where variants exist."""
-    from .table3 import THRESHOLDS, runs
+    from .table3 import THRESHOLDS, guard_sentences, runs
 
     fams = list(limits.families)
     m_lim, status = combined_m_lim(limits, fams)
@@ -147,8 +147,5 @@ def describe_over_families(limits) -> str:
         text = (f"{np.nanmin(price[ok]):.2g}-{np.nanmax(price[ok]):.2g}" if ok.any() else "undefined (no limit)")
         out.append(f"Family {group['label']}: morphology variants {{{variants}}}; price of robustness "
                    f"M_lim(robust)/M_lim({SINGLE_VARIANT}) = {text}.")
-    if limits.provenance.get("near_planets"):
-        out.append("Radii within one beam of the planet(s) at "
-                   + ", ".join(f"{r:.3g}" for r in limits.provenance["near_planets"])
-                   + " arcsec are not reported as excluded (the planet is not in the model).")
+    out.extend(guard_sentences(limits))
     return " ".join(out)

@@ -154,7 +154,8 @@ def table_csv(limits, completeness=None, *, name: str = "disc", thresholds=THRES
 
 
 def describe_family_limits(limits, family=None) -> str:
-    """Sentences: the r_p ranges where planets of at least 3 and 1 M_th are ruled out."""
+    """Sentences: the r_p ranges where planets of at least 3 and 1 M_th are ruled out, and the radii
+    not reported because of a detection (:func:`guard_sentences`)."""
     fam = limits.family(family)
     out = []
     for mass in THRESHOLDS:
@@ -162,4 +163,20 @@ def describe_family_limits(limits, family=None) -> str:
         where = "; ".join(_range_text(limits, lo, hi, mass, fam) for lo, hi in ranges) or "no radius"
         out.append(f"Planets of >= {mass:g} M_th (template family {fam.label}) are ruled out at "
                    f"{limits.cl:.0%} confidence at {where}.")
-    return " ".join(out)
+    return " ".join(out + guard_sentences(limits))
+
+
+def guard_sentences(limits) -> list[str]:
+    """Why radii near a detected planet or a significant non-spiral asymmetry are not reported
+    (``compute_limits(planets=...)``; empty without them)."""
+    out = []
+    prov = limits.provenance or {}
+    if prov.get("near_planets"):
+        out.append("Radii within one beam of the planet(s) at " + ", ".join(f"{r:.3g}" for r in prov["near_planets"])
+                   + " arcsec are not reported as excluded (the planet is not in the model).")
+    if prov.get("near_asymmetries"):
+        out.append("Radii within one beam of significant non-spiral asymmetries ("
+                   + "; ".join(f"{b['model']} at {b['r_min']:.3g}-{b['r_max']:.3g} arcsec, Delta BIC {b['delta_bic']:.0f}"
+                               for b in prov["near_asymmetries"])
+                   + ") are not reported as excluded (no template stands for them).")
+    return out
