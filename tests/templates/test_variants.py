@@ -197,3 +197,16 @@ def test_compute_limits_is_robust_over_variants_for_a_planted_hydro_spiral():
     assert not limits.excluded(mass=1.0)[0]
     text = limits.summary()
     assert "{compromise, hydro, wakeflow}" in text and "price of robustness" in text
+
+
+def test_a_variant_is_rebuilt_from_its_templates_constants():
+    """The scan reads a template's variant back from ``provenance["variant_constants"]``."""
+    from spiralbayes.templates.variants import Variant
+
+    for v in VARIANTS.values():
+        t = variant_template(3.0, 0.3, 0.0, "R", v, h_p=0.07, **SMALL)
+        back = Variant.from_constants(t.provenance["variant"], t.provenance["variant_constants"])
+        assert back.constants() == v.constants() and back.name == v.name
+        assert back.scale_at(3.0) == v.scale_at(3.0) and back.broad_at(3.0) == v.broad_at(3.0)
+    old = {"scale": 0.5, "blob": 0.1, "blob_slope": 1.0, "blob_width_Hp": 0.5}  # a bank from before W
+    assert Variant.from_constants("hydro", old).broad == 0.0 and Variant.from_constants("hydro", old).factor_at(3) == 1

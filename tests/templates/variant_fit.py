@@ -46,7 +46,7 @@ def _disk_key(case: F.Case, tau0: float, setup: str = "fiducial") -> str:
 
     st = (F.REF_DIR / case.file).stat()
     key = (f"{case.file}:{case.group}|{tau0:g}|{st.st_size}-{st.st_mtime_ns}|v{GENERATOR_VERSION}|{WakeSettings().key()}"
-           f"|blocks{GRAM_VERSION}")
+           f"|blocks{GRAM_VERSION}|W{BROAD_WIDTH:g}")
     return key if setup == "fiducial" else f"{key}|{setup}"
 
 

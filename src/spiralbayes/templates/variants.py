@@ -124,6 +124,16 @@ class Variant:
                 "blob_slope": self.blob_slope, "blob_width_Hp": self.blob_width, "broad": self.broad,
                 "broad_width": self.broad_width, "mass_factors": [list(p) for p in self.mass_factors]}
 
+    @classmethod
+    def from_constants(cls, name: str, constants: dict) -> Variant:
+        """The variant of a template's ``provenance["variant_constants"]`` (:meth:`constants`; the keys
+        added later default as in older banks). Raises KeyError, TypeError or ValueError when malformed."""
+        c = constants
+        return cls(str(name), scale=float(c["scale"]), scale_slope=float(c.get("scale_slope", 0.0)),
+                   blob=float(c["blob"]), blob_slope=float(c["blob_slope"]), blob_width=float(c["blob_width_Hp"]),
+                   broad=float(c.get("broad", 0.0)), broad_width=float(c.get("broad_width", 3.0)),
+                   mass_factors=tuple((float(m), float(k)) for m, k in c.get("mass_factors", ())))
+
 
 VARIANTS: dict[str, Variant] = {
     "compromise": Variant(

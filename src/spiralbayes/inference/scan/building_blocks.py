@@ -109,11 +109,7 @@ def _coefficients(template) -> tuple | None:
     if not isinstance(c, dict):
         return None
     try:
-        v = Variant(str(prov.get("variant", "")), scale=float(c["scale"]),
-                    scale_slope=float(c.get("scale_slope", 0.0)), blob=float(c["blob"]),
-                    blob_slope=float(c["blob_slope"]), blob_width=float(c["blob_width_Hp"]),
-                    broad=float(c.get("broad", 0.0)), broad_width=float(c.get("broad_width", 3.0)),
-                    mass_factors=tuple((float(m), float(k)) for m, k in c.get("mass_factors", ())))
+        v = Variant.from_constants(prov.get("variant", ""), c)
         s, a = v.scale_at(float(template.mass)), v.blob_amplitude(float(template.mass))
     except (KeyError, TypeError, ValueError):
         return None
