@@ -4,7 +4,7 @@ Every ``import`` of a spiralbayes module is read from the source (top level and 
 relative and absolute), so a lazy import cannot hide a circle. Layers, lowest first — a module may
 import its own layer and the ones below it, never one above:
 
-0. base: ``exceptions``, ``units``, ``settings``, ``_version``, ``_provenance``, ``_hdf5``, ``results``, ``_casa``, ``_threads``
+0. base: ``exceptions``, ``units``, ``settings``, ``_compat``, ``_version``, ``_provenance``, ``_hdf5``, ``results``, ``_casa``, ``_threads``
 1. data: ``geometry``, ``layout``, ``visibilities``, ``fourier``, ``io``
 2. models: ``axisymmetric``, ``templates``, ``quadrature``, ``model``
 3. synthetic data: ``simulate``
@@ -27,7 +27,7 @@ import spiralbayes
 PACKAGE = Path(spiralbayes.__file__).parent
 LAYERS = {
     "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "results": 0, "_casa": 0,
-    "_threads": 0, "settings": 0,
+    "_threads": 0, "settings": 0, "_compat": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
     "axisymmetric": 2, "templates": 2, "model": 2, "alternatives": 2, "quadrature": 2,
     "simulate": 3,

@@ -23,10 +23,7 @@ import math
 from dataclasses import fields
 from pathlib import Path
 
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: the same parser, packaged as tomli
-    import tomli as tomllib
+from ._compat import tomllib
 
 from .alternatives import ALTERNATIVE_MODELS
 from .axisymmetric.model import DEFAULT_HYPERPARAMETERS

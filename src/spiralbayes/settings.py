@@ -18,7 +18,12 @@ from __future__ import annotations
 
 import dataclasses
 
-__all__ = ["config_options", "from_config", "option", "with_overrides"]
+__all__ = ["DEFAULT_DISTANCE_PC", "DEFAULT_MSTAR_MSUN", "config_options", "from_config", "option", "with_overrides"]
+
+DEFAULT_DISTANCE_PC = 140.0
+"""Distance [pc] assumed when none is given (the Taurus and Lupus star-forming regions are at ~140-160 pc)."""
+DEFAULT_MSTAR_MSUN = 0.8
+"""Stellar mass [M_sun] assumed when none is given (the paper's fiducial star; M_th = (H/r)^3 M_*)."""
 
 _NO_TOML = object()
 

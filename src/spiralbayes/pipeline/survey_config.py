@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import copy
 import math
-import tomllib
+from .._compat import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
