@@ -40,6 +40,8 @@ the template family (:mod:`spiralbayes.inference.limits.families`) and of mirror
 from __future__ import annotations
 
 import functools
+import logging
+import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -52,6 +54,8 @@ from .wake import PAPER_BETAS, PAPER_MASSES, PAPER_TAUS, WakeSettings, gap_profi
 
 __all__ = ["DEFAULT_VARIANTS", "VARIANTS", "Variant", "blob_template", "broad_template", "get_variant", "variant_bank",
            "variant_grid", "variant_template"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -266,14 +270,15 @@ def variant_grid(variants=DEFAULT_VARIANTS, masses=PAPER_MASSES, taus=PAPER_TAUS
 
 
 def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: bool = False, **options):
-    """The default bank with morphology variants: :func:`variant_grid` for every H/r of
-    :data:`~spiralbayes.templates.bank.DEFAULT_H_PS` (576 templates), cached on disk like
-    :func:`~spiralbayes.templates.bank.default_bank` (``variants-<key>.h5``; the key hashes the
-    generator settings, the H/r and every variant's constants, so a refit rebuilds).
+    """The bank with morphology variants: :func:`variant_grid` for every H/r of ``h_ps`` (default
+    :data:`~spiralbayes.templates.bank.DEFAULT_H_PS`: 576 templates with the default variants), cached
+    on disk like :func:`~spiralbayes.templates.bank.compromise_bank` (``variants-<key>.h5``; the key
+    hashes the generator settings, the H/r and every variant's constants, so a refit rebuilds).
 
-    Scan it as the default bank; :func:`~spiralbayes.inference.limits.compute_limits` then reports
-    robust limits (a mass is excluded only where every variant excludes it) and the price of
-    robustness, and the detection's best template may be of any variant.
+    With its defaults this is :func:`~spiralbayes.templates.bank.default_bank`;
+    :func:`~spiralbayes.inference.limits.compute_limits` then reports robust limits (a mass is
+    excluded only where every variant excludes it) and the price of robustness, and the
+    detection's best template may be of any variant.
     """
     import hashlib
     import json
@@ -297,7 +302,9 @@ def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: 
                 return bank
         except (ValueError, OSError, KeyError):
             pass
+    t0 = time.perf_counter()
     templates = variant_grid(chosen, h_ps=h_ps, **options)
+    log.info("built the morphology-variant bank (%d templates) in %.1f s", len(templates), time.perf_counter() - t0)
     bank = TemplateBank(templates, {"variant_key": key, "variants": [v.name for v in chosen], "h_ps": list(h_ps),
                                     "generator": "spiralbayes.templates.variants.variant_grid"})
     try:
