@@ -101,7 +101,9 @@ def test_limits_name_their_morphologies_and_the_price_of_robustness(tmp_path):
     note = limits.morphology_note()
     assert "every morphology (compromise, hydro)" in note and f"median {np.median(hydro / single):.2g}" in note
     assert note in limits.summary()
-    assert "assume the hydro morphology only; not robust" in limits.summary({"h_p": 0.07, "variant": "hydro"})
+    assert limits.summary({"h_p": 0.07, "variant": "hydro"}).endswith(
+        "This family assumes the hydro morphology only; the limits robust to the spiral's shape are those over "
+        "every morphology (compromise, hydro).")
     fig = plot_mass_radius(limits)
     assert note in fig.get_suptitle()
     assert any("compromise, hydro" in t.get_text() for t in fig.axes[0].get_legend().get_texts())

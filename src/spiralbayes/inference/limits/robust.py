@@ -151,7 +151,11 @@ def overall_price(limits, family=None, single: str = SINGLE_VARIANT) -> np.ndarr
 def morphology_note(limits, family=None) -> str:
     """One sentence: the morphologies the limits (of ``family``, or over every family) assume and,
     when several, the price of robustness (median and range over the radii with a limit)."""
-    names = [family_morphology(limits, limits.family(family))] if family is not None else morphologies(limits)
+    every = morphologies(limits)
+    names = [family_morphology(limits, limits.family(family))] if family is not None else every
+    if len(names) == 1 and len(every) > 1:
+        return (f"This family assumes the {names[0]} morphology only; the limits robust to the spiral's shape are "
+                f"those over every morphology ({', '.join(every)}).")
     if len(names) == 1:
         shape = "one unlabelled template morphology" if names[0] == UNLABELLED else f"the {names[0]} morphology"
         return f"These limits assume {shape} only; not robust to the spiral's shape."
