@@ -15,13 +15,13 @@ planet at φ = 0, hand R = anticlockwise orbit with trailing arms).
 * :func:`read_fargo3d`, :func:`read_fits_template` — bring your own simulations.
 """
 
-from .bank import TemplateBank, compromise_bank, default_bank, default_cache_dir
+from .bank import TemplateBank, compromise_bank, default_cache_dir
 from .fargo3d import read_fargo3d
 from .fits import read_fits_template, write_fits_template
 from .generator import make_template, paper_grid
 from .radiative import template_from_perturbation
 from .template import SpiralTemplate
-from .variants import variant_bank
+from .variants import default_bank, variant_bank
 from .wake import WakeSettings, wake_shape
 
 __all__ = [

@@ -1,7 +1,7 @@
 """The :class:`TemplateBank`: many spiral templates in one HDF5 file, and the cached built-in banks.
 
-* :func:`default_bank` — the morphology-robust bank (:func:`~spiralbayes.templates.variants.variant_bank`:
-  the paper's grid in the compromise, hydro and wakeflow morphologies, 576 templates), the bank of
+* :func:`~spiralbayes.templates.variants.default_bank` — the morphology-robust bank (the paper's grid
+  in the compromise, hydro and wakeflow morphologies, 576 templates; :mod:`.variants`), the bank of
   every stage and command unless told otherwise;
 * :func:`compromise_bank` — the paper's grid in the single compromise morphology (192 templates),
   for comparisons with the paper; limits from it are not robust to the spiral's shape.
@@ -38,7 +38,7 @@ from .generator import paper_grid
 from .template import SpiralTemplate, validate_hand
 from .wake import WakeSettings
 
-__all__ = ["DEFAULT_H_PS", "TemplateBank", "compromise_bank", "default_bank", "default_cache_dir"]
+__all__ = ["DEFAULT_H_PS", "TemplateBank", "compromise_bank", "default_cache_dir"]
 
 log = logging.getLogger(__name__)
 
@@ -211,43 +211,12 @@ bracket the discs surveyed, and planets in discs thinner or thicker than the tem
 or mis-located: see docs/templates.md)."""
 
 
-def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = False,
-                 h_ps: Sequence[float] = DEFAULT_H_PS, **options) -> TemplateBank:
-    """The default bank, robust to the spiral's morphology: the paper's 64-template grid for each
-    ``H/r`` of :data:`DEFAULT_H_PS` in each morphology variant compromise, hydro and wakeflow
-    (576 templates; :func:`~spiralbayes.templates.variants.variant_bank`), cached on disk.
-
-    No template is the true spiral (docs/limits.md §4c): a single morphology wrongly rules out
-    planets whose spirals it overlaps poorly, so limits from this bank exclude a mass only where
-    every variant excludes it, and name the price of that robustness. Select a subset with
-    :meth:`TemplateBank.select` (e.g. ``select(h_p=0.07, tau0=3)``) to scan faster;
-    :func:`compromise_bank` is the single-morphology bank of the paper's comparisons.
-
-    Parameters
-    ----------
-    cache_dir : path, optional
-        Where to cache the bank (default :func:`default_cache_dir`).
-    rebuild : bool
-        Rebuild even if a cached copy exists.
-    h_ps : sequence of float
-        Disc aspect ratios ``H/r`` at r_p.
-    **options
-        Passed to :func:`~spiralbayes.templates.variants.variant_bank` (``variants``, or
-        :class:`~spiralbayes.templates.wake.WakeSettings` fields such as ``n_phi``).
-    """
-    from .variants import variant_bank
-
-    if "h_p" in options:
-        h_ps = (options.pop("h_p"),)
-    return variant_bank(h_ps=h_ps, cache_dir=cache_dir, rebuild=rebuild, **options)
-
-
 def compromise_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = False,
                     progress: bool = False, h_ps: Sequence[float] = DEFAULT_H_PS, **options) -> TemplateBank:
     """The single-morphology bank: the paper's 64-template grid for each ``H/r`` in ``h_ps``
     (default {0.05, 0.07, 0.10}: 192 templates), from the built-in generator (the compromise
     morphology), cached on disk. Limits from it assume that one shape and are not robust to the
-    spiral's morphology; :func:`default_bank` is.
+    spiral's morphology; :func:`~spiralbayes.templates.variants.default_bank` is.
 
     Built on first use with :func:`~spiralbayes.templates.generator.paper_grid` (seconds) and
     stored as ``bank-<key>.h5`` in ``cache_dir`` (default :func:`.default_cache_dir`), where ``key`` hashes
