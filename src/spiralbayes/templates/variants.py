@@ -279,7 +279,7 @@ def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: 
     on disk like :func:`~spiralbayes.templates.bank.compromise_bank` (``variants-<key>.h5``; the key
     hashes the generator settings, the H/r and every variant's constants, so a refit rebuilds).
 
-    With its defaults this is :func:`~spiralbayes.templates.bank.default_bank`;
+    With its defaults this is :func:`default_bank`;
     :func:`~spiralbayes.inference.limits.compute_limits` then reports robust limits (a mass is
     excluded only where every variant excludes it) and the price of robustness, and the
     detection's best template may be of any variant.
