@@ -84,6 +84,7 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
     if len(comps) > 1:
         table += "\n" + "\n".join(f"Minimum detectable mass, {label}: 50 %: {_det(c, 0.5)}; 90 %: {_det(c, 0.9)}"
                                   for label, c in first.items()) + "\n"
+    table += f"\n{limits.morphology_note()}\n"  # the morphologies assumed and the price of robustness
     files.append(_write_text(out_dir / "table3.md", table))
     files.append(_write_text(out_dir / "table3.csv", table_csv(limits, comps[0] if len(comps) == 1 else None,
                                                                  name=name, thresholds=thresholds)))

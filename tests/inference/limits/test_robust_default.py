@@ -117,8 +117,9 @@ def test_spiralbayes_scan_and_limits_without_template_options_do_not_rule_out_th
     assert len(limits.templates) == 576 and limits.morphologies == ["compromise", "hydro", "wakeflow"]
     assert not limits.excluded(mass=TRUE_MASS)[1]
     assert limits.flags[1] == "near_planet"  # the robust bank detects it (hydro_m3_tau3_b0_h0.07_R, ΔBIC 53)
-    summary = (tmp_path / "out_default" / "limits_summary.txt").read_text()
-    assert "every morphology (compromise, hydro, wakeflow)" in summary
+    for name in ("limits_summary.txt", "table3.md"):
+        assert "every morphology (compromise, hydro, wakeflow)" in (tmp_path / "out_default" / name).read_text()
     single = _cli_limits(_config(tmp_path, vis, model, '[templates]\nbank = "compromise"\n'))
     assert len(single.templates) == 192 and single.flags[1] == ""
     assert single.excluded(mass=TRUE_MASS)[1]
+    assert "compromise morphology only; not robust" in (tmp_path / "out_compromise" / "table3.md").read_text()
