@@ -26,7 +26,7 @@ import numpy as np
 from spiralbayes import DiscGeometry, detect, fit_alternatives, fit_axisymmetric, scan
 from spiralbayes.inference.detection.follow_up import rescan_at_fitted_geometry
 from spiralbayes.simulate import DiscModel, eccentric_ring, lopsided_disc, simulate_observation, vortex_arc
-from spiralbayes.templates import default_bank, make_template
+from spiralbayes.templates import compromise_bank, make_template
 
 GEOMETRY = DiscGeometry(30.0, 60.0)
 DISTANCE = 140.0
@@ -45,7 +45,7 @@ def fiducial(geometry=GEOMETRY, perturbation=None, seed=4, **planet):
 def timing() -> None:
     profile = DISC.profile(WAVELENGTH)
     vis, axisym = fiducial(perturbation=vortex_arc(profile, 0.35, 2.0, 0.03, 0.35, 0.15))
-    templates = list(default_bank().select(tau0=3.0, h_p=0.07))
+    templates = list(compromise_bank().select(tau0=3.0, h_p=0.07))
     print(f"fiducial set-up: N_vis = {vis.n}; {len(templates)} templates x {R_P.size} r_p x 90 phi_p")
     t0 = time.perf_counter()
     scan(vis, axisym, templates, GEOMETRY, r_p=R_P, progress=False, nthreads=2)

@@ -1,7 +1,7 @@
 """Exclusion limits and injection–recovery completeness against the scan's own time (issue 10).
 
 Fiducial set-up (C-4 + C-7, 0.87 mm, ~1e5 visibilities, the observation of bench_scan.py), the
-16 templates of the default bank with tau0 = 3 (4 masses x 2 cooling times x 2 hands), the paper's
+16 templates of the compromise bank with tau0 = 3 (4 masses x 2 cooling times x 2 hands), the paper's
 grid of 25 r_p x 90 phi_p. Prints, measured in the same run:
 
 * the scan's wall time (serial, ducc0 on 2 threads);
@@ -36,7 +36,7 @@ from bench_scan import GEOMETRY, N_PHI, R_P, observation  # noqa: E402
 from spiralbayes.inference.limits.recovery import completeness, completeness_brute_force  # noqa: E402
 from spiralbayes.inference.limits.exclusion import compute_limits  # noqa: E402
 from spiralbayes.inference.scan.run import scan  # noqa: E402
-from spiralbayes.templates import default_bank  # noqa: E402
+from spiralbayes.templates import compromise_bank  # noqa: E402
 
 
 class Clock:
@@ -61,7 +61,7 @@ def main() -> None:
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     vis, axisym = observation()
-    templates = list(default_bank().select(tau0=3.0, h_p=0.07))
+    templates = list(compromise_bank().select(tau0=3.0, h_p=0.07))
     print(f"N_vis = {vis.n}, templates = {len(templates)}, grid = {R_P.size} r_p x {N_PHI} phi_p")
 
     with Clock() as t_scan:

@@ -40,7 +40,7 @@ from spiralbayes.inference.scan.run import scan
 from spiralbayes.inference.scan.statistics import chi2
 from spiralbayes.model import render_perturbation_image
 from spiralbayes.simulate import DiscModel, observe, uv_coverage
-from spiralbayes.templates import default_bank
+from spiralbayes.templates import compromise_bank
 
 ROOT = Path(__file__).resolve().parents[1]
 GEOMETRY = DiscGeometry(30.0, 60.0)
@@ -87,8 +87,8 @@ def _current_rss_mb() -> float:
 
 
 def h_p_bank(n: int):
-    """The default bank's templates at three aspect ratios (H/r as a bank dimension)."""
-    bank = default_bank()  # since issue 9 it holds all three aspect ratios
+    """The compromise bank.s templates at three aspect ratios (H/r as a bank dimension)."""
+    bank = compromise_bank()  # all three aspect ratios
     base = list(bank.select(h_p=0.07))[:n]
     return [bank.get(t.mass, t.tau0, t.beta, t.hand, h_p=h) for h in H_P for t in base]
 
@@ -105,7 +105,7 @@ def variant_subset(big):
 def case_bank(args) -> dict:
     out0 = {"load_before": os.getloadavg()[0]}
     vis, axisym = observation()
-    bank = list(default_bank().select(h_p=0.07))[: args.templates]  # the paper's 64
+    bank = list(compromise_bank().select(h_p=0.07))[: args.templates]  # the paper's 64
     out = {**out0, "N_vis": vis.n, "templates": len(bank)}
     t0 = time.perf_counter()
     serial = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
@@ -152,7 +152,7 @@ def case_as209(args) -> dict:
     axisym = fit_axisymmetric(vis, geometry, progress=False)
     out = {"N_vis": vis.n, "frank_s": time.perf_counter() - t0, "frank_N": axisym.hyperparameters["N"],
            "frank_iterations": axisym.provenance["iterations"], "peak_after_frank_MB": peak_mb()}
-    bank = list(default_bank())[: args.templates]
+    bank = list(compromise_bank())[: args.templates]
     t0 = time.perf_counter()
     result = scan(vis, axisym, bank, progress=False)
     out.update(templates=len(bank), scan_s=time.perf_counter() - t0, peak_MB=peak_mb(),
@@ -170,7 +170,7 @@ def case_million(args) -> dict:
     del parts
     axisym = AxisymmetricModel.from_profile(disc.profile(0.87e-3), GEOMETRY)
     out = {"N_vis": vis.n, "peak_after_data_MB": peak_mb()}
-    bank = list(default_bank())[: args.templates]
+    bank = list(compromise_bank())[: args.templates]
     t0 = time.perf_counter()
     result = scan(vis, axisym, bank, GEOMETRY, r_p=R_P, n_phi_p=N_PHI, progress=False, nthreads=2)
     timing = result.provenance["timing_s"]

@@ -2,8 +2,8 @@
 
     python examples/forecast_sensitivity.py
 
-For each right-handed template of the default bank at H/r = 0.07 (4 masses x 4 optical depths x 2
-cooling times)
+For each right-handed template of the compromise bank (the paper's single morphology) at H/r = 0.07
+(4 masses x 4 optical depths x 2 cooling times)
 a planet at 50 au in the paper's power-law disc (140 pc, the disc's optical depth at 50 au equal to
 the template's tau0), observed with the fiducial set (C-4 + C-7, 40 min, 35 uJy/beam) and the
 high-sensitivity set (8 h, 10 uJy/beam): E[Δχ²], the threshold 6 ln N + 10 and P(ΔBIC > 10).
@@ -22,7 +22,7 @@ SETUPS = ("fiducial", "high_sensitivity")
 
 
 def main():
-    bank = list(sb.default_bank().select(hand="R", h_p=0.07))
+    bank = list(sb.compromise_bank().select(hand="R", h_p=0.07))
     rows = compare_setups(lambda t: sb.DiscModel(distance=140.0, r_ref=50.0, tau_ref=t.tau0), bank, R_P, SETUPS)
     print(f"{'template':26s} {'E fid':>10s} {'P fid':>6s} {'E 8 h':>11s} {'P 8 h':>6s}")
     for r in rows:

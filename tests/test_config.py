@@ -91,21 +91,38 @@ def test_without_tomllib_the_config_is_read_with_tomli(tmp_path):
     assert out.stdout.split()[-1] == "46"
 
 
-def test_the_variant_bank_is_a_built_in_name_not_a_path(tmp_path, monkeypatch):
-    """``[templates] bank = "variants"`` stays a name (not resolved against the file) and loads
-    :func:`~spiralbayes.templates.variants.variant_bank`, selected like the default bank."""
+@pytest.mark.parametrize("name, robust", [("default", True), ("variants", True), ("compromise", False)])
+def test_built_in_banks_are_names_not_paths(tmp_path, monkeypatch, name, robust):
+    """``[templates] bank = "default"`` (and its alias ``"variants"``) loads the morphology-robust
+    bank, ``"compromise"`` the single-morphology one; each stays a name (not resolved against the
+    file) and is selected like any bank."""
     from spiralbayes.config import load_config
     from spiralbayes.pipeline import inputs
     from spiralbayes.templates import TemplateBank
     from spiralbayes.templates.variants import variant_template
 
     path = tmp_path / "c.toml"
-    path.write_text('[data]\npath = "d.txt"\n[geometry]\ninc = 30\nPA = 60\n[templates]\nbank = "variants"\n'
+    path.write_text(f'[data]\npath = "d.txt"\n[geometry]\ninc = 30\nPA = 60\n[templates]\nbank = "{name}"\n'
                     'mass = [1.0]\n')
     config = load_config(path)
-    assert config["templates"]["bank"] == "variants"
-    small = TemplateBank([variant_template(m, 0.3, 0.0, "R", v, h_p=0.07, n_x=60, n_phi=90)
-                          for v in ("compromise", "hydro") for m in (0.3, 1.0)])
-    monkeypatch.setattr(inputs, "variant_bank", lambda: small)
-    chosen = inputs.load_templates(config["templates"])
-    assert sorted(t.name for t in chosen) == ["hydro_m1_tau0.3_b0_h0.07_R", "wake_m1_tau0.3_b0_h0.07_R"]
+    assert config["templates"]["bank"] == name
+    small = {v: TemplateBank([variant_template(m, 0.3, 0.0, "R", v, h_p=0.07, n_x=60, n_phi=90)
+                              for m in (0.3, 1.0)]) for v in ("compromise", "hydro")}
+    robust_bank = TemplateBank([*small["compromise"], *small["hydro"]])
+    monkeypatch.setitem(inputs.BANKS, "default", lambda: robust_bank)
+    monkeypatch.setitem(inputs.BANKS, "variants", lambda: robust_bank)
+    monkeypatch.setitem(inputs.BANKS, "compromise", lambda: small["compromise"])
+    chosen = sorted(t.name for t in inputs.load_templates(config["templates"]))
+    expected = ["hydro_m1_tau0.3_b0_h0.07_R", "wake_m1_tau0.3_b0_h0.07_R"] if robust else ["wake_m1_tau0.3_b0_h0.07_R"]
+    assert chosen == expected
+
+
+def test_templates_without_options_use_the_robust_default_bank():
+    """A configuration that says nothing about templates gets the morphology-robust bank."""
+    from spiralbayes.config import BUILT_IN_BANKS, default_config
+    from spiralbayes.pipeline import inputs
+    from spiralbayes.templates import compromise_bank, default_bank
+
+    section = default_config()["templates"]
+    assert section["bank"] == "default" and set(BUILT_IN_BANKS) == set(inputs.BANKS)
+    assert inputs.BANKS[section["bank"]] is default_bank and inputs.BANKS["compromise"] is compromise_bank

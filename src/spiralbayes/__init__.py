@@ -34,7 +34,7 @@ from .inference.posterior.settings import SamplingSettings  # noqa: E402
 from .inference.scan.run import ScanResult, scan  # noqa: E402
 from .io import load_visibilities, save_visibilities  # noqa: E402
 from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage  # noqa: E402
-from .templates import SpiralTemplate, TemplateBank, default_bank, make_template  # noqa: E402
+from .templates import SpiralTemplate, TemplateBank, compromise_bank, default_bank, make_template, variant_bank  # noqa: E402
 from .visibilities import Visibilities, bin_deprojected, estimate_weights  # noqa: E402
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
@@ -58,7 +58,8 @@ def __getattr__(name):
 DATA = ["Visibilities", "DiscGeometry", "load_visibilities", "save_visibilities", "bin_deprojected",
         "estimate_weights", "PRESETS", "DiscModel", "simulate_observation", "uv_coverage"]
 """Data: visibilities, disc geometry, files, synthetic observations."""
-MODELS = ["AxisymmetricModel", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank", "make_template"]
+MODELS = ["AxisymmetricModel", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank", "compromise_bank",
+          "variant_bank", "make_template"]
 """Models: the axisymmetric (frank) profile and the spiral templates."""
 SEARCH = ["ScanResult", "scan"]
 """Search: the template scan."""

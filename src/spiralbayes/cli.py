@@ -209,7 +209,10 @@ def _cmd_templates(args) -> int:
 
     bank = default_bank(rebuild=args.rebuild)
     h_ps = sorted({float(t.h_p) for t in bank})
-    print(f"{len(bank)} templates in the default bank (H/r = {', '.join(f'{h:g}' for h in h_ps)})")
+    morphologies = sorted({str(t.provenance.get("variant") or "compromise") for t in bank})
+    print(f"{len(bank)} templates in the default bank (H/r = {', '.join(f'{h:g}' for h in h_ps)}; morphologies "
+          f"{', '.join(morphologies)}: limits hold for every morphology); the single-morphology bank of the "
+          "paper's comparisons is [templates] bank = \"compromise\"")
     if args.plot:
         from .pipeline import save_figure
         from .plotting.templates import plot_bank_overview

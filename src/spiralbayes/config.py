@@ -66,7 +66,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
     "templates": {
-        "bank": ("default", "'default' (the built-in 192-template wake bank: the paper's 64 for H/r = 0.05, 0.07, 0.10; cached), 'variants' (the same grid in three morphologies, compromise, hydro and wakeflow: 576 templates, limits robust over morphology; docs/limits.md) or the path of a TemplateBank HDF5 file"),
+        "bank": ("default", "'default' (the built-in bank robust to the spiral's morphology: the paper's 64 templates for H/r = 0.05, 0.07, 0.10 in the compromise, hydro and wakeflow morphologies, 576 templates, cached; limits hold for every morphology; 'variants' is the same bank), 'compromise' (the same grid in the compromise morphology alone, 192 templates: the paper's comparison, limits not robust to the spiral's shape; docs/limits.md) or the path of a TemplateBank HDF5 file"),
         "mass": ([], "planet masses M_p/M_th to keep (empty: all)"),
         "tau0": ([], "initial optical depths at r_p to keep (empty: all)"),
         "beta": ([], "cooling times t_c Omega to keep (empty: all)"),
@@ -132,8 +132,9 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
 :class:`~spiralbayes.inference.limits.settings.LimitSettings`."""
 
 
-BUILT_IN_BANKS = ("default", "variants")
-"""``[templates] bank`` values that name a built-in bank rather than a file."""
+BUILT_IN_BANKS = ("default", "variants", "compromise")
+"""``[templates] bank`` values that name a built-in bank rather than a file: ``"default"`` and
+``"variants"`` the morphology-robust bank, ``"compromise"`` the single-morphology bank."""
 PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("sample", "scan"), ("output", "dir"))
 """Every path option; relative ones are resolved against the configuration file's folder (``~`` is
 expanded). ``templates.bank = "default"`` names the built-in bank, not a file."""

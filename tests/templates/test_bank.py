@@ -8,8 +8,10 @@ import pytest
 matplotlib.use("Agg")
 from spiralbayes.templates import (  # noqa: E402
     TemplateBank,
+    compromise_bank,
     default_bank,
     make_template,
+    variant_bank,
 )
 from spiralbayes.templates import bank as bank_mod  # noqa: E402
 from spiralbayes.templates import wake as wake_mod  # noqa: E402
@@ -83,8 +85,8 @@ def test_load_rejects_other_files(tmp_path):
         TemplateBank.load(tmp_path / "missing.h5")
 
 
-def test_default_bank_builds_once_and_caches(tmp_path, monkeypatch):
-    bank = default_bank(cache_dir=tmp_path, **TINY)
+def test_compromise_bank_builds_once_and_caches(tmp_path, monkeypatch):
+    bank = compromise_bank(cache_dir=tmp_path, **TINY)
     assert len(bank) == 192  # the paper's 64 for each H/r in {0.05, 0.07, 0.10}
     for h in (0.05, 0.07, 0.10):
         sub = bank.select(h_p=h)
@@ -100,15 +102,43 @@ def test_default_bank_builds_once_and_caches(tmp_path, monkeypatch):
         raise AssertionError("rebuilt although cached")
 
     monkeypatch.setattr(bank_mod, "paper_grid", boom)
-    again = default_bank(cache_dir=tmp_path, **TINY)
+    again = compromise_bank(cache_dir=tmp_path, **TINY)
     assert again.names == bank.names
     np.testing.assert_array_equal(again[5].delta, bank[5].delta)
     monkeypatch.undo()
     # a changed generator setting or set of aspect ratios gets its own cache file
-    default_bank(cache_dir=tmp_path, h_ps=(0.07,), **{**TINY, "n_phi": 180})
+    compromise_bank(cache_dir=tmp_path, h_ps=(0.07,), **{**TINY, "n_phi": 180})
     assert len(list(tmp_path.glob("bank-*.h5"))) == 2
-    assert len(default_bank(cache_dir=tmp_path, h_ps=(0.07,), **{**TINY, "n_phi": 180})) == 64
+    assert len(compromise_bank(cache_dir=tmp_path, h_ps=(0.07,), **{**TINY, "n_phi": 180})) == 64
     assert len(list(tmp_path.glob("bank-*.h5"))) == 2
+
+
+def test_default_bank_is_the_morphology_robust_bank_and_caches(tmp_path, monkeypatch):
+    """The default bank is the variant bank: the paper's grid in three morphologies per H/r, each
+    variant's templates distinct from the compromise's, built once and then read from the cache."""
+    from spiralbayes.templates import variants as variants_mod
+
+    bank = default_bank(cache_dir=tmp_path, h_p=0.07, **TINY)
+    assert len(bank) == 3 * 64
+    assert bank.names == variant_bank(h_ps=(0.07,), cache_dir=tmp_path, **TINY).names
+    by_variant = {}
+    for t in bank:
+        by_variant.setdefault(t.provenance["variant"], []).append(t)
+    assert sorted(by_variant) == ["compromise", "hydro", "wakeflow"]
+    assert all(len(ts) == 64 for ts in by_variant.values())
+    hydro = bank["hydro_m1_tau3_b10_h0.07_R"]
+    plain = bank["wake_m1_tau3_b10_h0.07_R"]
+    assert not np.allclose(hydro.delta, plain.delta)  # a different shape, not a relabelled copy
+    # the compromise variant of the robust bank is the single-morphology bank's template
+    single = compromise_bank(cache_dir=tmp_path, h_ps=(0.07,), **TINY)
+    np.testing.assert_allclose(plain.delta, single["wake_m1_tau3_b10_h0.07_R"].delta, rtol=0, atol=1e-6)
+    assert len(single) == 64 and len(list(tmp_path.glob("variants-*.h5"))) == 1
+
+    def boom(*a, **k):
+        raise AssertionError("rebuilt although cached")
+
+    monkeypatch.setattr(variants_mod, "variant_grid", boom)
+    assert default_bank(cache_dir=tmp_path, h_p=0.07, **TINY).names == bank.names
 
 
 def test_default_cache_dir_env(monkeypatch, tmp_path):
@@ -122,7 +152,7 @@ def test_default_cache_dir_env(monkeypatch, tmp_path):
 def test_corrupt_cache_is_rebuilt(tmp_path):
     key = wake_mod.WakeSettings(**TINY).key()
     (tmp_path / f"bank-{key}.h5").write_bytes(b"not hdf5")
-    bank = default_bank(cache_dir=tmp_path, h_ps=(0.07,), **TINY)
+    bank = compromise_bank(cache_dir=tmp_path, h_ps=(0.07,), **TINY)
     assert len(bank) == 64
     assert TemplateBank.load(tmp_path / f"bank-{key}.h5").names == bank.names
 

@@ -10,8 +10,7 @@ from ..config import geometry_given
 from ..exceptions import ConfigError, InputError
 from ..geometry import DiscGeometry
 from ..io import load_visibilities
-from ..templates import TemplateBank, default_bank
-from ..templates.variants import variant_bank
+from ..templates import TemplateBank, compromise_bank, default_bank
 from ..visibilities import estimate_weights
 
 __all__ = ["load_axisymmetric", "load_data", "load_templates", "select_templates"]
@@ -64,12 +63,17 @@ def load_data(data: dict, geometry: DiscGeometry | None = None):
     return estimate_weights(vis, method="neighbours") if data["estimate_weights"] else vis
 
 
+BANKS = {"default": default_bank, "variants": default_bank, "compromise": compromise_bank}
+"""The built-in banks by their ``[templates] bank`` name (:data:`spiralbayes.config.BUILT_IN_BANKS`):
+``default`` and ``variants`` are the morphology-robust bank, ``compromise`` the single-morphology one."""
+
+
 def load_templates(templates: dict) -> list:
-    """The templates chosen by the ``[templates]`` section of a configuration."""
-    if templates["bank"] == "variants":  # robust to the spiral's morphology (docs/limits.md §4d)
-        bank = variant_bank()
-    else:
-        bank = default_bank() if templates["bank"] == "default" else TemplateBank.load(templates["bank"])
+    """The templates chosen by the ``[templates]`` section of a configuration: a built-in bank by
+    name (:data:`BANKS`; the default is robust to the spiral's morphology, docs/limits.md §4d) or
+    a TemplateBank file, then the section's selection."""
+    name = templates["bank"]
+    bank = BANKS[name]() if name in BANKS else TemplateBank.load(name)
     return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"],
                             templates.get("h_p", ()))
 

@@ -2,6 +2,8 @@
 
 Every function returns a Matplotlib ``Figure``. Radii are in au when the result carries a
 distance, else in arcsec; flagged radii (unresolved, beyond the disc's bright extent) are greyed.
+The mass–radius plot names the spiral morphologies its limit assumes and the price of robustness
+(:meth:`~spiralbayes.inference.limits.ExclusionLimits.morphology_note`).
 """
 
 from __future__ import annotations
@@ -119,7 +121,7 @@ def plot_mass_radius(limits, family=None, completeness=None, *, unit: str = "au"
         ax.set_xlabel(f"r_p [{label}]")
         ax.set_ylabel(ylabel)
     axes[0].legend(fontsize=7, loc="upper right")
-    fig.suptitle(f"Template family {fam.label}; grey: flagged radii", fontsize=9)
+    fig.suptitle(f"Template family {fam.label}; grey: flagged radii\n{limits.morphology_note(fam)}", fontsize=9)
     return fig
 
 
@@ -137,14 +139,15 @@ def _plot_over_families(limits, unit: str):
             curve, _ = _limit_curve(limits, fi)
             ax.plot(r, curve if kind == "th" else limits.to_mjup(curve, family=fam), color="0.6", lw=0.7)
         robust = combined_m_lim(limits)[0] if kind == "th" else combined_m_lim_mjup(limits)
-        ax.plot(r, robust, color="tab:red", lw=2, label=r"$M_{\rm lim}$ holding for every family")
+        ax.plot(r, robust, color="tab:red", lw=2,
+                label=rf"$M_{{\rm lim}}$ holding for every family (morphologies {', '.join(limits.morphologies)})")
         _grey_flags(ax, limits, scale)
         ax.set_yscale("log")
         ax.set_xlabel(f"r_p [{label}]")
         ax.set_ylabel(ylabel)
     axes[0].legend(fontsize=7, loc="upper right")
-    fig.suptitle(f"All {len(limits.families)} template families (grey: each family; grey bands: flagged radii)",
-                 fontsize=9)
+    fig.suptitle(f"All {len(limits.families)} template families (grey: each family; grey bands: flagged radii)\n"
+                 f"{limits.morphology_note()}", fontsize=9)
     return fig
 
 

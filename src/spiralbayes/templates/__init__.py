@@ -6,24 +6,29 @@ spiral adds to an axisymmetric disc (Stevenson et al. 2024). See
 planet at φ = 0, hand R = anticlockwise orbit with trailing arms).
 
 * :class:`SpiralTemplate` — one map with its metadata; mirror, evaluate, resample.
-* :class:`TemplateBank` — many templates in one HDF5 file; :func:`default_bank` caches the
-  paper's 64-template grid made by :func:`paper_grid` for H/r ∈ {0.05, 0.07, 0.10} (192).
+* :class:`TemplateBank` — many templates in one HDF5 file. :func:`default_bank` caches the
+  morphology-robust bank: the paper's 64-template grid for H/r ∈ {0.05, 0.07, 0.10} in the
+  compromise, hydro and wakeflow morphologies (576; :func:`variant_bank`, :mod:`.variants`);
+  :func:`compromise_bank` the same grid in the compromise morphology alone (192, :func:`paper_grid`),
+  for comparisons with the paper.
 * :func:`make_template` — the built-in semi-analytic generator (:mod:`.wake`).
 * :func:`read_fargo3d`, :func:`read_fits_template` — bring your own simulations.
 """
 
-from .bank import TemplateBank, default_bank, default_cache_dir
+from .bank import TemplateBank, compromise_bank, default_cache_dir
 from .fargo3d import read_fargo3d
 from .fits import read_fits_template, write_fits_template
 from .generator import make_template, paper_grid
 from .radiative import template_from_perturbation
 from .template import SpiralTemplate
+from .variants import default_bank, variant_bank
 from .wake import WakeSettings, wake_shape
 
 __all__ = [
     "SpiralTemplate",
     "TemplateBank",
     "WakeSettings",
+    "compromise_bank",
     "default_bank",
     "default_cache_dir",
     "make_template",
@@ -31,6 +36,7 @@ __all__ = [
     "read_fargo3d",
     "read_fits_template",
     "template_from_perturbation",
+    "variant_bank",
     "wake_shape",
     "write_fits_template",
 ]

@@ -1,4 +1,10 @@
-"""The :class:`TemplateBank`: many spiral templates in one HDF5 file, and the cached default bank.
+"""The :class:`TemplateBank`: many spiral templates in one HDF5 file, and the cached built-in banks.
+
+* :func:`~spiralbayes.templates.variants.default_bank` — the morphology-robust bank (the paper's grid
+  in the compromise, hydro and wakeflow morphologies, 576 templates; :mod:`.variants`), the bank of
+  every stage and command unless told otherwise;
+* :func:`compromise_bank` — the paper's grid in the single compromise morphology (192 templates),
+  for comparisons with the paper; limits from it are not robust to the spiral's shape.
 
 HDF5 layout (``format_version`` 1)::
 
@@ -10,7 +16,7 @@ HDF5 layout (``format_version`` 1)::
 
 δ is stored as float32 (7 significant digits, far below the physics' accuracy), which keeps the
 paper's 64-template grid at 320 × 720 cells to 59 MB in memory and on disk (177 MB for the
-default bank's three aspect ratios).
+compromise bank's three aspect ratios, three times that for the default bank's three morphologies).
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ from .generator import paper_grid
 from .template import SpiralTemplate, validate_hand
 from .wake import WakeSettings
 
-__all__ = ["DEFAULT_H_PS", "TemplateBank", "default_bank", "default_cache_dir"]
+__all__ = ["DEFAULT_H_PS", "TemplateBank", "compromise_bank", "default_cache_dir"]
 
 log = logging.getLogger(__name__)
 
@@ -205,10 +211,12 @@ bracket the discs surveyed, and planets in discs thinner or thicker than the tem
 or mis-located: see docs/templates.md)."""
 
 
-def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = False,
-                 progress: bool = False, h_ps: Sequence[float] = DEFAULT_H_PS, **options) -> TemplateBank:
-    """The default wake bank: the paper's 64-template grid for each ``H/r`` in ``h_ps``
-    (default {0.05, 0.07, 0.10}: 192 templates), from the built-in generator, cached on disk.
+def compromise_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = False,
+                    progress: bool = False, h_ps: Sequence[float] = DEFAULT_H_PS, **options) -> TemplateBank:
+    """The single-morphology bank: the paper's 64-template grid for each ``H/r`` in ``h_ps``
+    (default {0.05, 0.07, 0.10}: 192 templates), from the built-in generator (the compromise
+    morphology), cached on disk. Limits from it assume that one shape and are not robust to the
+    spiral's morphology; :func:`~spiralbayes.templates.variants.default_bank` is.
 
     Built on first use with :func:`~spiralbayes.templates.generator.paper_grid` (seconds) and
     stored as ``bank-<key>.h5`` in ``cache_dir`` (default :func:`.default_cache_dir`), where ``key`` hashes
@@ -250,7 +258,7 @@ def default_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = Fal
     bank = TemplateBank(templates, {"generator_key": key, "generator_settings": settings.to_dict(),
                                     "h_ps": list(h_ps),
                                     "generator": "spiralbayes.templates.generator.paper_grid"})
-    log.info("built the default template bank (%d templates) in %.1f s", len(bank), time.perf_counter() - t0)
+    log.info("built the compromise template bank (%d templates) in %.1f s", len(bank), time.perf_counter() - t0)
     try:
         bank.save(path)
     except OSError as exc:  # read-only cache: still return the bank

@@ -40,18 +40,26 @@ the template family (:mod:`spiralbayes.inference.limits.families`) and of mirror
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
+import logging
+import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
 from ..exceptions import InputError
+from .bank import DEFAULT_H_PS, TemplateBank, default_cache_dir
 from .generator import make_template
 from .radiative import template_from_perturbation
 from .template import SpiralTemplate, template_name, validate_hand
 from .wake import PAPER_BETAS, PAPER_MASSES, PAPER_TAUS, WakeSettings, gap_profile
 
-__all__ = ["DEFAULT_VARIANTS", "VARIANTS", "Variant", "blob_template", "broad_template", "get_variant", "variant_bank",
-           "variant_grid", "variant_template"]
+__all__ = ["DEFAULT_VARIANTS", "VARIANTS", "Variant", "blob_template", "broad_template", "default_bank", "get_variant",
+           "variant_bank", "variant_grid", "variant_template"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -266,21 +274,16 @@ def variant_grid(variants=DEFAULT_VARIANTS, masses=PAPER_MASSES, taus=PAPER_TAUS
 
 
 def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: bool = False, **options):
-    """The default bank with morphology variants: :func:`variant_grid` for every H/r of
-    :data:`~spiralbayes.templates.bank.DEFAULT_H_PS` (576 templates), cached on disk like
-    :func:`~spiralbayes.templates.bank.default_bank` (``variants-<key>.h5``; the key hashes the
-    generator settings, the H/r and every variant's constants, so a refit rebuilds).
+    """The bank with morphology variants: :func:`variant_grid` for every H/r of ``h_ps`` (default
+    :data:`~spiralbayes.templates.bank.DEFAULT_H_PS`: 576 templates with the default variants), cached
+    on disk like :func:`~spiralbayes.templates.bank.compromise_bank` (``variants-<key>.h5``; the key
+    hashes the generator settings, the H/r and every variant's constants, so a refit rebuilds).
 
-    Scan it as the default bank; :func:`~spiralbayes.inference.limits.compute_limits` then reports
-    robust limits (a mass is excluded only where every variant excludes it) and the price of
-    robustness, and the detection's best template may be of any variant.
+    With its defaults this is :func:`default_bank`;
+    :func:`~spiralbayes.inference.limits.compute_limits` then reports robust limits (a mass is
+    excluded only where every variant excludes it) and the price of robustness, and the
+    detection's best template may be of any variant.
     """
-    import hashlib
-    import json
-    from pathlib import Path
-
-    from .bank import DEFAULT_H_PS, TemplateBank, default_cache_dir
-
     h_ps = tuple(float(h) for h in np.atleast_1d(DEFAULT_H_PS if h_ps is None else h_ps))
     chosen = [get_variant(v) for v in variants]
     settings = WakeSettings(h_p=h_ps[0], **{k: v for k, v in options.items() if k in WakeSettings.__dataclass_fields__})
@@ -297,7 +300,9 @@ def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: 
                 return bank
         except (ValueError, OSError, KeyError):
             pass
+    t0 = time.perf_counter()
     templates = variant_grid(chosen, h_ps=h_ps, **options)
+    log.info("built the morphology-variant bank (%d templates) in %.1f s", len(templates), time.perf_counter() - t0)
     bank = TemplateBank(templates, {"variant_key": key, "variants": [v.name for v in chosen], "h_ps": list(h_ps),
                                     "generator": "spiralbayes.templates.variants.variant_grid"})
     try:
@@ -305,3 +310,33 @@ def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: 
     except OSError:
         pass
     return bank
+
+
+def default_bank(cache_dir=None, rebuild: bool = False, h_ps=DEFAULT_H_PS, **options) -> TemplateBank:
+    """The default bank, robust to the spiral's morphology: the paper's 64-template grid for each
+    ``H/r`` of :data:`~spiralbayes.templates.bank.DEFAULT_H_PS` in each morphology of
+    :data:`DEFAULT_VARIANTS` (compromise, hydro, wakeflow: 576 templates; :func:`variant_bank`),
+    cached on disk.
+
+    No template is the true spiral (docs/limits.md §4c): a single morphology wrongly rules out
+    planets whose spirals it overlaps poorly, so limits from this bank exclude a mass only where
+    every variant excludes it, and name the price of that robustness. Select a subset with
+    :meth:`~spiralbayes.templates.TemplateBank.select` (e.g. ``select(h_p=0.07, tau0=3)``) to scan
+    faster; :func:`~spiralbayes.templates.bank.compromise_bank` is the single-morphology bank of
+    the paper's comparisons.
+
+    Parameters
+    ----------
+    cache_dir : path, optional
+        Where to cache the bank (default :func:`~spiralbayes.templates.bank.default_cache_dir`).
+    rebuild : bool
+        Rebuild even if a cached copy exists.
+    h_ps : sequence of float
+        Disc aspect ratios ``H/r`` at r_p (``h_p=`` gives one).
+    **options
+        Passed to :func:`variant_bank` (``variants``, or :class:`~spiralbayes.templates.wake.WakeSettings`
+        fields such as ``n_phi`` or ``wavelength``).
+    """
+    if "h_p" in options:
+        h_ps = (options.pop("h_p"),)
+    return variant_bank(h_ps=h_ps, cache_dir=cache_dir, rebuild=rebuild, **options)

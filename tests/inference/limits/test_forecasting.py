@@ -104,9 +104,9 @@ def test_higher_sensitivity_buys_little_in_planet_mass():
     The forecast for the 32 right-handed bank templates at 50 au: 12 times the time lowers the
     minimum detectable mass of each (tau0, beta) family by a factor 2-3, less than one step of the
     bank's mass grid, because E[Δχ²] grows steeply with mass (~M^2.2-2.5)."""
-    from spiralbayes.templates import default_bank
+    from spiralbayes.templates import compromise_bank
 
-    bank = list(default_bank().select(hand="R", h_p=0.07))
+    bank = list(compromise_bank().select(hand="R", h_p=0.07))
     rows = compare_setups(lambda t: DiscModel(distance=140.0, r_ref=50.0, tau_ref=t.tau0), bank, R_P)
     gains = []
     for tau0 in (0.1, 0.3, 1.0, 3.0):

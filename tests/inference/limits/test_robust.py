@@ -83,6 +83,53 @@ def test_summary_excluded_and_plot_work_without_family_on_the_default_bank_layou
     assert (tmp_path / "mr.png").stat().st_size > 0
 
 
+def test_limits_name_their_morphologies_and_the_price_of_robustness(tmp_path):
+    """Robust limits (several variants) name the set and the price M_lim(robust)/M_lim(compromise) in
+    the summary, the machine-readable attributes and the mass-radius plot; a single morphology is
+    named as such and said not to be robust."""
+    from spiralbayes.plotting.limits import plot_mass_radius
+
+    a_up = {"compromise": (2.0, 0.5, 0.1), "hydro": (2.0, 2.0, 0.5)}  # compromise: M_lim < 1; hydro: 1-3
+    limits = compute_limits(multi_family_scan(variants=("compromise", "hydro"), a_up=a_up))
+    assert limits.morphologies == ["compromise", "hydro"]
+    single = limits.m_lim[limits.family_index({"h_p": 0.07, "variant": "compromise"})]
+    hydro = limits.m_lim[limits.family_index({"h_p": 0.07, "variant": "hydro"})]
+    assert np.all(hydro > 1.0) and np.all(single < 1.0)
+    np.testing.assert_allclose(limits.price_of_robustness(), hydro / single)
+    np.testing.assert_allclose(limits.price_of_robustness({"h_p": 0.05, "variant": "hydro"}), hydro / single)
+    assert limits.price_of_robustness_median() == pytest.approx(np.median(hydro / single))
+    note = limits.morphology_note()
+    assert "every morphology (compromise, hydro)" in note and f"median {np.median(hydro / single):.2g}" in note
+    assert note in limits.summary()
+    assert limits.summary({"h_p": 0.07, "variant": "hydro"}).endswith(
+        "This family assumes the hydro morphology only; the limits robust to the spiral's shape are those over "
+        "every morphology (compromise, hydro).")
+    fig = plot_mass_radius(limits)
+    assert note in fig.get_suptitle()
+    assert any("compromise, hydro" in t.get_text() for t in fig.axes[0].get_legend().get_texts())
+    # the same limits from the compromise alone: one morphology, a price of 1, and the warning
+    alone = compute_limits(multi_family_scan(variants=("compromise",), a_up=a_up))
+    assert alone.morphologies == ["compromise"]
+    np.testing.assert_allclose(alone.price_of_robustness(), 1.0)
+    assert "assume the compromise morphology only; not robust to the spiral's shape" in alone.summary()
+    assert "compromise morphology only" in plot_mass_radius(alone).get_suptitle()
+    # saved and loaded, the limits still know their morphologies
+    again = type(limits).load(limits.save(tmp_path / "limits.h5"))
+    assert again.morphologies == limits.morphologies and again.morphology_note() == note
+
+
+def test_generator_templates_without_a_variant_are_the_compromise_morphology():
+    """The compromise bank's templates carry no variant: named by the generator's ``wake_`` prefix."""
+    scan = multi_family_scan(h_ps=(0.07,))
+    assert compute_limits(scan).morphologies == ["unlabelled"]
+    for meta in scan.templates:
+        meta["name"] = "wake_" + meta["name"]
+    limits = compute_limits(scan)
+    assert limits.morphologies == ["compromise"]
+    assert limits.summary().endswith("These limits assume the compromise morphology only; not robust to the "
+                                     "spiral's shape.")
+
+
 def test_single_family_summary_is_unchanged():
     limits = compute_limits(multi_family_scan(h_ps=(0.07,)))
     assert limits.summary().startswith("Planets of >= 3 M_th (template family tau0=0.3, beta=10, h_p=0.07)")

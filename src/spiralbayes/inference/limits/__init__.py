@@ -33,15 +33,25 @@ from .forecasting import Forecast, compare_setups, detectable_mass, forecast, fo
 
 from .robust import (
     SINGLE_VARIANT,
+    UNLABELLED,
     combined_m_lim,
     combined_m_lim_mjup,
     describe_over_families,
+    family_morphology,
+    morphologies,
+    morphology_note,
     near_planet_mask,
+    overall_price,
     price_of_robustness,
     variant_groups,
 )
 
 __all__ = [
+    "UNLABELLED",
+    "family_morphology",
+    "morphologies",
+    "morphology_note",
+    "overall_price",
     "variant_groups",
     "price_of_robustness",
     "near_planet_mask",

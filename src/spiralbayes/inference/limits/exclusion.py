@@ -290,15 +290,43 @@ class ExclusionLimits(ResultMixin):
         fi = self.family_index(family)
         return self.m_lim[fi], self.m_lim_status[fi]
 
+    # -- the morphologies assumed (:mod:`.robust`) --------------------------------------------------
+    @property
+    def morphologies(self) -> list[str]:
+        """Names of the spiral morphologies the limits assume (e.g. ``["compromise", "hydro",
+        "wakeflow"]`` for the default bank, ``["compromise"]`` for the compromise bank)."""
+        from .robust import morphologies
+
+        return morphologies(self)
+
+    def price_of_robustness(self, family=None) -> np.ndarray:
+        """``M_lim(robust) / M_lim(compromise)`` per r_p, over every family or over the morphology
+        variants of ``family``'s group; NaN where either has no limit, 1 for a single morphology."""
+        from .robust import overall_price
+
+        return overall_price(self, family)
+
+    def price_of_robustness_median(self, family=None) -> float:
+        """Median of :meth:`price_of_robustness` over the radii where it is defined (NaN if none)."""
+        price = self.price_of_robustness(family)
+        return float(np.median(price[np.isfinite(price)])) if np.isfinite(price).any() else float("nan")
+
+    def morphology_note(self, family=None) -> str:
+        """The sentence naming the morphologies assumed and the price of robustness (or that the
+        limits assume one morphology and are not robust to the spiral's shape)."""
+        from .robust import morphology_note
+
+        return morphology_note(self, family)
+
     def summary(self, family=None) -> str:
-        """A sentence per mass threshold (the paper's Table 3 wording); without ``family`` on a scan
-        of several families, the limits that hold for every family, the set named
-        (:func:`~spiralbayes.inference.limits.robust.describe_over_families`)."""
+        """A sentence per mass threshold (the paper's Table 3 wording) and the morphologies assumed;
+        without ``family`` on a scan of several families, the limits that hold for every family, the
+        set named (:func:`~spiralbayes.inference.limits.robust.describe_over_families`)."""
         if family is None and len(self.families) > 1:
             from .robust import describe_over_families
 
             return describe_over_families(self)
-        return describe_family_limits(self, family)
+        return f"{describe_family_limits(self, family)} {self.morphology_note(family)}"
 
     def __repr__(self) -> str:
         flagged = int(np.count_nonzero(self.flags != ""))

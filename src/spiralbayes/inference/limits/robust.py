@@ -14,6 +14,13 @@ and every ``phi_p``: :mod:`.limits`). Two sets are used:
   maximum over its variants; the *price of robustness* is ``M_lim(robust) / M_lim(single)``
   with "single" the bank's compromise variant.
 
+**Which morphologies a limit assumes** (:func:`morphologies`, :func:`morphology_note`): the
+variant names of the scanned families (templates without one are the compromise when the built-in
+generator made them, names ``wake_…``, else ``"unlabelled"``). Over every family the price of
+robustness is ``M_lim(robust over every family) / M_lim(robust over the compromise families)``
+per r_p (:func:`overall_price`); every limits output names the set and this price, or says that
+the limit assumes a single morphology and is not robust to the spiral's shape.
+
 **Near a planet** (:func:`near_planet_mask`): radii within one beam of a detected or candidate
 planet are not excluded unless the limit was computed with that planet in the model — the
 planet's own spiral, fitted by a different template, reads as "less than the template predicts"
@@ -26,13 +33,19 @@ import numpy as np
 
 from ...exceptions import InputError
 
-__all__ = ["SINGLE_VARIANT", "combined_m_lim", "combined_m_lim_mjup", "describe_over_families",
-           "near_planet_mask", "price_of_robustness", "variant_groups"]
+__all__ = ["SINGLE_VARIANT", "UNLABELLED", "combined_m_lim", "combined_m_lim_mjup", "describe_over_families",
+           "family_morphology", "morphologies", "morphology_note", "near_planet_mask", "overall_price",
+           "price_of_robustness", "variant_groups"]
 
 SINGLE_VARIANT = "compromise"
 """The variant the price of robustness is measured against (the wake generator as fitted to the reference maps)."""
 
+UNLABELLED = "unlabelled"
+"""The morphology of templates that carry no variant and were not made by the built-in generator."""
+GENERATOR_PREFIX = "wake_"
+"""Name prefix of the built-in generator's templates (the compromise morphology)."""
 _LIMITED = ("limit", "below_bank")
+_LISTED_FAMILIES = 6  # more families than this are described by their parameter values, not one label each
 
 
 def _family_list(limits, families=None) -> list:
@@ -103,6 +116,57 @@ def price_of_robustness(limits, group: dict, single: str = SINGLE_VARIANT) -> np
         return robust / alone
 
 
+def family_morphology(limits, family) -> str:
+    """The morphology a family assumes: its ``variant``, else :data:`SINGLE_VARIANT` when every member
+    was made by the built-in generator (names ``wake_…``), else :data:`UNLABELLED`."""
+    variant = family.key.get("variant")
+    if variant is not None:
+        return str(variant)
+    names = [str(limits.templates[i].get("name", "")) for row in family.members.values() for i in row if i is not None]
+    return SINGLE_VARIANT if names and all(n.startswith(GENERATOR_PREFIX) for n in names) else UNLABELLED
+
+
+def morphologies(limits) -> list[str]:
+    """The morphologies the limits assume: one name per variant among the families, sorted."""
+    return sorted({family_morphology(limits, f) for f in limits.families})
+
+
+def overall_price(limits, family=None, single: str = SINGLE_VARIANT) -> np.ndarray:
+    """Price of robustness per r_p: ``M_lim(robust) / M_lim(single)`` over every family (``family=None``)
+    or over the variants of ``family``'s group (:func:`variant_groups`). NaN where either has no limit;
+    1 where it has one and the families hold a single morphology."""
+    fams = list(limits.families)
+    if family is not None:
+        fam = limits.family(family)
+        fams = next(g["members"] for g in variant_groups(fams) if fam in g["members"])
+    alone = [f for f in fams if family_morphology(limits, f) == single]
+    if len({family_morphology(limits, f) for f in fams}) < 2 or not alone:
+        alone = fams
+    robust, _ = combined_m_lim(limits, fams)
+    base, _ = combined_m_lim(limits, alone)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return robust / base
+
+
+def morphology_note(limits, family=None) -> str:
+    """One sentence: the morphologies the limits (of ``family``, or over every family) assume and,
+    when several, the price of robustness (median and range over the radii with a limit)."""
+    every = morphologies(limits)
+    names = [family_morphology(limits, limits.family(family))] if family is not None else every
+    if len(names) == 1 and len(every) > 1:
+        return (f"This family assumes the {names[0]} morphology only; the limits robust to the spiral's shape are "
+                f"those over every morphology ({', '.join(every)}).")
+    if len(names) == 1:
+        shape = "one unlabelled template morphology" if names[0] == UNLABELLED else f"the {names[0]} morphology"
+        return f"These limits assume {shape} only; not robust to the spiral's shape."
+    price = overall_price(limits)
+    ok = np.isfinite(price)
+    text = (f"median {np.median(price[ok]):.2g} (range {np.min(price[ok]):.2g}-{np.max(price[ok]):.2g})"
+            if ok.any() else "undefined (no radius where both have a limit)")
+    return (f"These limits hold for every morphology ({', '.join(names)}): a mass counts as ruled out only where "
+            f"every morphology rules it out; price of robustness M_lim(robust)/M_lim({SINGLE_VARIANT}) {text}.")
+
+
 def near_planet_mask(r_p, planets, beam: float) -> np.ndarray:
     """True at radii within one ``beam`` [arcsec] (FWHM) of any planet radius in ``planets`` [arcsec]."""
     r_p = np.asarray(r_p, dtype=float)
@@ -131,16 +195,14 @@ def describe_over_families(limits) -> str:
 
     fams = list(limits.families)
     m_lim, status = combined_m_lim(limits, fams)
-    labels = "; ".join(f.label for f in fams)
-    out = [f"Over all {len(fams)} template families ({labels}), a planet counts as ruled out only where "
-           "every family rules it out."]
+    out = [f"Over all {len(fams)} template families ({_family_set(limits)}), a planet counts as ruled out only "
+           "where every family rules it out.", morphology_note(limits)]
     for mass in THRESHOLDS:
         ok = np.isin(status, _LIMITED) & (np.nan_to_num(m_lim, nan=np.inf) <= mass * (1 + 1e-9))
         where = "; ".join(_range_text_over(limits, lo, hi, mass) for lo, hi in runs(limits.r_p, ok)) or "no radius"
         out.append(f"Planets of >= {mass:g} M_th are ruled out at {limits.cl:.0%} confidence at {where}.")
-    for group in variant_groups(fams):
-        if len(group["members"]) < 2:
-            continue
+    groups = [g for g in variant_groups(fams) if len(g["members"]) > 1]
+    for group in groups if len(fams) <= _LISTED_FAMILIES else []:  # else the overall price above says it
         price = price_of_robustness(limits, group)
         ok = np.isfinite(price)
         variants = ", ".join(str(f.key.get("variant")) for f in group["members"])
@@ -149,3 +211,17 @@ def describe_over_families(limits) -> str:
                    f"M_lim(robust)/M_lim({SINGLE_VARIANT}) = {text}.")
     out.extend(guard_sentences(limits))
     return " ".join(out)
+
+
+def _family_set(limits) -> str:
+    """The families' labels, or for many families the values each parameter takes."""
+    fams = list(limits.families)
+    if len(fams) <= _LISTED_FAMILIES:
+        return "; ".join(f.label for f in fams)
+    parts = []
+    for key in ("tau0", "beta", "h_p"):
+        values = sorted({f.key[key] for f in fams if f.key.get(key) is not None})
+        if values:
+            parts.append(f"{key} {', '.join(f'{v:g}' for v in values)}")
+    parts.append(f"morphologies {', '.join(morphologies(limits))}")
+    return "; ".join(parts)
