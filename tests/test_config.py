@@ -135,7 +135,7 @@ def test_grid_and_scan_sections_are_the_fields_of_scan_settings():
 
 @pytest.mark.parametrize("user,match", [
     ({"grid": {"n_phi_p": 45}}, r"grid.n_phi_p = 45 must be a positive, even integer"),
-    ({"grid": {"r_p_max": -0.5}}, r"grid.r_p_max = -0.5 must be a positive, finite radius"),
+    ({"grid": {"r_p_max": -0.5}}, r"grid.r_p_max = -0.5 must be a positive, finite number"),
     ({"grid": {"r_p_min": 0.4, "r_p_max": 0.3}}, r"grid.r_p_min = 0.4 must be smaller than grid.r_p_max = 0.3"),
     ({"scan": {"quadrature": "simpson"}}, r"scan.quadrature = 'simpson' must be one of 'product', 'midpoint'"),
     ({"scan": {"power_path": "fast"}}, r"scan.power_path = 'fast' must be one of 'auto', 'polar', 'direct'"),

@@ -26,9 +26,9 @@ def test_defaults_are_the_papers_grid_rule_and_the_exact_quadrature():
 
 
 @pytest.mark.parametrize("field,value,match", [
-    ("r_p_min", -0.1, "positive, finite radius"),
-    ("r_p_max", float("nan"), "positive, finite radius"),
-    ("r_p_max", "0.5", "positive, finite radius"),
+    ("r_p_min", -0.1, "positive, finite number"),
+    ("r_p_max", float("nan"), "positive, finite number"),
+    ("r_p_max", "0.5", "positive, finite number"),
     ("n_r_p", 0, "integer >= 1"),
     ("n_r_p", 2.0, "integer >= 1"),
     ("n_phi_p", 15, "positive, even integer"),

@@ -134,7 +134,7 @@ def field_error(name: str, value) -> str | None:
     """
     if name in ("r_p_min", "r_p_max"):
         ok = value is None or _positive_number(value)
-        return None if ok else "must be a positive, finite radius in arcsec (None, or 0 in TOML: automatic)"
+        return None if ok else "must be a positive, finite number [arcsec] (None, or 0 in TOML: automatic)"
     if name == "n_r_p":
         return None if _integer(value) and value >= 1 else "must be an integer >= 1 (the paper uses 25)"
     if name == "n_phi_p":
