@@ -110,7 +110,8 @@ def scan_settings(config: dict) -> ScanSettings:
 DASK_CONNECT_TIMEOUT_S = 3.0
 
 
-def check_dask_address(address: str, timeout: float = DASK_CONNECT_TIMEOUT_S, *, option: str = "scan.scheduler") -> None:
+def check_dask_address(address: str, timeout: float = DASK_CONNECT_TIMEOUT_S, *,
+                       option: str = "scan.scheduler") -> None:
     """Refuse an unreachable Dask scheduler before anything slow runs (frank, the scan set-up).
 
     ``""`` or ``"serial"`` (serial) and ``"local"`` (a LocalCluster) need no check;

@@ -127,3 +127,44 @@ def test_checkpoint_false_writes_no_checkpoint(tmp_path, planet_observation, pla
     scan(vis, axisym, planet_templates[:1], GEOMETRY, settings=ScanSettings(n_phi_p=16), r_p=RADII, checkpoint=path,
          progress=False)
     assert path.exists()
+
+
+class _GeometryAlternative:
+    """Stands in for an AlternativesResult whose geometry alternative found the disc's own geometry."""
+
+    def fitted_geometry(self):
+        return GEOMETRY
+
+
+def test_rescan_takes_scan_settings_and_reuses_the_first_scans_grid(planet_observation, planet_templates):
+    from spiralbayes.inference.detection.follow_up import rescan_at_fitted_geometry
+
+    vis, axisym = planet_observation
+    template = planet_templates[:1]
+    first = scan(vis, axisym, template, GEOMETRY, r_p=RADII, **SMALL)
+    kwargs = dict(refit=lambda geometry: axisym, refit_alternatives=False)  # the same model: the same numbers
+    again = rescan_at_fitted_geometry(vis, axisym, template, _GeometryAlternative(), scan_result=first, **kwargs)
+    np.testing.assert_array_equal(again.scan.r_p, first.r_p)
+    assert again.scan.phi_p.size == 16  # the first scan's azimuths, not the default 90
+    np.testing.assert_array_equal(again.scan.cross, first.cross)
+    assert again.verdict.template == first.best.template
+    coarser = rescan_at_fitted_geometry(vis, axisym, template, _GeometryAlternative(), scan_result=first,
+                                        settings=ScanSettings(n_phi_p=8, amplitude="free"), **kwargs)
+    assert coarser.scan.phi_p.size == 8 and coarser.scan.r_p.size == RADII.size
+    with pytest.warns(FutureWarning, match=r"previous_scan=...\) is renamed scan_result="):
+        old = rescan_at_fitted_geometry(vis, axisym, template, _GeometryAlternative(), previous_scan=first,
+                                        amplitude=None, nthreads=1, **kwargs)
+    np.testing.assert_array_equal(old.scan.cross, first.cross)
+    with pytest.raises(TypeError, match="unknown keyword"):
+        rescan_at_fitted_geometry(vis, axisym, template, _GeometryAlternative(), scan_result=first, n_phi=8, **kwargs)
+
+
+def test_scheduler_addresses_are_checked_under_the_name_the_user_gave():
+    from spiralbayes.pipeline.scan_command import check_dask_address
+
+    for serial in ("", "serial", "local"):
+        check_dask_address(serial)
+    with pytest.raises(InputError, match=r"^scan.scheduler = 'tcp://:0' is not a scheduler address"):
+        check_dask_address("tcp://:0")
+    with pytest.raises(InputError, match=r"^--dask = 'tcp://:0'"):
+        check_dask_address("tcp://:0", option="--dask")
