@@ -79,8 +79,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         **config_options(ScanSettings, [f.name for f in fields(ScanSettings)
                                         if f.metadata["config"] and f.name not in GRID_FIELDS]),
         "scheduler": ("", "Dask engine of the scan: empty or 'serial': in this process; 'local': a LocalCluster on "
-                          "this machine; else a scheduler address (tcp://host:8786). 'dask', its old name, is read "
-                          "as scheduler with a FutureWarning"),
+                          "this machine; else a scheduler address (tcp://host:8786)"),
     },
     "alternatives": {
         "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = 2) and apply test 3"),
