@@ -23,7 +23,8 @@ def test_paper_defaults():
     cfg = default_config()
     assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (0, 1.2, 1.05)  # 0: automatic
     assert (cfg["frank"]["p0"], cfg["frank"]["weights_smooth"]) == (1e-15, 0.1)
-    assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"], cfg["grid"]["n_r_p"], cfg["grid"]["n_phi_p"]) == (0.02, 0.5, 25, 90)
+    # 0 bounds: the data-driven grid of ScanSettings (25 radii up to 0.6 R_eff), the one sb.scan uses
+    assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"], cfg["grid"]["n_r_p"], cfg["grid"]["n_phi_p"]) == (0, 0, 25, 90)
     assert all(desc for section in SCHEMA.values() for _, desc in section.values())
 
 
@@ -126,3 +127,51 @@ def test_templates_without_options_use_the_robust_default_bank():
     section = default_config()["templates"]
     assert section["bank"] == "default" and set(BUILT_IN_BANKS) == set(inputs.BANKS)
     assert inputs.BANKS[section["bank"]] is default_bank and inputs.BANKS["compromise"] is compromise_bank
+
+
+# --- [grid] and [scan]: the fields of ScanSettings ------------------------------------------------
+def test_grid_and_scan_sections_are_the_fields_of_scan_settings():
+    import dataclasses
+
+    from spiralbayes import ScanSettings
+    from spiralbayes.pipeline.scan_command import scan_settings
+
+    fields = {f.name: f for f in dataclasses.fields(ScanSettings)}
+    assert set(SCHEMA["grid"]) | set(SCHEMA["scan"]) == set(fields) | {"scheduler"}
+    for section in ("grid", "scan"):
+        for key, (default, doc) in SCHEMA[section].items():
+            if key != "scheduler":
+                assert doc == fields[key].metadata["doc"]
+                assert default == (0 if fields[key].default is None else fields[key].default), key
+    assert scan_settings(default_config()) == ScanSettings()  # TOML's 0 bounds read back as automatic (None)
+    given = merge_config({"grid": {"r_p_min": 0.02, "r_p_max": 0.5, "n_phi_p": 46},
+                          "scan": {"quadrature": "midpoint", "nthreads": 2, "building_blocks": False}})
+    assert scan_settings(given) == ScanSettings(r_p_min=0.02, r_p_max=0.5, n_phi_p=46, quadrature="midpoint",
+                                                nthreads=2, building_blocks=False)
+
+
+@pytest.mark.parametrize("user,match", [
+    ({"grid": {"n_phi_p": 45}}, r"grid.n_phi_p = 45 must be a positive, even integer"),
+    ({"grid": {"r_p_max": -0.5}}, r"grid.r_p_max = -0.5 must be a positive, finite number"),
+    ({"grid": {"r_p_min": 0.4, "r_p_max": 0.3}}, r"grid.r_p_min = 0.4 must be smaller than grid.r_p_max = 0.3"),
+    ({"scan": {"quadrature": "simpson"}}, r"scan.quadrature = 'simpson' must be one of 'product', 'midpoint'"),
+    ({"scan": {"power_path": "fast"}}, r"scan.power_path = 'fast' must be one of 'auto', 'polar', 'direct'"),
+    ({"scan": {"nthreads": 0}}, r"scan.nthreads = 0 must be an integer >= 1"),
+    ({"scan": {"dask": "local", "scheduler": "local"}}, r"scan.dask is the old name of scan.scheduler"),
+])
+def test_bad_grid_and_scan_values_name_the_option(user, match):
+    with pytest.raises(ValueError, match=match):
+        merge_config(user)
+
+
+def test_only_one_bound_may_be_automatic():
+    cfg = merge_config({"grid": {"r_p_min": 0.3}})  # r_p_max automatic: checked against the data's R_eff later
+    assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"]) == (0.3, 0.0)
+    assert merge_config({"grid": {"r_p_max": 0.1}})["grid"]["r_p_max"] == 0.1
+
+
+def test_old_dask_key_is_read_as_scheduler_with_a_future_warning():
+    with pytest.warns(FutureWarning, match=r"scan.dask is renamed scan.scheduler"):
+        cfg = merge_config({"scan": {"dask": "local"}})
+    assert cfg["scan"]["scheduler"] == "local" and "dask" not in cfg["scan"]
+

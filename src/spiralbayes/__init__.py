@@ -32,6 +32,7 @@ from .inference.posterior.results import PosteriorResult  # noqa: E402
 from .inference.posterior.sampler import sample_posterior  # noqa: E402
 from .inference.posterior.settings import SamplingSettings  # noqa: E402
 from .inference.scan.run import ScanResult, scan  # noqa: E402
+from .inference.scan.settings import ScanSettings  # noqa: E402
 from .io import load_visibilities, save_visibilities  # noqa: E402
 from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage  # noqa: E402
 from .templates import SpiralTemplate, TemplateBank, compromise_bank, default_bank, make_template, variant_bank  # noqa: E402
@@ -61,7 +62,7 @@ DATA = ["Visibilities", "DiscGeometry", "load_visibilities", "save_visibilities"
 MODELS = ["AxisymmetricModel", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank", "compromise_bank",
           "variant_bank", "make_template"]
 """Models: the axisymmetric (frank) profile and the spiral templates."""
-SEARCH = ["ScanResult", "scan"]
+SEARCH = ["ScanResult", "ScanSettings", "scan"]
 """Search: the template scan."""
 DETECTION = ["Verdict", "detect", "AlternativesResult", "AlternativesSettings", "fit_alternatives",
              "rescan_at_fitted_geometry"]

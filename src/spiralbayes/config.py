@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from dataclasses import fields
 from pathlib import Path
 
@@ -31,15 +32,15 @@ from .exceptions import ConfigError, MissingFileError
 from .inference.detection.settings import AlternativesSettings
 from .inference.limits.settings import LimitSettings
 from .inference.posterior.settings import SamplingSettings
-from .inference.scan.engine import ScanSettings
+from .inference.scan.settings import GRID_FIELDS, ScanSettings, field_error
 from .settings import config_options
 
-__all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "default_config", "describe_config", "geometry_given", "load_config",
+__all__ = ["CHECKS", "PATH_KEYS", "RENAMED", "SCHEMA", "default_config", "describe_config", "geometry_given", "load_config",
            "merge_config"]
 
-# section -> key -> (default, description). The [alternatives], [sample] and [limits] options are the
-# fields of their settings dataclasses (spiralbayes.settings); [frank] and [scan] take their defaults
-# from frank's hyperparameters and ScanSettings: each default is written once, where the code uses it.
+# section -> key -> (default, description). The [grid], [scan], [alternatives], [sample] and [limits]
+# options are the fields of their settings dataclasses (spiralbayes.settings); [frank] takes its defaults
+# from frank's hyperparameters: each default is written once, where the code uses it.
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     "data": {
         "path": ("", "visibility file: uvtable .txt/.npz, spiralbayes .h5, or a Measurement Set directory"),
@@ -73,20 +74,12 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "hand": ([], "'R' and/or 'L' (empty: both)"),
         "h_p": ([], "disc aspect ratios H/r at r_p to keep (empty: all; the default bank has 0.05, 0.07, 0.10)"),
     },
-    "grid": {
-        "r_p_min": (0.02, "smallest planet radius [arcsec] (paper: 0.02)"),
-        "r_p_max": (0.5, "largest planet radius [arcsec] (paper: 0.5)"),
-        "n_r_p": (25, "number of planet radii (paper: 25)"),
-        "n_phi_p": (90, "number of planet azimuths over 360 deg (paper: 90, i.e. 4 deg)"),
-    },
+    "grid": config_options(ScanSettings, GRID_FIELDS),
     "scan": {
-        "amplitude": ("fixed", "'fixed' (the paper's A = 1) or 'free' (best linear spiral amplitude per instance, +1 BIC parameter)"),
-        "dask": ("", "empty: serial; 'local': a Dask LocalCluster; else a scheduler address (tcp://host:8786)"),
-        "nthreads": (1, "threads per template for the NUFFTs"),
-        "cell_factor": (ScanSettings.cell_factor, "midpoint quadrature only: cells at most 1/(cell_factor u_max) across"),
-        "quadrature": (ScanSettings.rule, "'product' (exact, with an error estimate per instance) or 'midpoint' (the earlier cells, for comparison)"),
-        "power_path": (ScanSettings.power_path, "'auto', 'polar' (uv grids; large N) or 'direct' (the model at every baseline; small N)"),
-        "checkpoint": (True, "checkpoint after each template and resume an interrupted scan"),
+        **config_options(ScanSettings, [f.name for f in fields(ScanSettings)
+                                        if f.metadata["config"] and f.name not in GRID_FIELDS]),
+        "scheduler": ("", "Dask engine of the scan: empty or 'serial': in this process; 'local': a LocalCluster on "
+                          "this machine; else a scheduler address (tcp://host:8786)"),
     },
     "alternatives": {
         "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = 2) and apply test 3"),
@@ -126,8 +119,10 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "plots": (True, "write heatmap PNGs"),
     },
 }
-"""section -> option -> ``(default, description)`` of every configuration option; the ``[alternatives]``,
-``[sample]`` and ``[limits]`` options come from :class:`~spiralbayes.inference.detection.settings.AlternativesSettings`,
+"""section -> option -> ``(default, description)`` of every configuration option; the ``[grid]`` and
+``[scan]`` options (but ``scheduler``) come from :class:`~spiralbayes.inference.scan.settings.ScanSettings`,
+the ``[alternatives]``, ``[sample]`` and ``[limits]`` options from
+:class:`~spiralbayes.inference.detection.settings.AlternativesSettings`,
 :class:`~spiralbayes.inference.posterior.settings.SamplingSettings` and
 :class:`~spiralbayes.inference.limits.settings.LimitSettings`."""
 
@@ -165,8 +160,9 @@ def _zero_or_at_least(low):
     return lambda v: None if v == 0 or v >= low else f"must be 0 (automatic) or an integer >= {low}"
 
 
-def _even_positive(v):
-    return None if v >= 2 and v % 2 == 0 else "must be a positive, even integer (the paper uses 90: 4 deg steps)"
+def _scan_check(key):
+    # ScanSettings' own rule, so that TOML and Python accept the same values; 0 spells "automatic"
+    return lambda v: field_error(key, None if key in ("r_p_min", "r_p_max") and v == 0 else v)
 
 
 def _plain_name(v):
@@ -227,9 +223,8 @@ CHECKS: dict[str, dict[str, object]] = {
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),
                   "h_p": _each(_number(_positive))},
-    "grid": {"r_p_min": _positive, "r_p_max": _positive, "n_r_p": _int_at_least(1), "n_phi_p": _even_positive},
-    "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive,
-             "quadrature": _choice("product", "midpoint"), "power_path": _choice("auto", "polar", "direct")},
+    "grid": {key: _scan_check(key) for key in GRID_FIELDS},
+    "scan": {key: _scan_check(key) for key in ScanSettings.field_names() if key not in GRID_FIELDS},
     "alternatives": {"models": _each(_string(_choice(*ALTERNATIVE_MODELS))), "threshold": _finite,
                      "n_starts": _int_at_least(1)},
     "sample": {"run_name": _plain_name, "n_walkers": _int_at_least(2), "n_steps": _int_at_least(0), "max_steps": _int_at_least(1),
@@ -266,9 +261,9 @@ def _check_values(config: dict) -> None:
                 if error:
                     raise ConfigError(f"{section}.{key} = {value!r} {error}")
     grid = config.get("grid", {})
-    if {"r_p_min", "r_p_max"} <= set(grid) and grid["r_p_min"] >= grid["r_p_max"]:
+    if grid.get("r_p_min") and grid.get("r_p_max") and grid["r_p_min"] >= grid["r_p_max"]:
         raise ConfigError(f"grid.r_p_min = {grid['r_p_min']!r} must be smaller than grid.r_p_max = "
-                          f"{grid['r_p_max']!r} [arcsec]")
+                          f"{grid['r_p_max']!r} [arcsec] (or 0: automatic)")
     priors = config.get("priors", {})
     if priors.get("r_p_min") and priors.get("r_p_max") and priors["r_p_min"] >= priors["r_p_max"]:
         raise ConfigError(f"priors.r_p_min = {priors['r_p_min']!r} must be smaller than priors.r_p_max = "
@@ -289,12 +284,28 @@ def merge_config(user: dict, schema: dict = SCHEMA) -> dict:
         if not isinstance(values, dict):
             raise ConfigError(f"[{section}] must be a table of options")
         for key, value in values.items():
+            key = _current_name(section, key, values)
             if key not in schema[section]:
                 raise ConfigError(f"unknown option {section}.{key}; valid options of [{section}]: "
                                   f"{sorted(schema[section])}")
             config[section][key] = _coerce(section, key, value, schema[section][key][0])
     _check_values(config)
     return config
+
+
+RENAMED = {("scan", "dask"): "scheduler"}
+"""(section, old option name) -> new name: old names are still read, as the new one, with a FutureWarning."""
+
+
+def _current_name(section: str, key: str, values: dict) -> str:
+    new = RENAMED.get((section, key))
+    if new is None:
+        return key
+    if new in values:
+        raise ConfigError(f"{section}.{key} is the old name of {section}.{new}: give {new} only")
+    warnings.warn(f"{section}.{key} is renamed {section}.{new}: write '{new} = ...' (the old name will be removed)",
+                  FutureWarning, stacklevel=4)
+    return new
 
 
 def _coerce(section: str, key: str, value, default):

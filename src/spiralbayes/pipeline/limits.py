@@ -18,7 +18,7 @@ from ..templates import default_bank, make_template
 from .._hdf5 import require_file
 from .inputs import load_data, load_templates
 from .outputs import _write_text, save_figure
-from .scan_command import run_scan_config
+from .scan_command import run_scan_config, scan_settings
 from .reuse import reusable_axisymmetric, reusable_scan
 
 __all__ = ["LimitsRun", "TAURUS_DEMO", "default_limits_config", "run_forecast", "run_limits", "run_limits_config",
@@ -126,14 +126,14 @@ def run_limits_config(config: dict, *, progress: bool = True) -> LimitsRun:
     """
     out_dir = Path(config["output"]["dir"])
     templates = load_templates(config["templates"])
-    grid = config["grid"]
-    r_p = np.linspace(grid["r_p_min"], grid["r_p_max"], grid["n_r_p"])
+    settings = scan_settings(config)
     scan_file, model_file = out_dir / "scan.h5", out_dir / "axisymmetric.h5"
     if scan_file.exists() or model_file.exists():  # reused only when made from these inputs, else refused
         vis = load_data(config["data"])
         axisym = reusable_axisymmetric(require_file(model_file, "axisymmetric model", "run 'spiralbayes scan' with "
                                                     "this configuration first"), vis, config)
-        result = reusable_scan(require_file(scan_file, "scan"), vis, axisym, templates, r_p, grid["n_phi_p"])
+        result = reusable_scan(require_file(scan_file, "scan"), vis, axisym, templates, settings.planet_radii(axisym),
+                               settings.n_phi_p)
     else:
         _, result, _ = run_scan_config(config, progress=progress)
         vis = load_data(config["data"])

@@ -6,7 +6,6 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from ..config import describe_config
 from ..exceptions import InputError
 from ..inference.detection.alternatives import fit_alternatives
@@ -15,11 +14,12 @@ from ..inference.detection.follow_up import GeometryFollowUp, rescan_at_fitted_g
 from ..inference.detection.planet_peak import detect_with_planet_peak
 from ..inference.detection.verdict import DELTA_BIC_THRESHOLD
 from ..inference.scan.run import ScanResult, scan
+from ..inference.scan.settings import ScanSettings
 from ..settings import from_config
 from .inputs import _geometry, load_axisymmetric, load_data, load_templates
 from .outputs import _write_text, write_scan_outputs
 
-__all__ = ["ScanRun", "check_dask_address", "run_scan", "run_scan_config"]
+__all__ = ["ScanRun", "check_dask_address", "run_scan", "run_scan_config", "scan_settings"]
 
 log = logging.getLogger(__name__)
 
@@ -58,24 +58,21 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
     """
     out_dir = Path(config["output"]["dir"])
-    s = config["scan"]
-    checkpoint = out_dir / "scan_checkpoint.h5" if s["checkpoint"] else None
+    settings = scan_settings(config)
+    checkpoint = out_dir / "scan_checkpoint.h5" if settings.checkpoint else None
     if checkpoint is not None and checkpoint.exists():
         ScanResult.load(checkpoint)  # a truncated or foreign file fails now, not after the frank fit
-    check_dask_address(s["dask"])
+    scheduler = config["scan"]["scheduler"] or None
+    check_dask_address(scheduler or "")
     vis = load_data(config["data"], _geometry(config))
     axisym = load_axisymmetric(config, vis, progress=progress)
     templates = load_templates(config["templates"])
-    grid = config["grid"]
-    r_p = np.linspace(grid["r_p_min"], grid["r_p_max"], grid["n_r_p"])
     out_dir.mkdir(parents=True, exist_ok=True)
-    amplitude = "free" if s["amplitude"] == "free" else None
-    result = scan(vis, axisym, templates, axisym.geometry, r_p=r_p, n_phi_p=grid["n_phi_p"],
-                  distance=config["geometry"]["distance"], checkpoint=checkpoint, client=s["dask"] or None,
-                  progress=progress, cell_factor=s["cell_factor"], nthreads=s["nthreads"], force_resume=force_resume,
-                  rule=s["quadrature"], power_path=s["power_path"])
+    amplitude = settings.free_amplitude
+    result = scan(vis, axisym, templates, axisym.geometry, settings=settings, distance=config["geometry"]["distance"],
+                  checkpoint=checkpoint, scheduler=scheduler, progress=progress, force_resume=force_resume)
     a = config["alternatives"]
-    alt_kwargs = {"settings": from_config(AlternativesSettings, a, nthreads=s["nthreads"]), "progress": progress}
+    alt_kwargs = {"settings": from_config(AlternativesSettings, a, nthreads=settings.nthreads), "progress": progress}
     alts = fit_alternatives(vis, axisym, axisym.geometry, **alt_kwargs) if a["fit"] else None
     detect_kwargs = {"alternative_threshold": a["threshold"], "mstar": config["limits"]["mstar"]}
     verdict = detect_with_planet_peak(result, vis, axisym, templates, axisym.geometry, amplitude, alternatives=alts,
@@ -90,10 +87,9 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     files.append(_write_text(out_dir / "config_used.toml", note + describe_config(config)))
     follow = None
     if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
-        follow = rescan_at_fitted_geometry(vis, axisym, templates, alts, previous_scan=result, amplitude=amplitude,
-                                           nthreads=s["nthreads"], progress=progress, alternative_kwargs=alt_kwargs,
-                                           detect_kwargs=detect_kwargs, client=s["dask"] or None,
-                                           cell_factor=s["cell_factor"])
+        follow = rescan_at_fitted_geometry(vis, axisym, templates, alts, settings=settings, scan_result=result,
+                                           scheduler=scheduler, progress=progress, alternative_kwargs=alt_kwargs,
+                                           detect_kwargs=detect_kwargs)
         sub = out_dir / "refit_geometry"
         files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
                                     vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
@@ -101,33 +97,45 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     return ScanRun(verdict, result, alts, follow, files)
 
 
+def scan_settings(config: dict) -> ScanSettings:
+    """The :class:`~spiralbayes.inference.scan.settings.ScanSettings` of a merged configuration.
+
+    ``[grid]`` and ``[scan]`` are its fields (0 bounds: automatic), so ``spiralbayes scan`` and
+    ``sb.scan(vis, disc, templates)`` scan the same grid for the same data and model; the
+    planet radii are ``scan_settings(config).planet_radii(axisymmetric)``.
+    """
+    return from_config(ScanSettings, {**config["grid"], **config["scan"]})
+
+
 DASK_CONNECT_TIMEOUT_S = 3.0
 
 
-def check_dask_address(address: str, timeout: float = DASK_CONNECT_TIMEOUT_S) -> None:
+def check_dask_address(address: str, timeout: float = DASK_CONNECT_TIMEOUT_S, *,
+                       option: str = "scan.scheduler") -> None:
     """Refuse an unreachable Dask scheduler before anything slow runs (frank, the scan set-up).
 
-    ``""`` (serial) and ``"local"`` (a LocalCluster) need no check; ``tcp://host:port`` (or
-    ``host:port``) must accept a TCP connection within ``timeout`` seconds.
+    ``""`` or ``"serial"`` (serial) and ``"local"`` (a LocalCluster) need no check;
+    ``tcp://host:port`` (or ``host:port``) must accept a TCP connection within ``timeout`` seconds.
+    ``option`` is the name the user gave it (errors name it).
     """
     import socket
     from urllib.parse import urlsplit
 
-    if not address or address == "local":
+    if not address or address in ("local", "serial"):
         return
     parts = urlsplit(address if "://" in address else f"tcp://{address}")
     try:
         host, port = parts.hostname, parts.port or 8786
     except ValueError:
-        raise InputError(f"scan.dask = {address!r} is not a scheduler address (tcp://host:8786, 'local' or "
-                         "empty)") from None
+        host = None
     if not host:
-        raise InputError(f"scan.dask = {address!r} is not a scheduler address (tcp://host:8786, 'local' or empty)")
+        raise InputError(f"{option} = {address!r} is not a scheduler address (tcp://host:8786, 'local', 'serial' or "
+                         "empty)") from None
     try:
         with socket.create_connection((host, port), timeout=timeout):
             pass
     except OSError as exc:
-        raise InputError(f"scan.dask = {address!r}: no Dask scheduler answers at {host}:{port} within {timeout:g} s "
+        raise InputError(f"{option} = {address!r}: no Dask scheduler answers at {host}:{port} within {timeout:g} s "
                          f"({exc.__class__.__name__}); start one (dask scheduler), use 'local', or leave it empty "
                          "for a serial scan") from None
 

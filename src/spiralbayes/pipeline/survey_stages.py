@@ -163,9 +163,11 @@ def stage_frank(job, prep: Prepared):
     return axisym
 
 
-def _grid(config: dict):
-    g = config["grid"]
-    return np.linspace(g["r_p_min"], g["r_p_max"], g["n_r_p"]), g["n_phi_p"]
+def _grid(config: dict, axisym):
+    from .scan_command import scan_settings
+
+    settings = scan_settings(config)
+    return settings.planet_radii(axisym), settings.n_phi_p
 
 
 @_staged("scan")
@@ -173,14 +175,15 @@ def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     """The scan's context and partly filled result (resumed from the checkpoint and saved chunks)."""
     from ..inference.scan.run import ScanResult, empty_result, resume_from_checkpoint, warn_beyond_rmax, resume_key
     from ..inference.scan.accuracy import check_terms
-    from ..inference.scan.engine import ScanContext, ScanSettings
+    from ..inference.scan.engine import ScanContext
+    from .scan_command import scan_settings
 
     out = job.out_dir
     if done(out, "scan", prep.scan_key, "scan.h5", "verdict.json") is not None:
         return ScanSetup(None, ScanResult.load(out / "scan.h5"), [], True, prep.scan_key)
     s = job.config["scan"]
-    r_p, n_phi_p = _grid(job.config)
-    settings = ScanSettings(rule=s["quadrature"], cell_factor=float(s["cell_factor"]), power_path=s["power_path"])
+    r_p, n_phi_p = _grid(job.config, axisym)
+    settings = scan_settings(job.config)
     warn_beyond_rmax(axisym, r_p)
     x_max = max(float(np.max(t.x)) for t in templates)
     context = ScanContext.build(prep.vis, axisym, axisym.geometry, r_p, n_phi_p, x_max=x_max, nthreads=s["nthreads"],
@@ -197,7 +200,7 @@ def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
             if terms is not None:
                 _store_terms(result, i, terms)
     todo = [i for i in range(len(templates)) if not result.completed[i]]
-    if todo and settings.rule == "product":
+    if todo and settings.quadrature == "product":
         context.algorithm_error = check_terms(context, templates[0])
         result.provenance["power_check"] = context.algorithm_error
     return ScanSetup(context, result, todo, False, part_key)
@@ -276,7 +279,7 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
     from ..inference.detection.planet_peak import detect_with_planet_peak
     from ..inference.scan.accuracy import warn_if_inaccurate
     from .outputs import _write_text, write_scan_outputs
-    from .scan_command import _geometry_error_significant
+    from .scan_command import _geometry_error_significant, scan_settings
 
     config, out = job.config, job.out_dir
     result = setup.result
@@ -300,10 +303,9 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
     _write_text(out / "config_used.toml", describe_config(config))
     info = {}
     if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
-        follow = rescan_at_fitted_geometry(prep.vis, axisym, templates, alts, previous_scan=result,
-                                           amplitude=amplitude, nthreads=s["nthreads"], progress=False,
-                                           alternative_kwargs=_alt_kwargs(config), detect_kwargs=detect_kwargs,
-                                           client=None, cell_factor=s["cell_factor"])
+        follow = rescan_at_fitted_geometry(prep.vis, axisym, templates, alts, settings=scan_settings(config),
+                                           scan_result=result, progress=False, alternative_kwargs=_alt_kwargs(config),
+                                           detect_kwargs=detect_kwargs)
         sub = out / "refit_geometry"
         write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
                            vis=prep.vis, axisymmetric=follow.axisymmetric, templates=templates)

@@ -169,6 +169,6 @@ def test_dask_runs_the_groups_as_the_serial_scan(data, bank):
     serial = scan(vis, model, templates, GEOMETRY, **kwargs)
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             Client(cluster) as client:
-        parallel = scan(vis, model, templates, GEOMETRY, client=client, **kwargs)
+        parallel = scan(vis, model, templates, GEOMETRY, scheduler=client, **kwargs)
     assert "structure" in parallel.provenance["resume_key"]
     np.testing.assert_allclose(parallel.dchi2, serial.dchi2, rtol=1e-9, atol=1e-9)

@@ -101,7 +101,7 @@ def test_dask_and_serial_agree(planet_observation, small_bank):
     serial = scan(vis, axisym, small_bank, GEOMETRY, **kwargs)
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             Client(cluster) as client:
-        parallel = scan(vis, axisym, small_bank, GEOMETRY, client=client, **kwargs)
+        parallel = scan(vis, axisym, small_bank, GEOMETRY, scheduler=client, **kwargs)
     np.testing.assert_array_equal(parallel.dchi2, serial.dchi2)
 
 
@@ -136,6 +136,6 @@ def test_without_dask_a_parallel_request_falls_back_to_serial(monkeypatch, caplo
         return real_import(name, *args, **kw)
 
     monkeypatch.setattr(builtins, "__import__", no_dask)
-    fallback = scan(vis, axisym, small_bank[:2], GEOMETRY, client="local", **kwargs)
+    fallback = scan(vis, axisym, small_bank[:2], GEOMETRY, scheduler="local", **kwargs)
     np.testing.assert_array_equal(fallback.dchi2, serial.dchi2)
     assert "scanning serially" in caplog.text

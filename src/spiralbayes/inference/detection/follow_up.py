@@ -22,7 +22,9 @@ from ...geometry import DiscGeometry
 from .alternatives import AlternativesResult, fit_alternatives
 from .planet_peak import detect_with_planet_peak
 from .verdict import Verdict
+from ...settings import with_overrides
 from ..scan.run import ScanResult, scan
+from ..scan.settings import ScanSettings, renamed_keyword
 
 __all__ = ["GeometryFollowUp", "frank_settings", "rescan_at_fitted_geometry"]
 
@@ -52,11 +54,11 @@ def frank_settings(axisymmetric) -> dict:
 
 
 def rescan_at_fitted_geometry(vis, axisymmetric, templates, alternatives: AlternativesResult, *,
-                              r_p=None, n_phi_p: int | None = None, distance: float | None = None,
-                              amplitude=None, refit_alternatives: bool = True, nthreads: int = 1,
-                              progress: bool = False, frank_kwargs: dict | None = None,
+                              settings: ScanSettings | None = None, scan_result: ScanResult | None = None, r_p=None,
+                              distance: float | None = None, scheduler=None, progress: bool = False,
+                              refit_alternatives: bool = True, refit=None, frank_kwargs: dict | None = None,
                               alternative_kwargs: dict | None = None, detect_kwargs: dict | None = None,
-                              previous_scan: ScanResult | None = None, refit=None, **scan_kwargs) -> GeometryFollowUp:
+                              **overrides) -> GeometryFollowUp:
     """Refit the profile at the geometry alternative's geometry, rescan and decide again.
 
     Parameters
@@ -65,43 +67,71 @@ def rescan_at_fitted_geometry(vis, axisymmetric, templates, alternatives: Altern
         The data.
     axisymmetric : AxisymmetricModel
         The model the first scan used; its frank hyperparameters are reused (``frank_kwargs``
-        overrides them).
+        or frank options among ``overrides`` replace them).
     templates : sequence of SpiralTemplate
         The templates to scan (normally the first scan's).
     alternatives : AlternativesResult
         Must include the ``geometry`` alternative; its fitted geometry is used.
-    r_p, n_phi_p, distance
-        The scan grid; by default those of ``previous_scan`` when given.
-    amplitude : None or "free"
-        As in :func:`~spiralbayes.inference.detection.detect`.
+    settings : ScanSettings, optional
+        The scan's options (:class:`~spiralbayes.inference.scan.settings.ScanSettings`; its
+        ``amplitude`` is the verdict's). Default: those of the first scan, i.e. ``ScanSettings()``
+        with the azimuths of ``scan_result``.
+    scan_result : ScanResult, optional
+        The first scan: its planet radii [arcsec], azimuth count and distance are reused unless
+        ``r_p``, ``settings`` or ``distance`` say otherwise (the refitted profile's R_eff would
+        otherwise move an automatic grid).
+    r_p : array_like, optional
+        Planet radii [arcsec] instead of the first scan's (or the grid of ``settings``).
+    distance : float, optional
+        Distance [pc], recorded for au axes.
+    scheduler : None, "serial", "local", str or dask.distributed.Client, optional
+        The Dask engine of the rescan (:func:`~spiralbayes.inference.scan.scan`).
+    progress : bool
+        Progress bars of the frank fit and the scan.
+    refit_alternatives : bool
+        Fit the alternatives again at the new geometry (test 3 of the new verdict).
     refit : callable, optional
         ``refit(geometry) -> axisymmetric model`` to use instead of a frank fit (e.g. an exact
         model in injection tests).
-    refit_alternatives : bool
-        Fit the alternatives again at the new geometry (test 3 of the new verdict).
-    **scan_kwargs
-        Passed to :func:`~spiralbayes.inference.scan.scan` (``client``, ``cell_factor``, ...).
+    frank_kwargs, alternative_kwargs, detect_kwargs : dict, optional
+        Passed to :func:`~spiralbayes.axisymmetric.fit_axisymmetric`, :func:`.fit_alternatives`
+        and the verdict.
+    **overrides
+        Fields of ``ScanSettings`` (``n_phi_p``, ``nthreads``, ``amplitude``, ...) and frank
+        options (``N``, ``Rmax``, ``alpha``, ``p0``, ``weights_smooth``, ``nonnegative``);
+        ``previous_scan=`` and ``client=``, the old names of ``scan_result=`` and
+        ``scheduler=``, are accepted with a FutureWarning.
     """
+    where = "rescan_at_fitted_geometry"
+    scan_result = renamed_keyword(overrides, "previous_scan", "scan_result", scan_result, where)
+    scheduler = renamed_keyword(overrides, "client", "scheduler", scheduler, where)
+    frank_overrides = {k: overrides.pop(k) for k in FRANK_KEYS if k in overrides}
+    if "amplitude" in overrides and overrides["amplitude"] is None:
+        overrides["amplitude"] = "fixed"  # the verdict's spelling of the paper's A = 1
+    if scan_result is not None and settings is None and "n_phi_p" not in overrides:
+        overrides["n_phi_p"] = int(scan_result.phi_p.size)
+    settings = with_overrides(settings, ScanSettings, overrides, where)
     geometry = alternatives.fitted_geometry()
     log.info("refitting at the geometry alternative's geometry: inc %.3f, PA %.3f deg, dRA %.2f, dDec %.2f mas",
              geometry.inc, geometry.PA, geometry.dRA * 1e3, geometry.dDec * 1e3)
     if refit is not None:
         new_axisym = refit(geometry)
     else:
-        settings = {**frank_settings(axisymmetric), **(frank_kwargs or {})}
-        new_axisym = fit_axisymmetric(vis, geometry, progress=progress, **settings)
-        if settings.get("nonnegative") and getattr(axisymmetric, "hyperparameters", {}).get("profile") == "nonnegative":
+        frank = {**frank_settings(axisymmetric), **(frank_kwargs or {}), **frank_overrides}
+        new_axisym = fit_axisymmetric(vis, geometry, progress=progress, **frank)
+        if frank.get("nonnegative") and getattr(axisymmetric, "hyperparameters", {}).get("profile") == "nonnegative":
             new_axisym = new_axisym.nonnegative()
-    if previous_scan is not None:
-        r_p = previous_scan.r_p if r_p is None else r_p
-        n_phi_p = previous_scan.phi_p.size if n_phi_p is None else n_phi_p
-        distance = previous_scan.distance if distance is None else distance
-    new_scan = scan(vis, new_axisym, templates, geometry, r_p=None if r_p is None else np.asarray(r_p),
-                    n_phi_p=n_phi_p or 90, distance=distance, progress=progress, nthreads=nthreads, **scan_kwargs)
+    if scan_result is not None:
+        r_p = scan_result.r_p if r_p is None else r_p
+        distance = scan_result.distance if distance is None else distance
+    new_scan = scan(vis, new_axisym, templates, geometry, settings=settings,
+                    r_p=None if r_p is None else np.asarray(r_p), distance=distance, scheduler=scheduler,
+                    progress=progress)
     new_alts = None
     if refit_alternatives:
-        kwargs = {"nthreads": nthreads, **(alternative_kwargs or {})}
+        kwargs = {"nthreads": settings.nthreads, **(alternative_kwargs or {})}
         new_alts = fit_alternatives(vis, new_axisym, geometry, **kwargs)
-    verdict = detect_with_planet_peak(new_scan, vis, new_axisym, templates, geometry, amplitude, alternatives=new_alts,
-                                      **(detect_kwargs or {}))
+    verdict = detect_with_planet_peak(new_scan, vis, new_axisym, templates, geometry, settings.free_amplitude,
+                                      alternatives=new_alts, **(detect_kwargs or {}))
     return GeometryFollowUp(geometry, new_axisym, new_scan, new_alts, verdict)
+

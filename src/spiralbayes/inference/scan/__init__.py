@@ -1,7 +1,8 @@
 """The grid scan: Δχ² of every template at every planet position (Stevenson et al. 2024, sec. 2.3).
 
 * :mod:`.run` — :func:`scan`, its :class:`ScanResult`, checkpoints and resume;
-* :mod:`.engine` — one template at every position (:class:`ScanContext`, :class:`ScanSettings`);
+* :mod:`.settings` — :class:`ScanSettings`, every scan option with its default (``[grid]``, ``[scan]``);
+* :mod:`.engine` — one template at every position (:class:`ScanContext`, :class:`EngineSettings`);
 * :mod:`.uv_levels` — polar uv grids for the power term;
 * :mod:`.building_blocks` — morphology variants ``s T + a B`` scanned through their generator
   templates and near-planet peaks;
@@ -18,9 +19,10 @@ from .statistics import (
     gaussian_log_likelihood,
 )
 from .uv_levels import UVLevel, build_level, level_radii, power_all_phi, theta_count, uv_weight_coefficients
+from .settings import ScanSettings, grid_radii
 from .engine import (
+    EngineSettings,
     ScanContext,
-    ScanSettings,
     TemplateTerms,
     cross_template,
     direct_delta_chi2,
@@ -36,6 +38,7 @@ from .run import ScanPeak, ScanResult, default_rp_grid, resume_key, scan
 __all__ = [
     "CHECK_AZIMUTHS",
     "EXACT_EPSILON",
+    "EngineSettings",
     "N_SPIRAL_PARAMETERS",
     "ScanContext",
     "ScanPeak",
@@ -58,6 +61,7 @@ __all__ = [
     "gaussian_log_likelihood",
     "level_radii",
     "perturbation_spectrum",
+    "grid_radii",
     "power_all_phi",
     "profile_and_model_vis",
     "resume_key",

@@ -71,6 +71,7 @@ from ...model import (
 )
 from ...quadrature import ProductQuadrature, TemplateSpectrum
 from ...units import ARCSEC
+from .settings import POWER_PATHS, ScanSettings
 from .statistics import chi2, delta_chi2_from_terms
 from .uv_levels import (
     RHO_OVERSAMPLE,
@@ -83,13 +84,12 @@ from .uv_levels import (
     theta_count,
 )
 
-__all__ = ["ScanContext", "ScanSettings", "TemplateTerms", "cross_template", "direct_delta_chi2", "perturbation_spectrum",
+__all__ = ["EngineSettings", "ScanContext", "TemplateTerms", "cross_template", "direct_delta_chi2", "perturbation_spectrum",
            "profile_and_model_vis", "scan_template", "with_residual"]
 
 
 POWER_EPSILON = 1e-7
 """Accuracy of the power path's double-precision type-3 NUFFT."""
-POWER_PATHS = ("auto", "polar", "direct")
 CHECK_SAFETY = 3.0
 """The power path's measured discrepancy (:func:`~.accuracy.check_terms`) enters the error
 estimates times this."""
@@ -98,8 +98,12 @@ DIRECT_MAX_POINTS = 20_000_000
 
 
 @dataclass(frozen=True)
-class ScanSettings:
+class EngineSettings:
     """How the scan computes its terms (all part of the resume key).
+
+    The user's options (the rule, ``cell_factor``, the power path) come from the public
+    :class:`~.settings.ScanSettings` (:meth:`EngineSettings.of`); the
+    other fields are numerical knobs with tested defaults.
 
     Attributes
     ----------
@@ -138,6 +142,11 @@ class ScanSettings:
         if isinstance(self.rho_points, bool) or int(self.rho_points) != self.rho_points or self.rho_points < 2 \
                 or self.rho_points % 2:
             raise InputError(f"rho_points = {self.rho_points!r} must be an even integer >= 2 (default {RHO_POINTS})")
+
+    @classmethod
+    def of(cls, settings: ScanSettings) -> EngineSettings:
+        """The engine settings of a scan's :class:`~.settings.ScanSettings` (numerical defaults otherwise)."""
+        return cls(rule=settings.quadrature, cell_factor=float(settings.cell_factor), power_path=settings.power_path)
 
     def describe(self) -> dict:
         """The settings that change the numbers (``cell_factor`` only for the midpoint rule)."""
@@ -193,7 +202,7 @@ class ScanContext:
     chi2_AO: float
     r_p: np.ndarray
     n_phi_p: int
-    settings: ScanSettings = field(default_factory=ScanSettings)
+    settings: EngineSettings = field(default_factory=EngineSettings)
     power_path: str = "polar"  # resolved: "polar" or "direct"
     levels: list = field(default_factory=list, repr=False)  # UVLevel, largest first (polar path)
     support: float | None = None  # radius beyond which the profile vanishes [arcsec]
@@ -217,14 +226,16 @@ class ScanContext:
     def build(cls, vis, axisymmetric, geometry: DiscGeometry, r_p, n_phi_p: int = 90,
               cell_factor: float = DEFAULT_CELL_FACTOR, x_max: float = 2.2, nthreads: int = 1, *,
               rule: str | None = None, power_path: str | None = None,
-              settings: ScanSettings | None = None) -> "ScanContext":
+              settings: EngineSettings | ScanSettings | None = None) -> "ScanContext":
         """Residual, weights and (polar path) the uv grids for the radii ``r_p`` [arcsec].
 
         ``x_max`` is the largest ``r / r_p`` of the templates to scan; ``settings`` (or the
         shortcuts ``rule``, ``power_path``) say how the terms are computed.
         """
-        settings = settings or ScanSettings(rule=rule or DEFAULT_RULE, cell_factor=float(cell_factor),
-                                            power_path=power_path or "auto")
+        if isinstance(settings, ScanSettings):
+            settings = EngineSettings.of(settings)
+        settings = settings or EngineSettings(rule=rule or DEFAULT_RULE, cell_factor=float(cell_factor),
+                                              power_path=power_path or "auto")
         vis = vis.standardised()
         profile, V_A = profile_and_model_vis(axisymmetric, vis, geometry)
         support = profile_support(profile) if settings.rule == "product" else None
@@ -269,10 +280,10 @@ class ScanContext:
     @property
     def uv_weights_hat(self) -> np.ndarray:
         """The largest level's weight coefficients ``W[j, m]`` (FFT order of m); needs a context
-        built with ``ScanSettings(power_path="polar", banded=False)``."""
+        built with ``EngineSettings(power_path="polar", banded=False)``."""
         if not self.levels or self.levels[0].hat is None:
             raise InputError("this scan context keeps no full uv weight coefficients: build it with "
-                             "settings=ScanSettings(power_path='polar', banded=False)")
+                             "settings=EngineSettings(power_path='polar', banded=False)")
         return self.levels[0].hat
 
     def with_full_grid(self) -> "ScanContext":
@@ -394,7 +405,7 @@ def _radius(quad) -> float:
     return float(quad.r_p) * x_end
 
 
-def _choose_power_path(settings: ScanSettings, radii, rho_max: float, n_data: int, n_phi_p: int) -> str:
+def _choose_power_path(settings: EngineSettings, radii, rho_max: float, n_data: int, n_phi_p: int) -> str:
     """``"direct"`` when ΔV at the N n_phi_p rotated baselines costs fewer NUFFT outputs than the uv grids."""
     if settings.power_path != "auto":
         return settings.power_path

@@ -11,7 +11,7 @@ A checkpoint is resumed only when it was written for the same inputs: :func:`.re
 a hash of the data, of the axisymmetric profile (its arrays, or the profile sampled on the
 scanned radii) and frank's settings, each template's content hash (x, phi, δ) and metadata, the
 (r_p, phi_p) grid, the geometry, the quadrature settings (the rule, ``cell_factor`` for the
-midpoint rule, and the power path's settings, :class:`~.engine.ScanSettings`) and
+midpoint rule, and the power path's settings, :class:`~.engine.EngineSettings`) and
 spiralbayes' version, and, when morphology variants were scanned through their building blocks
 (:mod:`.building_blocks`), which; a checkpoint written with other settings, or before they were
 recorded, is refused. Any difference raises :class:`ResumeMismatchError` naming it; ``force_resume=True`` keeps
@@ -37,7 +37,7 @@ import json
 import logging
 import time
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -49,11 +49,12 @@ from ...exceptions import DataWarning, InputError, ResumeMismatchError
 from ...axisymmetric.provenance import check_fitted_to
 from ...geometry import DiscGeometry
 from ...io.data_checks import check_search_data
-from ...model import DEFAULT_CELL_FACTOR, DEFAULT_RULE
 from ...templates.template import template_metadata
 from .accuracy import TOLERANCE, check_terms, warn_if_inaccurate
 from .building_blocks import check_pairs, describe_blocks, scan_group, unit_rows, building_block_groups, work_units
-from .engine import ScanContext, ScanSettings, scan_template
+from ...settings import with_overrides
+from .engine import ScanContext, scan_template
+from .settings import ScanSettings, grid_radii, renamed_keyword
 from .statistics import bic_threshold, delta_chi2_from_terms
 
 __all__ = ["ScanPeak", "ScanResult", "default_rp_grid", "resume_key", "scan"]
@@ -67,13 +68,14 @@ DATASET_UNITS = {"r_p": "arcsec", "phi_p": "rad", "cross": "dimensionless (chi^2
 log = logging.getLogger(__name__)
 
 
-def default_rp_grid(r_max: float, n: int = 25, r_min: float | None = None) -> np.ndarray:
-    """Planet radii [arcsec]: ``n`` values from ``r_min`` (default ``r_max / 25``) to ``r_max``.
+def default_rp_grid(r_max: float, n: int = ScanSettings.n_r_p, r_min: float | None = None) -> np.ndarray:
+    """Planet radii [arcsec]: ``n`` values from ``r_min`` (default ``r_max / n``) to ``r_max``.
 
-    The paper used 25 radii between 0.02 and 0.5 arcsec for discs of about 0.8 arcsec radius.
+    The paper used 25 radii between 0.02 and 0.5 arcsec for discs of about 0.8 arcsec radius
+    (:func:`.settings.grid_radii`, which this is).
     """
-    r_min = r_max / n if r_min is None else r_min
-    return np.linspace(r_min, r_max, n)
+    return grid_radii(r_min, r_max, n)
+
 
 
 @dataclass(frozen=True)
@@ -255,11 +257,9 @@ ScanResult.LEGACY_READERS = {1: _read_format_1}
 
 
 # --------------------------------------------------------------------------------------------
-def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, r_p=None, n_phi_p: int = 90,
-         distance: float | None = None, checkpoint=None, client=None, progress: bool = True,
-         cell_factor: float = DEFAULT_CELL_FACTOR, nthreads: int = 1, force_resume: bool = False,
-         rule: str = DEFAULT_RULE, power_path: str = "auto", allow_other_data: bool = False,
-         building_blocks: bool = True) -> ScanResult:
+def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, settings: ScanSettings | None = None,
+         r_p=None, scheduler=None, checkpoint=None, progress: bool = True, distance: float | None = None,
+         force_resume: bool = False, allow_other_data: bool = False, **overrides) -> ScanResult:
     """Δχ² of every template at every planet position.
 
     Parameters
@@ -272,54 +272,55 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     templates : TemplateBank or sequence of SpiralTemplate
     geometry : DiscGeometry, optional
         Defaults to the axisymmetric model's.
+    settings : ScanSettings, optional
+        The grid and how the terms are computed (:class:`~.settings.ScanSettings`; the same
+        options as the ``[grid]`` and ``[scan]`` sections of ``spiralbayes scan``). Default: the
+        data-driven grid of ``n_r_p = 25`` radii up to 0.6 R_eff of ``axisymmetric`` and 90
+        azimuths, the exact product quadrature.
     r_p : array_like, optional
-        Planet radii [arcsec], positive, finite and increasing; default 25 radii up to 0.6 R_eff
-        (the paper's 0.02–0.5 arcsec). Radii beyond the model's ``Rmax`` raise a DataWarning.
-    n_phi_p : int
-        Number of planet azimuths over 360 deg, a positive even integer (default 90: 4 deg steps,
-        as the paper; the polar uv grid's angular nodes are a multiple of it and come in pairs).
-    distance : float, optional
-        Distance [pc], recorded for au axes.
+        Planet radii [arcsec], positive, finite and increasing, instead of the grid of
+        ``settings`` (``r_p_min``, ``r_p_max``, ``n_r_p``). Radii beyond the model's ``Rmax``
+        raise a DataWarning.
+    scheduler : None, "serial", "local", str or dask.distributed.Client, optional
+        Run templates in parallel on Dask: ``"local"`` (a LocalCluster with one single-threaded
+        worker per core), a scheduler address (``tcp://host:8786``) or an existing client; serial
+        when None, ``""`` or ``"serial"``, or when Dask is not installed. On one machine a serial
+        scan with ``nthreads`` = cores is as fast; Dask pays off on a cluster.
     checkpoint : path, optional
         HDF5 file updated after every template; an existing one with the same inputs (see
         :func:`.resume_key`) is resumed, one for other inputs raises
-        :class:`~spiralbayes.exceptions.ResumeMismatchError`.
-    client : dask.distributed.Client, str, or "local", optional
-        Run templates in parallel on a Dask cluster (a scheduler address, an existing client, or
-        ``"local"`` for a LocalCluster with one single-threaded worker per core); serial when None
-        or when Dask is not installed. On one machine a serial scan with ``nthreads`` = cores is
-        as fast; Dask pays off on a cluster (one scan per disc, or many discs at once).
+        :class:`~spiralbayes.exceptions.ResumeMismatchError`. Ignored when
+        ``settings.checkpoint`` is False.
     progress : bool
         Show a tqdm progress bar.
-    cell_factor : float
-        Midpoint rule only: cells at most ``1 / (cell_factor u_max)`` across (:mod:`spiralbayes.model`).
-    nthreads : int
-        Threads for the NUFFTs of each template. Results agree to ~1e-9 between thread counts
-        and are identical for the same count.
+    distance : float, optional
+        Distance [pc], recorded for au axes.
     force_resume : bool
         Resume a checkpoint even though it was written for other inputs (its completed
         templates are kept where the names match; the grids must be the same). The
         differences are logged and recorded in ``provenance["forced_resume"]``.
-    rule : {"product", "midpoint"}
-        The quadrature of the perturbation (:func:`spiralbayes.model.make_quadrature`): the exact
-        product rule (default) or the earlier midpoint cells (a reference; no error estimate).
-    power_path : {"auto", "polar", "direct"}
-        How ``power`` is computed (:mod:`spiralbayes.inference.scan.engine`): "auto" takes the cheaper for the data.
     allow_other_data : bool
         Scan with an axisymmetric model whose recorded data hash is not that of ``vis`` (e.g.
         injected signals); by default such a model is refused (InputError).
-    building_blocks : bool
-        Scan morphology variants (:func:`~spiralbayes.templates.variants.variant_bank`) through
-        their generator templates and near-planet peaks (:mod:`.building_blocks`: the same numbers
-        to the templates' float32 rounding, for about 1.3 times the cost of their generator templates);
-        False scans every template on its own. Needs the product rule.
+    **overrides
+        Fields of :class:`~.settings.ScanSettings` replacing those of ``settings``
+        (``n_phi_p=46``, ``nthreads=2``, ``power_path="direct"``, ``building_blocks=False``, ...).
+        ``rule=`` and ``client=``, the old names of ``quadrature=`` and ``scheduler=``, are
+        accepted with a FutureWarning.
 
     Notes
     -----
     The result carries error estimates (:meth:`ScanResult.delta_chi2_error`); an
     :class:`~spiralbayes.exceptions.AccuracyWarning` says where they exceed
-    ``0.05 + 1e-4 |Δχ²|``. The power path's own check is in ``provenance["power_check"]``.
+    ``0.05 + 1e-4 |Δχ²|``. The power path's own check is in ``provenance["power_check"]``, the
+    settings used in ``provenance["scan_settings"]``. Results agree to ~1e-9 between thread
+    counts and are identical for the same count.
     """
+    scheduler = renamed_keyword(overrides, "client", "scheduler", scheduler, "scan")
+    if "rule" in overrides:
+        overrides["quadrature"] = renamed_keyword(overrides, "rule", "quadrature", overrides.get("quadrature"),
+                                                  "scan")
+    settings = with_overrides(settings, ScanSettings, overrides, "scan")
     templates = list(templates)
     if not templates:
         raise InputError("no templates to scan: pass a TemplateBank or a list of SpiralTemplate")
@@ -329,50 +330,44 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     geometry = geometry or getattr(axisymmetric, "geometry", None)
     if geometry is None:
         raise InputError("geometry is needed: pass geometry=DiscGeometry(...) or an AxisymmetricModel")
-    r_p = _default_rp(axisymmetric) if r_p is None else _check_rp(r_p)
-    n_phi_p = _check_n_phi(n_phi_p)
-    _check_cell_factor(cell_factor)
-    settings = ScanSettings(rule=rule, cell_factor=float(cell_factor), power_path=power_path)
+    r_p = settings.planet_radii(axisymmetric) if r_p is None else _check_rp(r_p)
     warn_beyond_rmax(axisymmetric, r_p)
+    if checkpoint is not None and not settings.checkpoint:
+        log.info("checkpoint %s not used: settings.checkpoint is False", checkpoint)
+        checkpoint = None
     t0 = time.perf_counter()
     x_max = max(float(np.max(t.x)) for t in templates)
-    context = ScanContext.build(vis, axisymmetric, geometry, r_p, n_phi_p, x_max=x_max, nthreads=nthreads,
-                                settings=settings)
+    context = ScanContext.build(vis, axisymmetric, geometry, r_p, settings.n_phi_p, x_max=x_max,
+                                nthreads=settings.nthreads, settings=settings)
     setup_s = time.perf_counter() - t0
     log.info("scan set-up (%s power path, %d uv grids): %.2f s", context.power_path, len(context.levels), setup_s)
     _warn_if_weights_too_small(context.chi2_AO, vis.n)
     result = empty_result(context, templates, vis, distance)
     t_blocks = time.perf_counter()
-    groups, plain = building_block_groups(templates) if building_blocks and settings.rule == "product" else ([], None)
+    product = settings.quadrature == "product"
+    groups, plain = building_block_groups(templates) if settings.building_blocks and product else ([], None)
     t_blocks = time.perf_counter() - t_blocks
     if groups:
         log.info("%d templates scanned through %d groups of building blocks",
                  sum(len(g.indices) for g in groups), len(groups))
     result.provenance["resume_key"] = resume_key(vis, axisymmetric, templates, context, describe_blocks(groups))
+    result.provenance["scan_settings"] = json_safe(asdict(settings))
     if checkpoint is not None:
         result = resume_from_checkpoint(checkpoint, result, force_resume)
     todo = [i for i in range(len(templates)) if not result.completed[i]]
-    if todo and settings.rule == "product":
+    if todo and product:
         context.algorithm_error = check_terms(context, templates[0])
         if groups:
             check_pairs(context, groups[0])
         result.provenance["power_check"] = context.algorithm_error
     t1 = time.perf_counter()
-    runner = _run_dask if client is not None else _run_serial
-    runner(context, work_units(templates, todo, groups, plain), result, checkpoint, progress, client)
+    runner = _run_serial if scheduler in (None, "", "serial") else _run_dask
+    runner(context, work_units(templates, todo, groups, plain), result, checkpoint, progress, scheduler)
     result.provenance["scan_time_s"] = time.perf_counter() - t0
     result.provenance["timing_s"] = {"setup": setup_s, "building_blocks": t_blocks,
                                      "check": t1 - t0 - setup_s - t_blocks, "templates": time.perf_counter() - t1}
     warn_if_inaccurate(result)
     return result
-
-
-def _default_rp(axisymmetric) -> np.ndarray:
-    r_eff = getattr(axisymmetric, "R_eff", None)
-    if r_eff is None:
-        raise InputError("give r_p (planet radii in arcsec): the axisymmetric model has no R_eff")
-    r_max = 0.6 * float(r_eff() if callable(r_eff) else r_eff)
-    return default_rp_grid(r_max)
 
 
 def empty_result(context: ScanContext, templates, vis, distance) -> ScanResult:
@@ -395,18 +390,6 @@ def _check_rp(r_p) -> np.ndarray:
     if np.any(np.diff(r_p) <= 0):
         raise InputError(f"r_p must be strictly increasing (no repeated radii), got {r_p}")
     return r_p
-
-
-def _check_n_phi(n_phi_p) -> int:
-    if isinstance(n_phi_p, bool) or not isinstance(n_phi_p, (int, np.integer)) or n_phi_p < 2 or n_phi_p % 2:
-        raise InputError(f"n_phi_p = {n_phi_p!r}: the number of planet azimuths must be a positive, even "
-                         "integer (the paper uses 90, i.e. 4 deg steps)")
-    return int(n_phi_p)
-
-
-def _check_cell_factor(cell_factor) -> None:
-    if isinstance(cell_factor, bool) or not np.isfinite(cell_factor) or cell_factor <= 0:
-        raise InputError(f"cell_factor = {cell_factor!r} must be a positive number (default {DEFAULT_CELL_FACTOR})")
 
 
 def warn_beyond_rmax(axisymmetric, r_p) -> None:
@@ -609,13 +592,13 @@ def _todo_rows(result: ScanResult, units) -> int:
     return sum(int(not result.completed[i]) for u in units for i in unit_rows(u))
 
 
-def _run_serial(context, units, result, checkpoint, progress, client=None) -> None:
+def _run_serial(context, units, result, checkpoint, progress, scheduler=None) -> None:
     with _progress(_todo_rows(result, units), progress) as bar:
         for unit in units:
             bar.update(_store_unit(result, run_unit(context, unit), checkpoint))
 
 
-def _run_dask(context, units, result, checkpoint, progress, client) -> None:
+def _run_dask(context, units, result, checkpoint, progress, scheduler) -> None:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -623,12 +606,12 @@ def _run_dask(context, units, result, checkpoint, progress, client) -> None:
         _run_serial(context, units, result, checkpoint, progress)
         return
 
-    own = None
-    if isinstance(client, str):
-        if client == "local":
+    own, client = None, scheduler
+    if isinstance(scheduler, str):
+        if scheduler == "local":
             own = Client(LocalCluster(processes=True, threads_per_worker=1))
         else:
-            own = Client(client)
+            own = Client(scheduler)
         client = own
     try:
         shared = client.scatter(context, broadcast=True)
