@@ -1,4 +1,8 @@
-"""Write results: figures and text atomically, and the files of a finished scan."""
+"""Write results: figures and text atomically, and the files of a finished scan.
+
+An output folder belongs to one dataset: the files of a scan are not written over those of a
+scan of other data (another data hash in its ``scan.h5``) unless ``overwrite`` is given.
+"""
 
 from __future__ import annotations
 
@@ -6,11 +10,13 @@ import logging
 from pathlib import Path
 
 from .._provenance import atomic_path, to_json
+from ..exceptions import InputError, SpiralbayesError
 from ..inference.detection.verdict import mirror_index
+from ..inference.scan import ScanResult
 from ..plotting.alternatives import plot_residual_comparison
 from ..plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
 
-__all__ = ["save_figure", "write_scan_outputs"]
+__all__ = ["check_output_folder", "save_figure", "write_scan_outputs"]
 
 log = logging.getLogger(__name__)
 
@@ -33,14 +39,49 @@ def _write_text(path: Path, text: str) -> Path:
     return path
 
 
+def check_output_folder(out_dir, data_hash: str | None, overwrite: bool = False) -> None:
+    """Refuse to write the results of ``data_hash``'s data where a scan of other data left its results.
+
+    Parameters
+    ----------
+    out_dir : path
+        The output folder (``[output] dir``); a folder without ``scan.h5`` is always accepted.
+    data_hash : str or None
+        :func:`spiralbayes._provenance.data_hash` of the visibilities about to be scanned (as
+        recorded in a scan's ``provenance["data_hash"]``); None accepts any folder.
+    overwrite : bool
+        Accept the folder whatever it holds (``spiralbayes scan --overwrite``).
+
+    Raises
+    ------
+    InputError
+        Naming the folder, both data hashes and the fix.
+    """
+    previous = Path(out_dir) / "scan.h5"
+    if overwrite or data_hash is None or not previous.is_file():
+        return
+    try:
+        old = ScanResult.load(previous).provenance.get("data_hash")
+    except (SpiralbayesError, OSError) as exc:  # unreadable: nothing a rerun could lose; the writers check its kind
+        log.debug("not comparing with %s: %s", previous, exc)
+        return
+    if old and old.rstrip("*") != data_hash.rstrip("*"):
+        raise InputError(f"{previous.parent} holds the results of a scan of other data (scan.h5: data hash {old}; "
+                         f"this run's data: {data_hash}): refusing to overwrite them; give another [output] dir, "
+                         "or --overwrite (overwrite=True) to replace them")
+
+
 def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None, *, alternatives=None,
-                       vis=None, axisymmetric=None, templates=None) -> list[Path]:
+                       vis=None, axisymmetric=None, templates=None, overwrite: bool = False) -> list[Path]:
     """Save the scan, the verdict (JSON and text) and the heatmap PNGs; return the paths.
 
     With ``alternatives`` also ``alternatives.h5`` and ``alternatives.txt`` (the fits of test 3)
     and, when ``vis``, ``axisymmetric`` and ``templates`` are given and ``plots`` is on,
     ``residual_comparison.png`` (:func:`~spiralbayes.plotting.alternatives.plot_residual_comparison`).
+    A folder holding a scan of other data is refused unless ``overwrite`` (:func:`check_output_folder`).
     """
+    out_dir = Path(out_dir)
+    check_output_folder(out_dir, result.provenance.get("data_hash"), overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [result.save(out_dir / "scan.h5")]
     files.append(_write_text(out_dir / "verdict.json", to_json(verdict.to_dict(), indent=2)))

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from .._provenance import data_hash
 from ..config import describe_config
 from ..exceptions import InputError
 from ..inference.detection.alternatives import fit_alternatives
@@ -17,7 +19,7 @@ from ..inference.detection.verdict import DELTA_BIC_THRESHOLD
 from ..inference.scan.run import ScanResult, scan
 from ..settings import from_config
 from .inputs import _geometry, load_axisymmetric, load_data, load_templates
-from .outputs import _write_text, write_scan_outputs
+from .outputs import _write_text, check_output_folder, write_scan_outputs
 
 __all__ = ["ScanRun", "check_dask_address", "run_scan", "run_scan_config"]
 
@@ -45,7 +47,7 @@ def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool =
     return run.verdict, run.scan, run.files
 
 
-def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False) -> ScanRun:
+def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False, overwrite: bool = False) -> ScanRun:
     """The scan of a configuration, the alternatives of test 3, the verdict and, when needed, the follow-up.
 
     A checkpoint left in ``[output] dir`` is checked for integrity before anything slow runs,
@@ -55,7 +57,9 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     geometry alternative significant (ΔBIC > 10), frank is refitted at the fitted geometry and the
     scan, alternatives and verdict are repeated there
     (:func:`~spiralbayes.inference.detection.follow_up.rescan_at_fitted_geometry`), with their outputs and
-    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
+    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``. An ``[output] dir`` holding a scan of other
+    data is refused before frank and the scan run, unless ``overwrite``
+    (:func:`~spiralbayes.pipeline.outputs.check_output_folder`).
     """
     out_dir = Path(config["output"]["dir"])
     s = config["scan"]
@@ -64,6 +68,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
         ScanResult.load(checkpoint)  # a truncated or foreign file fails now, not after the frank fit
     check_dask_address(s["dask"])
     vis = load_data(config["data"], _geometry(config))
+    check_output_folder(out_dir, data_hash(vis.u, vis.v, vis.V, vis.weights), overwrite)
     axisym = load_axisymmetric(config, vis, progress=progress)
     templates = load_templates(config["templates"])
     grid = config["grid"]
@@ -82,7 +87,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
                                       **detect_kwargs)
     plots = config["output"]["plots"]
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
-                               axisymmetric=axisym, templates=templates)
+                               axisymmetric=axisym, templates=templates, overwrite=overwrite)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
     forced = result.provenance.get("forced_resume")
     note = "" if not forced else ("# FORCED RESUME (--force-resume): the numbers kept from the checkpoint were computed "
@@ -96,7 +101,8 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
                                            cell_factor=s["cell_factor"])
         sub = out_dir / "refit_geometry"
         files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
-                                    vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
+                                    vis=vis, axisymmetric=follow.axisymmetric, templates=templates,
+                                    overwrite=overwrite)
         files.append(follow.axisymmetric.save(sub / "axisymmetric.h5"))
     return ScanRun(verdict, result, alts, follow, files)
 
