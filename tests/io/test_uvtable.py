@@ -206,8 +206,12 @@ def test_six_columns_with_per_row_wavelength(tmp_path):
 
 def test_ragged_rows(tmp_path):
     path = tmp_path / "ragged.txt"
-    path.write_text("1e5 2e5 1 0 1\n1e5 2e5 1 0\n")
+    path.write_text("1e5 2e5 1 0\n1e5 2e5 1 0 1\n1e5 2e5 1 0 1\n")
     with pytest.raises(ValueError, match=r"ragged\.txt: could not parse the table"):
+        read_uvtable(path)
+    path.write_text("1e5 2e5 1 0 1\n1e5 2e5 1 0\n")  # a short last row: cut, named by its line
+    with pytest.raises(ValueError, match=r"ragged\.txt, line 2: the last row has 4 numbers where the rows before "
+                                         "have 5"):
         read_uvtable(path)
 
 
