@@ -7,12 +7,16 @@ dependencies, a checkpoint for other inputs, an output that would replace a file
 error names the option as typed, in its own units (``argument --inc: -5 is outside [0, 90) deg``).
 ``-v`` raises spiralbayes' own log level to DEBUG, not that of the libraries it uses. Ctrl-C exits
 with status 130 (scans resume when rerun).
+
+Why this module is long: it is the parser of ten commands, every option with its help, unit and
+check beside it; split, an option and the validator that names it in errors would live apart.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import math
 import re
 import sys
 import warnings
@@ -96,8 +100,6 @@ def _cmd_simulate(args) -> int:
 
 
 def _radians(deg):
-    import math
-
     return None if deg is None else math.radians(deg)
 
 
@@ -266,7 +268,7 @@ def _number(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if value != value or value in (float("inf"), float("-inf")):
+    if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"{text} is not a finite number")
     return value
 

@@ -165,7 +165,7 @@ def _cut_reason(last: str, before: list[str], newline: bool) -> str | None:
         fixed = {c.decimals for c in column} == {number.decimals}  # %f: every zero has the column's decimals
         if number.point and number.significant == 0 and number.digits < fewest and not fixed:  # '0.': not %g
             return f"the last row's column {col} ({number.text!r}) reads as 0 with fewer digits than every row before"
-        if 1 <= number.significant <= 2 < 6 <= min(c.significant for c in column):  # 0 may be a flagged row
+        if 1 <= number.significant <= 2 and min(c.significant for c in column) >= 6:  # 0 may be a flagged row
             return (f"the last row's column {col} ({number.text!r}) keeps {number.significant} significant digit(s) "
                     "where every row before has at least 6")
         if not newline and number.digits < fewest:

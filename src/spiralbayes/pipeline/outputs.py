@@ -1,7 +1,7 @@
 """Write results: figures and text atomically, and the files of a finished scan.
 
-An output folder belongs to one dataset: the files of a scan are not written over those of a
-scan of other data (another data hash in its ``scan.h5``) unless ``overwrite`` is given.
+An output folder belongs to one dataset: :func:`check_output_folder` refuses to write a scan's
+files over those of a scan of other data (another data hash in its ``scan.h5``) unless told.
 """
 
 from __future__ import annotations
@@ -72,16 +72,15 @@ def check_output_folder(out_dir, data_hash: str | None, overwrite: bool = False)
 
 
 def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None, *, alternatives=None,
-                       vis=None, axisymmetric=None, templates=None, overwrite: bool = False) -> list[Path]:
+                       vis=None, axisymmetric=None, templates=None) -> list[Path]:
     """Save the scan, the verdict (JSON and text) and the heatmap PNGs; return the paths.
 
     With ``alternatives`` also ``alternatives.h5`` and ``alternatives.txt`` (the fits of test 3)
     and, when ``vis``, ``axisymmetric`` and ``templates`` are given and ``plots`` is on,
     ``residual_comparison.png`` (:func:`~spiralbayes.plotting.alternatives.plot_residual_comparison`).
-    A folder holding a scan of other data is refused unless ``overwrite`` (:func:`check_output_folder`).
+    Callers that may meet another dataset's folder check it first (:func:`check_output_folder`).
     """
     out_dir = Path(out_dir)
-    check_output_folder(out_dir, result.provenance.get("data_hash"), overwrite)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [result.save(out_dir / "scan.h5")]
     files.append(_write_text(out_dir / "verdict.json", to_json(verdict.to_dict(), indent=2)))

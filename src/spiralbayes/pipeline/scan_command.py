@@ -87,7 +87,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
                                       **detect_kwargs)
     plots = config["output"]["plots"]
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
-                               axisymmetric=axisym, templates=templates, overwrite=overwrite)
+                               axisymmetric=axisym, templates=templates)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
     forced = result.provenance.get("forced_resume")
     note = "" if not forced else ("# FORCED RESUME (--force-resume): the numbers kept from the checkpoint were computed "
@@ -101,8 +101,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
                                            cell_factor=s["cell_factor"])
         sub = out_dir / "refit_geometry"
         files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
-                                    vis=vis, axisymmetric=follow.axisymmetric, templates=templates,
-                                    overwrite=overwrite)
+                                    vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
         files.append(follow.axisymmetric.save(sub / "axisymmetric.h5"))
     return ScanRun(verdict, result, alts, follow, files)
 

@@ -48,6 +48,7 @@ from ..._version import __version__
 from ...exceptions import DataWarning, InputError, ResumeMismatchError
 from ...axisymmetric.provenance import check_fitted_to
 from ...geometry import DiscGeometry
+from ...io.argument_checks import check_scan_arguments
 from ...io.data_checks import check_search_data
 from ...model import DEFAULT_CELL_FACTOR, DEFAULT_RULE
 from ...templates.template import template_metadata
@@ -320,6 +321,7 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     :class:`~spiralbayes.exceptions.AccuracyWarning` says where they exceed
     ``0.05 + 1e-4 |Δχ²|``. The power path's own check is in ``provenance["power_check"]``.
     """
+    check_scan_arguments(vis, axisymmetric, templates)
     templates = list(templates)
     if not templates:
         raise InputError("no templates to scan: pass a TemplateBank or a list of SpiralTemplate")
