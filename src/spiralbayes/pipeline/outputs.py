@@ -47,7 +47,7 @@ def check_output_folder(out_dir, data_hash: str | None, overwrite: bool = False)
     out_dir : path
         The output folder (``[output] dir``); a folder without ``scan.h5`` is always accepted.
     data_hash : str or None
-        :func:`spiralbayes._provenance.data_hash` of the visibilities about to be scanned (as
+        The hash of the visibilities about to be scanned (``data_hash(u, v, V, weights)``, as
         recorded in a scan's ``provenance["data_hash"]``); None accepts any folder.
     overwrite : bool
         Accept the folder whatever it holds (``spiralbayes scan --overwrite``).
