@@ -68,7 +68,7 @@ def test_scan_of_other_data_into_an_output_folder_is_refused_before_frank(setup,
     cfg = _config(tmp_path / "c.toml", setup, out, data=f'path = "{other}"', frank="",
                   geometry="inc = 30.0\nPA = 60.0", scan="checkpoint = false")
     with Unchanged(out, other, *_inputs(setup)), pytest.raises(
-            InputError, match=rf"{out} holds the results of a scan of other data \(scan.h5: data hash \w+; this run's "
+            InputError, match=rf"{out} holds the results of a run on other data \(scan.h5: data hash \w+; this run's "
                               r"data: \w+\): refusing to overwrite them; give another \[output\] dir, or --overwrite"):
         scan_command.run_scan(load_config(cfg), progress=False)
 
@@ -86,7 +86,7 @@ def test_cli_scan_of_other_data_exits_2_and_overwrite_replaces(setup, tmp_path, 
     with Unchanged(out, other, *_inputs(setup)):
         assert main(["-q", "scan", str(cfg)]) == 2
     err = capsys.readouterr().err
-    assert "holds the results of a scan of other data" in err and "--overwrite" in err and err.count("\n") == 1
+    assert "holds the results of a run on other data" in err and "--overwrite" in err and err.count("\n") == 1
     assert main(["-q", "scan", "--overwrite", str(cfg)]) == 0
     vis = load_visibilities(other).standardised()
     assert ScanResult.load(out / "scan.h5").provenance["data_hash"] == data_hash(vis.u, vis.v, vis.V, vis.weights)
@@ -99,7 +99,7 @@ def test_the_same_data_may_be_scanned_again_into_its_folder(setup, tmp_path):
     _previous_run(setup, out)
     check_output_folder(out, setup.result.provenance["data_hash"])  # a rerun: accepted
     check_output_folder(tmp_path / "new", "0" * 16)  # no scan.h5: accepted
-    with pytest.raises(InputError, match="scan of other data"):
+    with pytest.raises(InputError, match="run on other data"):
         check_output_folder(out, "0" * 16)
     check_output_folder(out, "0" * 16, overwrite=True)
 
@@ -205,3 +205,24 @@ def test_a_weight_cut_inside_its_integer_digits_is_refused_with_a_newline(setup,
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)  # these weights are not 1/sigma^2; only the cut matters here
         assert load_visibilities(whole).n == vis.n  # the same table uncut: accepted
+
+
+def test_cli_axisym_of_other_data_into_a_fit_folder_is_refused(tmp_path, capsys):
+    from spiralbayes._provenance import data_hash
+    from spiralbayes.cli import main
+    from spiralbayes.pipeline.outputs import check_output_folder
+
+    from .test_faults_hostile import AS209, _table as write_table
+
+    out = tmp_path / "fit"
+    argv = ["-q", "axisym", "--inc", "34.97", "--pa", "85.76", "--out", str(out)]
+    assert main([*argv[:2], str(AS209), *argv[2:]]) == 0
+    vis = load_visibilities(AS209)
+    check_output_folder(out, data_hash(vis.u, vis.v, vis.V, vis.weights), filename="axisym_model.h5")  # a rerun
+    other = write_table(tmp_path / "other.txt", vis.with_weights(vis.weights * 2, "other"))
+    capsys.readouterr()
+    with Unchanged(out, other):
+        assert main([*argv[:2], str(other), *argv[2:]]) == 2
+    err = capsys.readouterr().err
+    assert f"{out} holds the results of a run on other data (axisym_model.h5" in err
+    assert "give another --out, or --overwrite" in err and err.count("\n") == 1

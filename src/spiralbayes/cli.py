@@ -106,15 +106,18 @@ def _radians(deg):
 def _cmd_axisym(args) -> int:
     from .geometry import DiscGeometry
     from .io import load_visibilities
-    from .pipeline import run_axisym
-
     from ._hdf5 import require_file
+    from ._provenance import data_hash
+    from .pipeline import run_axisym
+    from .pipeline.outputs import check_output_folder
 
     require_file(args.data, "visibility file")
     if (args.inc is None or args.pa is None) and not args.fit_geometry:
         raise InputError("axisym needs the disc geometry: give --inc and --pa [deg] (and --dra/--ddec [arcsec] "
                          "if off-centre), or --fit-geometry to fit it with frank")
     vis = load_visibilities(args.data)
+    check_output_folder(args.out, data_hash(vis.u, vis.v, vis.V, vis.weights), args.overwrite,
+                        filename="axisym_model.h5", option="--out")
     geometry = None if args.inc is None or args.pa is None else DiscGeometry(args.inc, args.pa, args.dra, args.ddec)
     model = run_axisym(vis, args.out, geometry, distance=args.distance,
                        fit_geometry="nonparametric" if args.fit_geometry else None, progress=not args.quiet)
@@ -399,6 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("axisym", help="fit the axisymmetric profile with frank and plot it")
     p.add_argument("data", help="visibility file (uvtable, .npz, .h5 or Measurement Set)")
     p.add_argument("--out", default="spiralbayes-axisym", help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace a fit of other data in --out")
     p.add_argument("--distance", type=_positive, default=None, help="distance [pc], for an au axis")
     p.add_argument("--fit-geometry", action="store_true",
                    help="fit inc, PA and offsets with frank (started from --inc/--pa when given)")

@@ -10,6 +10,7 @@ import logging
 from pathlib import Path
 
 from .._provenance import atomic_path, to_json
+from ..axisymmetric import AxisymmetricModel
 from ..exceptions import InputError, SpiralbayesError
 from ..inference.detection.verdict import mirror_index
 from ..inference.scan import ScanResult
@@ -39,35 +40,42 @@ def _write_text(path: Path, text: str) -> Path:
     return path
 
 
-def check_output_folder(out_dir, data_hash: str | None, overwrite: bool = False) -> None:
-    """Refuse to write the results of ``data_hash``'s data where a scan of other data left its results.
+def check_output_folder(out_dir, data_hash: str | None, overwrite: bool = False, *, filename: str = "scan.h5",
+                        option: str = "[output] dir") -> None:
+    """Refuse to write the results of ``data_hash``'s data where a run on other data left its results.
 
     Parameters
     ----------
     out_dir : path
-        The output folder (``[output] dir``); a folder without ``scan.h5`` is always accepted.
+        The output folder; a folder without ``filename`` is always accepted.
     data_hash : str or None
-        The hash of the visibilities about to be scanned (``data_hash(u, v, V, weights)``, as
-        recorded in a scan's ``provenance["data_hash"]``); None accepts any folder.
+        The hash of the visibilities about to be used (``data_hash(u, v, V, weights)``, as
+        recorded in a result's ``provenance["data_hash"]``); None accepts any folder.
     overwrite : bool
-        Accept the folder whatever it holds (``spiralbayes scan --overwrite``).
+        Accept the folder whatever it holds (``--overwrite`` on the command line).
+    filename : str
+        The result that records the folder's data: ``scan.h5`` (a :class:`ScanResult`) or a frank
+        model (an :class:`~spiralbayes.axisymmetric.AxisymmetricModel`, e.g. ``axisym_model.h5``).
+    option : str
+        How the user named the folder, for the message (``[output] dir``, ``--out``).
 
     Raises
     ------
     InputError
         Naming the folder, both data hashes and the fix.
     """
-    previous = Path(out_dir) / "scan.h5"
+    previous = Path(out_dir) / filename
     if overwrite or data_hash is None or not previous.is_file():
         return
+    load = ScanResult.load if filename == "scan.h5" else AxisymmetricModel.load
     try:
-        old = ScanResult.load(previous).provenance.get("data_hash")
+        old = load(previous).provenance.get("data_hash")
     except (SpiralbayesError, OSError) as exc:  # unreadable: nothing a rerun could lose; the writers check its kind
         log.debug("not comparing with %s: %s", previous, exc)
         return
     if old and old.rstrip("*") != data_hash.rstrip("*"):
-        raise InputError(f"{previous.parent} holds the results of a scan of other data (scan.h5: data hash {old}; "
-                         f"this run's data: {data_hash}): refusing to overwrite them; give another [output] dir, "
+        raise InputError(f"{previous.parent} holds the results of a run on other data ({filename}: data hash {old}; "
+                         f"this run's data: {data_hash}): refusing to overwrite them; give another {option}, "
                          "or --overwrite (overwrite=True) to replace them")
 
 
