@@ -307,3 +307,23 @@ def _with_func(parser, command, func):
         if isinstance(action, argparse._SubParsersAction):
             action.choices[command].set_defaults(func=func)
     return parser
+
+
+@pytest.mark.parametrize("argv,expected", [(["--scheduler", "serial"], None), ([], None),
+                                           (["--scheduler", "local"], "local"), (["--dask", "local"], "local")])
+def test_demo_hands_its_scheduler_to_the_scan(argv, expected, monkeypatch, tmp_path):
+    import spiralbayes.pipeline as pipeline
+    from spiralbayes.exceptions import InputError
+
+    seen = {}
+
+    def fake_demo(out, **kwargs):
+        seen.update(kwargs)
+        raise InputError("stopped before the demo")
+
+    monkeypatch.setattr(pipeline, "run_demo", fake_demo)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["-q", "demo", "--out", str(tmp_path / "demo"), *argv]) == 2
+    assert seen["dask"] == expected
+    assert any(issubclass(w.category, FutureWarning) for w in caught) is ("--dask" in argv)

@@ -45,7 +45,9 @@ USER_ERRORS = (ValueError, LookupError, OSError, ImportError)
 def _cmd_demo(args) -> int:
     from .pipeline import run_demo
 
-    demo = run_demo(args.out, seed=args.seed, progress=not args.quiet, dask=_scheduler(args) or None)
+    scheduler = _scheduler(args)
+    demo = run_demo(args.out, seed=args.seed, progress=not args.quiet,
+                    dask=None if scheduler in (None, "", "serial") else scheduler)
     print(demo.verdict.summary())
     print(f"Delta BIC = {demo.verdict.delta_bic:.1f}; test 1 (Delta BIC > 10): "
           f"{'pass' if demo.verdict.test1_passed else 'fail'}; test 2 (handedness and compactness): "
