@@ -11,6 +11,7 @@ was cut and still ends in a newline, or lost its exponent.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -226,3 +227,24 @@ def test_cli_axisym_of_other_data_into_a_fit_folder_is_refused(tmp_path, capsys)
     err = capsys.readouterr().err
     assert f"{out} holds the results of a run on other data (axisym_model.h5" in err
     assert "give another --out, or --overwrite" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("command", [["demo"], ["limits", "--demo"]])
+def test_demos_refuse_a_folder_holding_the_scan_of_real_data(setup, tmp_path, command, capsys, monkeypatch):
+    import spiralbayes.pipeline as pipeline
+    from spiralbayes.cli import main
+    from spiralbayes.pipeline.outputs import SIMULATED_SOURCE, check_simulated_folder
+
+    monkeypatch.setattr(pipeline, "run_demo", lambda *a, **k: pytest.fail("the demo must not run"))
+    monkeypatch.setattr(pipeline, "run_limits_demo", lambda *a, **k: pytest.fail("the demo must not run"))
+    out = tmp_path / "results"
+    _previous_run(setup, out)
+    with Unchanged(out):
+        assert main(["-q", *command, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"--out {out} holds the scan of data the demo did not simulate" in err and "--overwrite" in err
+    simulated = dataclasses.replace(setup.result, provenance={**setup.result.provenance,
+                                                              "data": {"source": SIMULATED_SOURCE}})
+    simulated.save(out / "scan.h5")
+    check_simulated_folder(out)  # a demo's own folder: replaced
+    check_simulated_folder(tmp_path / "new")

@@ -44,7 +44,9 @@ USER_ERRORS = (ValueError, LookupError, OSError, ImportError)
 
 def _cmd_demo(args) -> int:
     from .pipeline import run_demo
+    from .pipeline.outputs import check_simulated_folder
 
+    check_simulated_folder(args.out, args.overwrite)
     scheduler = _scheduler(args)
     demo = run_demo(args.out, seed=args.seed, progress=not args.quiet,
                     dask=None if scheduler in (None, "", "serial") else scheduler)
@@ -189,11 +191,13 @@ def _cmd_compare(args) -> int:
 def _cmd_limits(args) -> int:
     from .config import describe_config, load_config
     from .pipeline import run_limits_config, run_limits_demo
+    from .pipeline.outputs import check_simulated_folder
 
     if args.print_config:
         print(describe_config())
         return 0
     if args.demo:
+        check_simulated_folder(args.out, args.overwrite)
         run = run_limits_demo(args.out, progress=not args.quiet)
     elif args.config:
         run = run_limits_config(load_config(args.config), progress=not args.quiet)
@@ -380,6 +384,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="simulate a planet, fit frank, scan, decide, plot (a few minutes)")
     p.add_argument("--out", default="spiralbayes-demo", help="output folder")
     p.add_argument("--seed", type=_seed, default=1, help="random seed of the simulated noise")
+    p.add_argument("--overwrite", action="store_true", help="replace the scan of real data in --out")
     p.add_argument("--scheduler", default=None, help=SCHEDULER_HELP)
     p.add_argument("--dask", dest="dask_alias", default=None, help=argparse.SUPPRESS)  # former name of --scheduler
     p.set_defaults(func=_cmd_demo)
@@ -444,6 +449,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--print-config", action="store_true", help="print the documented default config")
     p.add_argument("--demo", action="store_true", help="Table 3 for a synthetic Taurus-comparison disc")
     p.add_argument("--out", default="spiralbayes-limits-demo", help="output folder of --demo")
+    p.add_argument("--overwrite", action="store_true", help="with --demo: replace the scan of real data in --out")
     p.set_defaults(func=_cmd_limits)
 
     p = sub.add_parser("survey", help="many discs in one command: search, verdict, limits, one table (Dask)",

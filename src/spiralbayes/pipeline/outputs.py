@@ -17,7 +17,7 @@ from ..inference.scan import ScanResult
 from ..plotting.alternatives import plot_residual_comparison
 from ..plotting.scan import plot_chi2_vs_rp, plot_heatmap_pair
 
-__all__ = ["check_output_folder", "save_figure", "write_scan_outputs"]
+__all__ = ["check_output_folder", "check_simulated_folder", "save_figure", "write_scan_outputs"]
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +77,37 @@ def check_output_folder(out_dir, data_hash: str | None, overwrite: bool = False,
         raise InputError(f"{previous.parent} holds the results of a run on other data ({filename}: data hash {old}; "
                          f"this run's data: {data_hash}): refusing to overwrite them; give another {option}, "
                          "or --overwrite (overwrite=True) to replace them")
+
+
+def check_simulated_folder(out_dir, overwrite: bool = False, option: str = "--out") -> None:
+    """Refuse a demo's output folder that holds a scan of data the package did not simulate.
+
+    The demos write ``scan.h5``, ``verdict.json`` and ``axisymmetric.h5`` of simulated data: a
+    folder whose ``scan.h5`` records another data source (the user's observation) is refused
+    unless ``overwrite``; a demo's own earlier results are replaced.
+
+    Raises
+    ------
+    InputError
+        Naming the folder, the data source found and the fix.
+    """
+    previous = Path(out_dir) / "scan.h5"
+    if overwrite or not previous.is_file():
+        return
+    try:
+        data = ScanResult.load(previous).provenance.get("data") or {}
+    except (SpiralbayesError, OSError) as exc:
+        log.debug("not checking %s: %s", previous, exc)
+        return
+    source = data.get("source") if isinstance(data, dict) else None
+    if source != SIMULATED_SOURCE:
+        raise InputError(f"{option} {previous.parent} holds the scan of data the demo did not simulate (scan.h5 of "
+                         f"{source or 'unrecorded data'}): refusing to overwrite it; give another {option}, or "
+                         "--overwrite to replace it")
+
+
+SIMULATED_SOURCE = "spiralbayes.simulate"
+"""The ``source`` recorded in the provenance of simulated visibilities."""
 
 
 def write_scan_outputs(result, verdict, out_dir: Path, plots: bool = True, amplitude=None, *, alternatives=None,
