@@ -4,7 +4,8 @@ Same style as :mod:`tests.test_faults_hostile`: cases that touch files hash ever
 output folder before and after (``Unchanged``) — a refused call loses and overwrites nothing.
 
 Cases: ``simulate --out`` onto an existing file; a scan of other data into an output folder (with
-``[scan] checkpoint = false``); a path, a name or None where ``sb.scan``/``sb.detect`` expect
+``[scan] checkpoint = false``), a frank fit of other data into ``axisym --out``, a demo into a
+folder holding the scan of real data; a path, a name or None where ``sb.scan``/``sb.detect`` expect
 objects; non-finite template metadata; a frank fit of 2 visibilities; a uvtable whose last row
 was cut and still ends in a newline, or lost its exponent.
 """
