@@ -69,8 +69,8 @@ def test_errors_are_reported_not_raised(tmp_path, capsys):
     config.write_text("[grid]\nbogus = 1\n")
     assert main(["scan", str(config)]) == 2
     assert "unknown option grid.bogus" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        main(["scan"])
+    assert main(["scan"]) == 2
+    assert "scan needs a CONFIG file" in capsys.readouterr().err
 
 
 def test_axisym_on_real_as209_sample(tmp_path):
@@ -184,3 +184,146 @@ def test_forecast_command(capsys):
     with pytest.raises(SystemExit) as info:  # argparse lists the presets
         main(["forecast", "--preset", "nowhere"])
     assert info.value.code == 2 and "taurus" in capsys.readouterr().err
+
+
+# --- conventions: --version, exit status 2, help everywhere, options checked in the user's units ---
+def _parsers():
+    """(name, parser) of the top-level parser and of every sub-command."""
+    import argparse
+
+    from spiralbayes.cli import build_parser
+
+    top = build_parser()
+    out = [("spiralbayes", top)]
+    for action in top._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            out += sorted(action.choices.items())
+    return out
+
+
+def test_every_positional_and_option_has_help_and_options_show_their_default():
+    import argparse
+
+    parsers = _parsers()
+    assert {name for name, _ in parsers} >= {"demo", "simulate", "axisym", "scan", "sample", "compare", "limits",
+                                            "survey", "forecast", "templates"}
+    for name, parser in parsers:
+        for action in parser._actions:
+            if action.help is argparse.SUPPRESS or isinstance(action, argparse._SubParsersAction):
+                continue
+            label = f"{name} {action.option_strings or action.dest}"
+            assert action.help and action.help.strip(), f"{label} has no help"
+            shown = action.default not in (None, False, "", argparse.SUPPRESS) and action.option_strings
+            assert not shown or "%(default)" in action.help, f"{label} does not show its default"
+
+
+def test_version_prints_the_package_version(capsys):
+    from spiralbayes._version import __version__
+
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.strip() == f"spiralbayes {__version__}"
+
+
+@pytest.mark.parametrize("argv", [["scan"], ["sample"], ["compare"], ["limits"], ["survey"],
+                                  ["scan", "missing.toml"], ["limits", "missing.toml"], ["survey", "missing.toml"],
+                                  ["axisym", "missing.txt", "--inc", "30", "--pa", "60"]])
+def test_every_user_error_exits_2_with_one_line(argv, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("spiralbayes: error: ") and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("argv,expected", [
+    (["forecast", "--inc=-5"], "argument --inc: -5 is outside [0, 90) deg"),
+    (["forecast", "--inc", "90"], "argument --inc: 90 is outside [0, 90) deg"),
+    (["forecast", "--r-au", "-50"], "argument --r-au: -50 must be > 0"),
+    (["forecast", "--distance", "0"], "argument --distance: 0 must be > 0"),
+    (["forecast", "--mass", "nan"], "argument --mass: nan is not a finite number"),
+    (["simulate", "--out", "x.txt", "--planet-au", "abc"], "argument --planet-au: 'abc' is not a number"),
+    (["simulate", "--out", "x.txt", "--seed", "-1"], "argument --seed: -1 must be >= 0"),
+    (["axisym", "d.txt", "--inc=-5", "--pa", "60"], "argument --inc: -5 is outside [0, 90) deg"),
+    (["survey", "--demo", "--workers", "0"], "argument --workers: 0 must be >= 1"),
+])
+def test_bad_options_are_named_as_typed_in_the_users_units(argv, expected, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    captured = capsys.readouterr()
+    assert info.value.code == 2 and captured.out == ""
+    assert expected in captured.err and captured.err.count("\n") == 1, captured.err
+    assert "DiscGeometry" not in captured.err and "arcsec" not in captured.err
+
+
+def test_distance_defaults_come_from_the_settings():
+    from spiralbayes.cli import build_parser
+    from spiralbayes.settings import DEFAULT_DISTANCE_PC
+
+    parser = build_parser()
+    assert parser.parse_args(["forecast"]).distance == DEFAULT_DISTANCE_PC
+    assert parser.parse_args(["simulate", "--out", "x.txt"]).distance == DEFAULT_DISTANCE_PC
+
+
+def test_dask_is_a_hidden_alias_of_scheduler(monkeypatch, capsys):
+    import argparse
+
+    import spiralbayes.cli as cli
+
+    parser = cli.build_parser()
+    assert parser.parse_args(["demo", "--scheduler", "local"]).scheduler == "local"
+    args = parser.parse_args(["demo", "--dask", "tcp://h:1"])
+    with pytest.warns(FutureWarning, match="--dask is renamed --scheduler"):
+        assert cli._scheduler(args) == "tcp://h:1"
+    assert cli._scheduler(argparse.Namespace(scheduler="serial", dask_alias=None)) == "serial"
+    with pytest.raises(SystemExit):
+        main(["demo", "-h"])
+    assert "--dask" not in capsys.readouterr().out
+
+
+def test_verbose_raises_only_spiralbayes_log_level(monkeypatch):
+    import logging
+
+    import spiralbayes.cli as cli
+
+    seen = {}
+
+    def probe(args):
+        seen["ours"] = logging.getLogger("spiralbayes.inference").getEffectiveLevel()
+        seen["matplotlib"] = logging.getLogger("matplotlib.font_manager").getEffectiveLevel()
+        return 0
+
+    before = logging.getLogger("spiralbayes").level
+    parser = cli.build_parser
+    monkeypatch.setattr(cli, "build_parser", lambda: _with_func(parser(), "forecast", probe))
+    assert cli.main(["-v", "forecast"]) == 0
+    assert seen["ours"] == logging.DEBUG and seen["matplotlib"] > logging.DEBUG
+    assert logging.getLogger("spiralbayes").level == before  # restored for the next caller in this process
+
+
+def _with_func(parser, command, func):
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            action.choices[command].set_defaults(func=func)
+    return parser
+
+
+@pytest.mark.parametrize("argv,expected", [(["--scheduler", "serial"], None), ([], None),
+                                           (["--scheduler", "local"], "local"), (["--dask", "local"], "local")])
+def test_demo_hands_its_scheduler_to_the_scan(argv, expected, monkeypatch, tmp_path):
+    import spiralbayes.pipeline as pipeline
+    from spiralbayes.exceptions import InputError
+
+    seen = {}
+
+    def fake_demo(out, **kwargs):
+        seen.update(kwargs)
+        raise InputError("stopped before the demo")
+
+    monkeypatch.setattr(pipeline, "run_demo", fake_demo)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["-q", "demo", "--out", str(tmp_path / "demo"), *argv]) == 2
+    assert seen["dask"] == expected
+    assert any(issubclass(w.category, FutureWarning) for w in caught) is ("--dask" in argv)

@@ -222,8 +222,8 @@ def test_a_last_row_cut_mid_number_is_refused(setup, tmp_path):
     path = _table(tmp_path / "cut.txt", setup.vis)
     text = path.read_text()
     path.write_text(text[: len(text) - 6])  # cut inside the last weight
-    with Unchanged(tmp_path), pytest.raises(InputError, match=r"last row's column\(s\) 5 have fewer digits.*cut "
-                                                               "mid-number"):
+    with Unchanged(tmp_path), pytest.raises(InputError, match=r"line \d+: the last row's column 5 \('40'\) has fewer "
+                                                               "integer digits.*cut mid-number"):
         load_visibilities(path)
     whole = _table(tmp_path / "whole.txt", setup.vis)
     whole.write_text(whole.read_text().rstrip("\n"))  # no final newline but nothing cut: accepted

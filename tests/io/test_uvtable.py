@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import re
 from pathlib import Path
 
 import numpy as np
@@ -206,8 +207,12 @@ def test_six_columns_with_per_row_wavelength(tmp_path):
 
 def test_ragged_rows(tmp_path):
     path = tmp_path / "ragged.txt"
-    path.write_text("1e5 2e5 1 0 1\n1e5 2e5 1 0\n")
+    path.write_text("1e5 2e5 1 0\n1e5 2e5 1 0 1\n1e5 2e5 1 0 1\n")
     with pytest.raises(ValueError, match=r"ragged\.txt: could not parse the table"):
+        read_uvtable(path)
+    path.write_text("1e5 2e5 1 0 1\n1e5 2e5 1 0\n")  # a short last row: cut, named by its line
+    with pytest.raises(ValueError, match=r"ragged\.txt, line 2: the last row has 4 numbers where the rows before "
+                                         "have 5"):
         read_uvtable(path)
 
 
@@ -239,3 +244,36 @@ def test_zero_weight_rows_in_file_dropped(tmp_path, caplog):
         vis = read_uvtable(path)
     assert vis.n == 1 and vis.provenance["dropped_zero_weight"] == 2
     assert "dropped 2 visibilities with zero weight" in caplog.text
+
+
+@pytest.mark.parametrize("fmt", ["%.10g", "%.17g", "%.6e", "%g", "%.8f"])
+def test_whole_tables_in_common_formats_are_not_called_cut(tmp_path, fmt):
+    """The cut-row checks compare the last row with the rows before: tables written whole in the usual
+    formats, with a flagged (all-zero) last row or whole-number weights, must pass (300 random tables each)."""
+    from spiralbayes.io.data_checks import check_last_row
+
+    rng = np.random.default_rng(11)
+    path = tmp_path / "t.txt"
+    for trial in range(300):
+        n = 30
+        weights = rng.uniform(1e3, 3e4, n) if trial % 2 else np.full(n, 4e6)
+        if trial % 5 == 0:
+            weights = np.round(weights)
+        table = np.column_stack([rng.uniform(-1e6, 1e6, n), rng.uniform(-1e6, 1e6, n), rng.normal(0, 0.01, n),
+                                 rng.normal(0, 0.01, n), weights])
+        if trial % 3 == 0:
+            table[-1, 2:] = 0.0
+        np.savetxt(path, table, fmt=fmt, header="wavelength[m] = 1.3e-3", delimiter="," if trial % 7 == 0 else " ")
+        check_last_row(path)
+
+
+@pytest.mark.parametrize("text,expected", [
+    ("1.5e5 2e5 1 0 3.4e-3\n1.6e5 2e5 1 0 3.5e-3\n1.7e5 2e5 1 0 3.4\n", "('3.4') has no exponent"),
+    ("1.5e5 2e5 1 0 3.4e-3\n1.6e5 2e5 1 0 3.5e-3\n1.7e5 2e5 1 0 3.4e-\n", "('3.4e-') ends inside its exponent"),
+    ("1.5e5 2e5 1 0 3.4e-03\n1.6e5 2e5 1 0 3.5e-03\n1.7e5 2e5 1 0 3.4e-0\n", "('3.4e-0') has a shorter exponent"),
+])
+def test_a_last_row_cut_at_its_exponent_is_refused_naming_the_line(tmp_path, text, expected):
+    path = tmp_path / "cut.txt"
+    path.write_text("# u v Re Im weight\n" + text)
+    with pytest.raises(ValueError, match=rf"cut\.txt, line 4: the last row's column 5 {re.escape(expected)}"):
+        read_uvtable(path)

@@ -9,9 +9,9 @@ Each check refuses data no search can use (:class:`~spiralbayes.exceptions.Input
 * :func:`check_uv_coverage` — every baseline of zero length (u = v = 0) or all baselines on one
   line through the origin (rank-1 uv coverage): no azimuthal structure, and no geometry, can be
   constrained. Refused.
-* :func:`check_last_row` — a uvtable cut mid-number (no final newline and a last row whose
-  numbers have fewer digits than the rows before) reads a wrong weight or V silently
-  (29614.8 read as 2.96). Refused.
+* :func:`check_last_row` — a uvtable whose last row was cut mid-number (another field count, a
+  lost exponent or integer digits, with or without a final newline) reads a wrong weight or V
+  silently (29614.8 read as 2.96, 3.4e-3 as 3.4). Refused, naming the line.
 * :func:`check_search_data` — what :func:`~spiralbayes.inference.scan.scan` needs on top:
   at least :data:`MIN_SEARCH_VISIBILITIES` visibilities and a positive distance.
 """
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -70,44 +71,117 @@ def check_uv_coverage(u, v, source: str = "data") -> None:
 
 
 def check_last_row(path, source: str | None = None) -> None:
-    """Refuse a text table whose last row was cut mid-number (no final newline, shorter numbers)."""
+    """Refuse a text table whose last row looks cut, naming its line.
+
+    The last data row is compared, column by column, with the (up to 20) rows before it. It is
+    refused when it has another number of fields; when a number ends inside its exponent
+    (``1.2e-``); when it lacks the exponent, or has a shorter one, where every row before has one
+    (``3.4`` cut from ``3.4e-3``: a value 10³ off); when it lacks the decimal point every row
+    before has and at least 2 digits fewer (integer digits lost: ``2961`` cut from ``29614.83``); when a
+    column of integers has 2 digits fewer than every row before, or any fewer where every row
+    before holds the same integer; when it keeps 1 or 2 significant
+    digits where every row before has at least 6; and, in a file without a final newline, when any column has fewer
+    digits than in every row before. A cut after the decimal point that keeps 3 or more
+    significant digits changes the value by less than 1 % and is not detected.
+    """
     path = Path(path)
     if path.suffix.lower() == ".gz" or not path.is_file():
         return
     size = path.stat().st_size
     with open(path, "rb") as fh:
-        fh.seek(max(0, size - 8192))
+        fh.seek(max(0, size - TAIL_BYTES))
         tail = fh.read().decode("utf-8", "replace")
-    if not tail or tail.endswith("\n"):
+    newline = tail.endswith("\n")
+    lines = tail.splitlines()[1 if size > TAIL_BYTES else 0:]  # the first line of a tail may be partial
+    index = [i for i, line in enumerate(lines) if line.strip() and not line.lstrip().startswith("#")]
+    if len(index) < 2:
         return
-    lines = [line for line in tail.splitlines()[1:] if line.strip() and not line.lstrip().startswith("#")]
-    if len(lines) < 2:
-        return
-    last, before = _digits(lines[-1]), [_digits(line) for line in lines[-21:-1]]
-    before = [d for d in before if len(d) == len(last)]
-    if not before:
-        raise InputError(f"{source or path}: the last row has another number of columns than the rows before and "
-                         "the file does not end with a newline: it looks cut (truncated copy?); re-export or re-copy "
-                         "it, or delete the last row")
-    shortest = np.min(np.array(before), axis=0)
-    cut = [i for i, (d, m) in enumerate(zip(last, shortest)) if d < m]
-    if cut:
-        raise InputError(f"{source or path}: the last row's column(s) {', '.join(str(i + 1) for i in cut)} have fewer "
-                         "digits than in every row before and the file does not end with a newline: it looks cut "
-                         "mid-number (truncated copy?); re-export or re-copy it, or delete the last row")
+    rows = [lines[i] for i in index]
+    reason = _cut_reason(rows[-1], rows[-21:-1], newline)
+    if reason:
+        line = _count_lines(path, newline) - (len(lines) - 1 - index[-1])
+        raise InputError(f"{source or path}, line {line}: {reason}: it looks cut mid-number (truncated copy?); "
+                         f"re-export or re-copy it, or delete line {line}")
 
+
+TAIL_BYTES = 8192
+"""How much of the end of a table :func:`check_last_row` reads."""
 
 _TOKEN = re.compile(r"[\s,]+")
+_INCOMPLETE_EXPONENT = re.compile(r"[eEdD][-+]?$")
 
 
-def _digits(line: str) -> list[int]:
-    """Mantissa digits of each number of a row (the exponent is not counted)."""
-    out = []
-    for token in _TOKEN.split(line.strip()):
-        if token:
-            mantissa = re.split(r"[eEdD]", token, maxsplit=1)[0]
-            out.append(sum(c.isdigit() for c in mantissa))
-    return out
+@dataclass(frozen=True)
+class _Number:
+    """The written form of one number of a row."""
+
+    text: str
+    digits: int  # mantissa digits
+    significant: int  # mantissa digits after leading zeros
+    point: bool
+    decimals: int  # digits after the point
+    exponent: int | None  # digits of the exponent; None without one
+
+    @classmethod
+    def parse(cls, token: str) -> _Number:
+        parts = re.split(r"[eEdD]", token, maxsplit=1)
+        mantissa = "".join(c for c in parts[0] if c.isdigit())
+        exponent = None if len(parts) == 1 else sum(c.isdigit() for c in parts[1])
+        decimals = sum(c.isdigit() for c in parts[0].partition(".")[2])
+        return cls(token, len(mantissa), len(mantissa.lstrip("0")), "." in parts[0], decimals, exponent)
+
+
+def _numbers(line: str) -> list[_Number]:
+    return [_Number.parse(token) for token in _TOKEN.split(line.strip()) if token]
+
+
+def _cut_reason(last: str, before: list[str], newline: bool) -> str | None:
+    """Why ``last`` looks cut compared with the rows ``before`` it, or None."""
+    row, rows = _numbers(last), [_numbers(line) for line in before]
+    counts = {len(r) for r in rows}
+    if len(counts) == 1 and len(row) not in counts:
+        return f"the last row has {len(row)} numbers where the rows before have {counts.pop()}"
+    rows = [r for r in rows if len(r) == len(row)]
+    if not rows:
+        return None
+    short = []
+    for col, number in enumerate(row, start=1):
+        column = [r[col - 1] for r in rows]
+        fewest = min(c.digits for c in column)
+        if _INCOMPLETE_EXPONENT.search(number.text):
+            return f"the last row's column {col} ({number.text!r}) ends inside its exponent"
+        if number.significant > 0 and all(c.exponent is not None for c in column):
+            if number.exponent is None:
+                return f"the last row's column {col} ({number.text!r}) has no exponent where every row before has one"
+            if number.exponent < min(c.exponent for c in column):
+                return f"the last row's column {col} ({number.text!r}) has a shorter exponent than every row before"
+        # a plain zero may be a flagged row; %g drops the point of a whole number (one digit fewer)
+        plain = not number.point and number.exponent is None and number.significant > 0
+        integers = not any(c.point or c.exponent is not None for c in column)
+        if plain and number.digits < fewest and (number.digits <= fewest - 2 and (all(c.point for c in column)
+                                                                                 or integers)
+                                                  or integers and len({c.text for c in column}) == 1):
+            return f"the last row's column {col} ({number.text!r}) has fewer integer digits than every row before"
+        fixed = {c.decimals for c in column} == {number.decimals}  # %f: every zero has the column's decimals
+        if number.point and number.significant == 0 and number.digits < fewest and not fixed:  # '0.': not %g
+            return f"the last row's column {col} ({number.text!r}) reads as 0 with fewer digits than every row before"
+        if 1 <= number.significant <= 2 and min(c.significant for c in column) >= 6:  # 0 may be a flagged row
+            return (f"the last row's column {col} ({number.text!r}) keeps {number.significant} significant digit(s) "
+                    "where every row before has at least 6")
+        if not newline and number.digits < fewest:
+            short.append(col)
+    if short:
+        return (f"the last row's column(s) {', '.join(map(str, short))} have fewer digits than in every row before "
+                "and the file does not end with a newline")
+    return None
+
+
+def _count_lines(path: Path, newline: bool) -> int:
+    count = 0
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            count += block.count(b"\n")
+    return count + (0 if newline else 1)
 
 
 def check_search_data(vis, *, distance: float | None = None, minimum: int = MIN_SEARCH_VISIBILITIES) -> None:

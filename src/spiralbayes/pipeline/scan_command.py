@@ -6,6 +6,7 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
+from .._provenance import data_hash
 from ..config import describe_config
 from ..exceptions import InputError
 from ..inference.detection.alternatives import fit_alternatives
@@ -17,7 +18,7 @@ from ..inference.scan.run import ScanResult, scan
 from ..inference.scan.settings import ScanSettings
 from ..settings import from_config
 from .inputs import _geometry, load_axisymmetric, load_data, load_templates
-from .outputs import _write_text, write_scan_outputs
+from .outputs import _write_text, check_output_folder, write_scan_outputs
 
 __all__ = ["ScanRun", "check_dask_address", "run_scan", "run_scan_config", "scan_settings"]
 
@@ -45,7 +46,7 @@ def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool =
     return run.verdict, run.scan, run.files
 
 
-def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False) -> ScanRun:
+def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False, overwrite: bool = False) -> ScanRun:
     """The scan of a configuration, the alternatives of test 3, the verdict and, when needed, the follow-up.
 
     A checkpoint left in ``[output] dir`` is checked for integrity before anything slow runs,
@@ -55,7 +56,9 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     geometry alternative significant (ΔBIC > 10), frank is refitted at the fitted geometry and the
     scan, alternatives and verdict are repeated there
     (:func:`~spiralbayes.inference.detection.follow_up.rescan_at_fitted_geometry`), with their outputs and
-    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``.
+    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``. An ``[output] dir`` holding a scan of other
+    data is refused before frank and the scan run, unless ``overwrite``
+    (:func:`~spiralbayes.pipeline.outputs.check_output_folder`).
     """
     out_dir = Path(config["output"]["dir"])
     settings = scan_settings(config)
@@ -65,6 +68,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False)
     scheduler = config["scan"]["scheduler"] or None
     check_dask_address(scheduler or "")
     vis = load_data(config["data"], _geometry(config))
+    check_output_folder(out_dir, data_hash(vis.u, vis.v, vis.V, vis.weights), overwrite)
     axisym = load_axisymmetric(config, vis, progress=progress)
     templates = load_templates(config["templates"])
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -56,6 +56,24 @@ def check_mass_beta(mass, beta) -> None:
         raise InputError(f"cooling time beta must be >= 0 (0 = isothermal), got {beta!r}")
 
 
+def _check_parameters(template) -> None:
+    """Refuse metadata no template can have; NaN stays allowed where it means "unknown" (mass, tau0, beta)."""
+    for key in ("mass", "tau0"):
+        value = getattr(template, key)
+        if np.isinf(value) or value <= 0:
+            raise InputError(f"SpiralTemplate.{key} = {value!r} must be positive and finite "
+                             f"({'M_p/M_th' if key == 'mass' else 'optical depth at r_p'}), or NaN if unknown")
+    if np.isinf(template.beta) or template.beta < 0:
+        raise InputError(f"SpiralTemplate.beta = {template.beta!r} must be >= 0 and finite (0 = isothermal), "
+                         "or NaN if unknown")
+    for key, what in (("h_p", "the aspect ratio H/r at r_p, e.g. 0.07"), ("wavelength", "in metres, e.g. 1.3e-3")):
+        value = getattr(template, key)
+        if not np.isfinite(value) or value <= 0:
+            raise InputError(f"SpiralTemplate.{key} = {value!r} must be positive and finite ({what})")
+    if not np.isfinite(template.flaring):
+        raise InputError(f"SpiralTemplate.flaring = {template.flaring!r} must be finite (H/r ∝ r**flaring)")
+
+
 def check_tau0(tau0) -> None:
     """Raise :class:`InputError` unless tau0 is positive and finite."""
     if not np.isfinite(tau0) or tau0 <= 0:
@@ -85,7 +103,8 @@ class SpiralTemplate:
     delta : (n_x, n_phi) array
         ``δ(x, φ)``; stored as given (float32 in banks).
     mass : float
-        Planet mass ``M_p / M_th`` (``M_th = h_p^3 M_*``); NaN if unknown.
+        Planet mass ``M_p / M_th`` (``M_th = h_p^3 M_*``), positive; NaN if unknown. Infinite or
+        non-positive values, and non-finite ``delta`` or ``brightness``, raise InputError.
     tau0 : float
         Initial dust optical depth at ``r_p``; NaN if unknown.
     beta : float
@@ -150,8 +169,12 @@ class SpiralTemplate:
             self.brightness = np.asarray(self.brightness, dtype=float)
             if self.brightness.shape != self.delta.shape:
                 raise InputError("SpiralTemplate.brightness must have the shape of delta")
+            if not np.all(np.isfinite(self.brightness)):
+                raise InputError("SpiralTemplate.brightness contains NaN or inf; give a finite map normalised to "
+                                 "<I>_phi at x = 1, or brightness=None (it is only drawn)")
         for key in ("mass", "tau0", "beta", "h_p", "flaring", "wavelength"):
             setattr(self, key, float(getattr(self, key)))
+        _check_parameters(self)
         if not self.name:
             self.name = template_name(self.mass, self.tau0, self.beta, self.hand, prefix="template")
 

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...exceptions import InputError
+from ...io.argument_checks import check_scan_result
 from ...results import ResultMixin, fields_dict
 from .settings import AlternativesSettings
 from ...units import M_JUP, M_SUN
@@ -420,6 +421,7 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
     mstar : float
         Stellar mass [M_sun] for the mass range in M_Jup.
     """
+    check_scan_result(result)
     best = result.peak(amplitude=amplitude)
     t = best.template_index
     ratio = handedness_ratio(result, t, best.i_rp, best.i_phi, neighbourhood, amplitude)

@@ -48,6 +48,7 @@ from ..._version import __version__
 from ...exceptions import DataWarning, InputError, ResumeMismatchError
 from ...axisymmetric.provenance import check_fitted_to
 from ...geometry import DiscGeometry
+from ...io.argument_checks import check_scan_arguments
 from ...io.data_checks import check_search_data
 from ...templates.template import template_metadata
 from .accuracy import TOLERANCE, check_terms, warn_if_inaccurate
@@ -321,6 +322,7 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
         overrides["quadrature"] = renamed_keyword(overrides, "rule", "quadrature", overrides.get("quadrature"),
                                                   "scan")
     settings = with_overrides(settings, ScanSettings, overrides, "scan")
+    check_scan_arguments(vis, axisymmetric, templates)
     templates = list(templates)
     if not templates:
         raise InputError("no templates to scan: pass a TemplateBank or a list of SpiralTemplate")
