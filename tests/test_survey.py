@@ -204,7 +204,7 @@ def test_unreachable_scheduler_fails_in_one_line_naming_it(survey_dir):
 
 def test_survey_file_errors_name_the_option(tmp_path):
     from spiralbayes.exceptions import ConfigError
-    from spiralbayes.pipeline.survey_config import load_survey
+    from spiralbayes.pipeline.survey.config import load_survey
 
     path = tmp_path / "s.toml"
     for text, words in (('[survey]\nposterior = "some"\n[[disc]]\nname="a"\npath="x.h5"\n', "survey.posterior"),
@@ -217,8 +217,8 @@ def test_survey_file_errors_name_the_option(tmp_path):
 
 
 def test_example_survey_is_the_demo_and_parses():
-    from spiralbayes.pipeline.survey_config import load_survey
-    from spiralbayes.pipeline.survey_demo import TAURUS_DISCS, taurus_survey_toml
+    from spiralbayes.pipeline.survey.config import load_survey
+    from spiralbayes.pipeline.survey.demo import TAURUS_DISCS, taurus_survey_toml
 
     example = ROOT / "examples" / "taurus_survey.toml"
     assert example.read_text() == taurus_survey_toml()
@@ -231,9 +231,9 @@ def test_example_survey_is_the_demo_and_parses():
 
 def test_jobqueue_cluster_from_configuration():
     pytest.importorskip("dask_jobqueue")
-    import tomllib
+    from spiralbayes._compat import tomllib
 
-    from spiralbayes.pipeline.survey_engine import jobqueue_cluster
+    from spiralbayes.cluster import jobqueue_cluster
 
     options = tomllib.loads('jobs = 4\ncores = 2\nmemory = "8GB"\nwalltime = "02:00:00"\n'
                             'job_extra_directives = ["--account=disc-survey"]\n')
@@ -252,7 +252,7 @@ def test_jobqueue_cluster_from_configuration():
 
 
 def test_posterior_policy():
-    from spiralbayes.pipeline.survey_stages import wants_posterior
+    from spiralbayes.pipeline.survey.stages import wants_posterior
 
     quiet, candidate, detected = {"detected": False, "candidate": None}, \
         {"detected": False, "candidate": {"template": "t"}}, {"detected": True, "candidate": None}

@@ -20,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._provenance import atomic_path
-from .outputs import _write_text, save_figure
+from ..._provenance import atomic_path
+from ..outputs import save_figure
+from .files import write_text
 
 __all__ = ["disc_row", "failed_row", "survey_table", "write_figures", "write_table"]
 
@@ -57,8 +58,8 @@ def _where(v: dict, c: dict | None) -> str:
 
 def disc_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> dict:
     """One table row from the disc's ``verdict.json``, ``limits.h5`` and ``axisymmetric.h5``."""
-    from ..axisymmetric import AxisymmetricModel
-    from ..inference.limits import ExclusionLimits
+    from ...axisymmetric import AxisymmetricModel
+    from ...inference.limits import ExclusionLimits
 
     out = Path(job.out_dir)
     axisym = AxisymmetricModel.load(out / "axisymmetric.h5")
@@ -135,7 +136,7 @@ def write_table(table, out_dir: Path) -> list[Path]:
     ecsv = Path(out_dir) / "survey_table.ecsv"
     with atomic_path(ecsv) as tmp:
         table.write(tmp, format="ascii.ecsv", overwrite=True)
-    md = _write_text(Path(out_dir) / "survey_table.md", table_markdown(table))
+    md = write_text(Path(out_dir) / "survey_table.md", table_markdown(table))
     return [ecsv, md]
 
 

@@ -1,0 +1,145 @@
+"""What the survey wrote in a disc's folder: stage markers with resume keys, and the files each stage wrote.
+
+Every stage of a disc leaves ``survey_stage_<stage>.json`` in the disc's folder: its resume key
+(a hash of the configuration sections it depends on and of the data), its status (``running``
+while it works, ``done`` when it finished) and the files it wrote with their SHA-256. A stage is
+skipped on a rerun when its marker is done with the same key. When the key changed (one disc's
+inclination, say), the stage runs again and replaces its earlier outputs — but only files the
+survey itself wrote there: a file a marker lists with the same content, or any file while a
+marker says a stage was interrupted in that folder. Any other file in the way (a scan of another
+dataset, a file a user put there) stops that disc with a one-line error naming it; the files the
+rerun replaced are listed in the stage's marker (``info["replaced"]``) and logged.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import time
+from pathlib import Path
+
+from ..._provenance import atomic_path, to_json
+
+__all__ = ["ForeignFileError", "begin", "check_folder", "claim", "done", "file_hash", "mark", "write_text"]
+
+log = logging.getLogger(__name__)
+
+IGNORED = ("survey_parts",)
+"""Sub-folders of a disc's folder the markers do not list (the scan's chunk files, keyed on their own)."""
+
+
+class ForeignFileError(RuntimeError):
+    """A file the survey would replace in a disc's folder was not written by the survey."""
+
+
+def write_text(path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically (temporary file, then rename); return the path."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+    return path
+
+
+def file_hash(path) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _marker(out_dir, stage: str) -> Path:
+    return Path(out_dir) / f"survey_stage_{stage}.json"
+
+
+def _read(path: Path) -> dict | None:
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def _markers(out_dir) -> list[dict]:
+    return [r for r in (_read(p) for p in sorted(Path(out_dir).glob("survey_stage_*.json"))) if r is not None]
+
+
+def done(out_dir, stage: str, key: str, *needed: str) -> dict | None:
+    """The marker's info when ``stage`` finished with ``key`` and its files ``needed`` are there, else None."""
+    out_dir = Path(out_dir)
+    record = _read(_marker(out_dir, stage))
+    if record is None or not all((out_dir / f).exists() for f in needed):
+        return None
+    if record.get("status", "done") != "done" or record.get("key") != key:
+        return None
+    return record.get("info", {})
+
+
+def begin(out_dir, stage: str, key: str) -> float:
+    """Mark ``stage`` as running with ``key`` (keeping the files its earlier run recorded); the start time [s]."""
+    path = _marker(out_dir, stage)
+    old = _read(path) or {}
+    write_text(path, to_json({"stage": stage, "key": key, "status": "running", "info": {},
+                              "files": old.get("files", {})}, indent=1))
+    return time.time()
+
+
+def _written_since(out_dir: Path, since: float) -> dict[str, str]:
+    files = {}
+    for path in sorted(out_dir.rglob("*")):
+        rel = path.relative_to(out_dir)
+        if not path.is_file() or rel.parts[0] in IGNORED or path.name.startswith("survey_stage_"):
+            continue
+        if path.stat().st_mtime >= since - 1.0:  # 1 s: file systems with coarse timestamps
+            files[rel.as_posix()] = file_hash(path)
+    return files
+
+
+def mark(out_dir, stage: str, key: str, info: dict | None = None, *, since: float | None = None) -> None:
+    """Mark ``stage`` done with ``key``; with ``since`` (from :func:`begin`) record the files written since then."""
+    out_dir = Path(out_dir)
+    files = _written_since(out_dir, since) if since is not None else {}
+    write_text(_marker(out_dir, stage), to_json({"stage": stage, "key": key, "status": "done", "info": info or {},
+                                                 "files": files}, indent=1))
+
+
+def _ours(out_dir: Path, name: str, markers: list[dict]) -> bool:
+    if any(r.get("status") == "running" for r in markers):
+        return True  # a stage was interrupted here: what it left unrecorded is the survey's own
+    listed = {r["files"][name] for r in markers if isinstance(r.get("files"), dict) and name in r["files"]}
+    return bool(listed) and file_hash(out_dir / name) in listed
+
+
+def claim(out_dir, names, *, where: str = "[survey] output") -> list[str]:
+    """Check that the existing files among ``names`` (relative to ``out_dir``) may be replaced; return them.
+
+    Raises
+    ------
+    ForeignFileError
+        One of them was not written by the survey (or changed since): it names the file and the fix.
+    """
+    out_dir = Path(out_dir)
+    existing = [n for n in names if (out_dir / n).is_file()]
+    if not existing:
+        return []
+    markers = _markers(out_dir)
+    foreign = [n for n in existing if not _ours(out_dir, n, markers)]
+    if foreign:
+        raise ForeignFileError(
+            f"{out_dir / foreign[0]} was not written by this survey (or was changed since): the survey replaces "
+            f"only its own outputs; move it away or delete it, or choose another {where}")
+    return existing
+
+
+def check_folder(out_dir) -> None:
+    """Refuse a disc folder that holds files but no survey marker (another command's or another run's outputs)."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir() or any(out_dir.glob("survey_stage_*.json")):
+        return
+    found = sorted(p.name for p in out_dir.iterdir())
+    if found:
+        raise ForeignFileError(
+            f"{out_dir} already holds files the survey did not write ({', '.join(found[:3])}"
+            f"{', ...' if len(found) > 3 else ''}): move them away or choose another [survey] output")
