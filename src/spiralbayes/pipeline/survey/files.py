@@ -5,10 +5,10 @@ Every stage of a disc leaves ``survey_stage_<stage>.json`` in the disc's folder:
 while it works, ``done`` when it finished) and the files it wrote with their SHA-256. A stage is
 skipped on a rerun when its marker is done with the same key. When the key changed (one disc's
 inclination, say), the stage runs again and replaces its earlier outputs — but only files the
-survey itself wrote there: a file a marker lists with the same content, or any file while a
-marker says a stage was interrupted in that folder. Any other file in the way (a scan of another
-dataset, a file a user put there) stops that disc with a one-line error naming it; the files the
-rerun replaced are listed in the stage's marker (``info["replaced"]``) and logged.
+survey itself wrote there: a file a marker lists with the same content, or one that a stage
+interrupted there wrote (new or changed since that stage began). Any other file in the way (a
+scan of another dataset, a file a user put there) stops that disc with a one-line error naming
+it; the files a rerun replaced are listed in the stage's marker (``info["replaced"]``) and logged.
 """
 
 from __future__ import annotations
@@ -16,12 +16,11 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import time
 from pathlib import Path
 
 from ..._provenance import atomic_path, to_json
 
-__all__ = ["ForeignFileError", "begin", "check_folder", "claim", "done", "file_hash", "mark", "write_text"]
+__all__ = ["ForeignFileError", "begin", "check_folder", "claim", "done", "file_hash", "mark", "snapshot", "write_text"]
 
 log = logging.getLogger(__name__)
 
@@ -77,39 +76,58 @@ def done(out_dir, stage: str, key: str, *needed: str) -> dict | None:
     return record.get("info", {})
 
 
-def begin(out_dir, stage: str, key: str) -> float:
-    """Mark ``stage`` as running with ``key`` (keeping the files its earlier run recorded); the start time [s]."""
-    path = _marker(out_dir, stage)
-    old = _read(path) or {}
-    write_text(path, to_json({"stage": stage, "key": key, "status": "running", "info": {},
-                              "files": old.get("files", {})}, indent=1))
-    return time.time()
-
-
-def _written_since(out_dir: Path, since: float) -> dict[str, str]:
+def snapshot(out_dir) -> dict[str, str]:
+    """``{relative path: SHA-256}`` of the files in a disc's folder (markers and ``survey_parts/`` left out)."""
+    out_dir = Path(out_dir)
     files = {}
-    for path in sorted(out_dir.rglob("*")):
+    for path in sorted(out_dir.rglob("*")) if out_dir.is_dir() else ():
         rel = path.relative_to(out_dir)
-        if not path.is_file() or rel.parts[0] in IGNORED or path.name.startswith("survey_stage_"):
-            continue
-        if path.stat().st_mtime >= since - 1.0:  # 1 s: file systems with coarse timestamps
+        if path.is_file() and rel.parts[0] not in IGNORED and not path.name.startswith("survey_stage_"):
             files[rel.as_posix()] = file_hash(path)
     return files
 
 
-def mark(out_dir, stage: str, key: str, info: dict | None = None, *, since: float | None = None) -> None:
-    """Mark ``stage`` done with ``key``; with ``since`` (from :func:`begin`) record the files written since then."""
+def _owned(name: str, digest: str, markers: list[dict]) -> bool:
+    for record in markers:
+        files, before = record.get("files") or {}, record.get("before") or {}
+        if files.get(name) == digest:
+            return True
+        if record.get("status") == "running" and before.get(name) != digest:
+            return True  # written by a stage that was interrupted here: the survey's own
+    return False
+
+
+def begin(out_dir, stage: str, key: str) -> dict[str, str]:
+    """Mark ``stage`` as running with ``key``; return the folder's files before it (for :func:`mark`).
+
+    The marker keeps the files its earlier run recorded and the folder as it was when the stage
+    first started (a retried stage keeps the first attempt's), so that what an interrupted stage
+    wrote counts as the survey's and nothing else does.
+    """
+    path = _marker(out_dir, stage)
+    old = _read(path) or {}
+    before = snapshot(out_dir)
+    if old.get("status") == "running" and isinstance(old.get("before"), dict):
+        before = old["before"]
+    markers = _markers(out_dir)
+    owned = {n: h for n, h in before.items() if _owned(n, h, markers)}
+    write_text(path, to_json({"stage": stage, "key": key, "status": "running", "info": {},
+                              "files": old.get("files", {}), "before": before, "owned": owned}, indent=1))
+    return {"before": before, "owned": owned}
+
+
+def mark(out_dir, stage: str, key: str, info: dict | None = None, *, since: dict | None = None,
+         written=()) -> None:
+    """Mark ``stage`` done with ``key``, recording the files it wrote: those named in ``written``, and
+    with ``since`` (from :func:`begin`) the files new or changed since then and those the survey owned
+    then that are unchanged."""
     out_dir = Path(out_dir)
-    files = _written_since(out_dir, since) if since is not None else {}
+    files = {n: file_hash(out_dir / n) for n in written}
+    if since is not None:
+        before, owned = since["before"], since["owned"]
+        files |= {n: h for n, h in snapshot(out_dir).items() if before.get(n) != h or owned.get(n) == h}
     write_text(_marker(out_dir, stage), to_json({"stage": stage, "key": key, "status": "done", "info": info or {},
                                                  "files": files}, indent=1))
-
-
-def _ours(out_dir: Path, name: str, markers: list[dict]) -> bool:
-    if any(r.get("status") == "running" for r in markers):
-        return True  # a stage was interrupted here: what it left unrecorded is the survey's own
-    listed = {r["files"][name] for r in markers if isinstance(r.get("files"), dict) and name in r["files"]}
-    return bool(listed) and file_hash(out_dir / name) in listed
 
 
 def claim(out_dir, names, *, where: str = "[survey] output") -> list[str]:
@@ -125,7 +143,7 @@ def claim(out_dir, names, *, where: str = "[survey] output") -> list[str]:
     if not existing:
         return []
     markers = _markers(out_dir)
-    foreign = [n for n in existing if not _ours(out_dir, n, markers)]
+    foreign = [n for n in existing if not _owned(n, file_hash(out_dir / n), markers)]
     if foreign:
         raise ForeignFileError(
             f"{out_dir / foreign[0]} was not written by this survey (or was changed since): the survey replaces "

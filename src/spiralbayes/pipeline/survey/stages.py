@@ -86,7 +86,7 @@ class ScanSetup:
     todo: list
     finished: bool
     key: str
-    since: float = 0.0
+    since: dict | None = None
 
 
 def _replaced(job, stage: str, names: list[str]) -> None:
@@ -112,7 +112,6 @@ def stage_bank(bank: dict, path: str) -> str:
     if done(path.parent, "bank", key, path.name) is not None:
         return str(path)
     claim(path.parent, [path.name])
-    since = begin(path.parent, "bank", key)
     templates = []
     for h_p in bank["h_p"]:
         for tau0 in bank["tau0"]:
@@ -121,7 +120,7 @@ def stage_bank(bank: dict, path: str) -> str:
                     right = make_template(mass, tau0, beta, "R", h_p=h_p, wavelength=bank["wavelength"])
                     templates += [right, right.mirror()]
     TemplateBank(templates, provenance={"survey_bank": bank}).save(path)
-    mark(path.parent, "bank", key, since=since)
+    mark(path.parent, "bank", key, written=[path.name])
     return str(path)
 
 
