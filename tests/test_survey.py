@@ -133,10 +133,14 @@ def test_survey_equals_single_disc_runs(cluster_run, tmp_path):
         assert row["delta_bic"] == run.verdict.delta_bic
         assert row["verdict"] == ("detected" if run.verdict.detected else
                                   "candidate" if run.verdict.candidate else "not detected")
-        fam = limits.limits.families[0]
-        expected = ", ".join(f"{lo * job.config['geometry']['distance']:.0f}-{hi * job.config['geometry']['distance']:.0f}"
-                             for lo, hi in limits.limits.excluded_ranges(fam, 1.0)) or "none"
-        assert row["excl_ge1Mth_au"] == expected
+        d = job.config["geometry"]["distance"]
+        ranges = limits.limits.excluded_ranges(None, 1.0)
+        expected = "; ".join(f"{lo * d:.0f}-{hi * d:.0f} au (" for lo, hi in ranges) or "none"
+        assert row["excluded_ge1Mth"].startswith(expected.split(" (")[0]), (row["excluded_ge1Mth"], expected)
+        assert row["excluded_ge1Mth"].count(" au (") == len(ranges)
+        # the survey row and the disc's Table 3 are one writer's: the robust (first) row's ranges
+        assert row["excluded_ge1Mth"] in limits.table
+        assert row["morphologies"] == "compromise" and row["price_of_robustness"] == "1"
     assert rows["Disc B"]["R_eff95_arcsec"] == pytest.approx(0.3, abs=0.02)  # the simulated 95 % radius
 
 
