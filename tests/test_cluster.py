@@ -95,3 +95,46 @@ def test_scan_on_local_leaves_no_worker_and_a_given_client_open(monkeypatch, pla
         assert client.status == "running"  # the caller's client is the caller's to close
         assert client.submit(sum, [1, 2]).result() == 3
     np.testing.assert_array_equal(given.dchi2, serial.dchi2)
+
+
+def test_one_cluster_builder():
+    """Only spiralbayes.cluster makes Dask clients and clusters (so each is closed by the one context manager)."""
+    import re
+    from pathlib import Path
+
+    import spiralbayes
+
+    package = Path(spiralbayes.__file__).parent
+    pattern = re.compile(r"\b(LocalCluster|Client|SLURMCluster|PBSCluster)\(|dask_jobqueue")
+    found = [f"{p.relative_to(package)}:{i}" for p in sorted(package.rglob("*.py")) if p.name != "cluster.py"
+             for i, line in enumerate(p.read_text().splitlines(), 1) if pattern.search(line)]
+    assert not found, f"Dask clients or clusters made outside spiralbayes/cluster.py: {found}"
+    assert pattern.search((package / "cluster.py").read_text())
+
+
+def test_survey_engine_closes_its_local_cluster(tmp_path, monkeypatch):
+    """run_survey on "local" leaves no worker behind; a client passed in stays open."""
+    from dask.distributed import Client, LocalCluster
+
+    from spiralbayes.pipeline.survey import run_survey
+
+    path = tmp_path / "s.toml"
+    path.write_text('[survey]\noutput = "out"\nfigures = false\n[[disc]]\nname = "missing"\npath = "none.h5"\n'
+                    'distance = 140.0\ninc = 30.0\nPA = 10.0\n[templates]\nbank = "none.h5"\n')
+    seen = set()
+    real = Client.submit
+
+    def submit(self, *args, **kw):
+        if not seen:
+            seen.update(_worker_pids(self))
+        return real(self, *args, **kw)
+
+    monkeypatch.setattr(Client, "submit", submit)
+    run = run_survey(path, scheduler="local", n_workers=1, progress=False)
+    monkeypatch.undo()
+    assert run.engine == "LocalCluster(1 worker x 1 thread)" and run.exit_code == 1
+    assert len(seen) == 1 and _wait_until_gone(seen) == set()
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        run = run_survey(path, scheduler=client, progress=False)
+        assert client.status == "running" and run.engine == "LocalCluster(1 worker x 1 thread)"

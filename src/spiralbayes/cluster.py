@@ -136,8 +136,8 @@ def describe_scheduler(client) -> str:
         return f"scheduler {client.scheduler.address}"
     name = type(cluster).__name__
     if name == "LocalCluster":
-        threads = sorted(set(client.nthreads().values())) or [0]
-        return f"LocalCluster({len(cluster.workers)} workers x {threads[0]} thread{'s' if threads[0] != 1 else ''})"
+        n, threads = len(cluster.workers), (sorted(set(client.nthreads().values())) or [0])[0]
+        return f"LocalCluster({n} worker{'s' if n != 1 else ''} x {threads} thread{'s' if threads != 1 else ''})"
     return name
 
 
