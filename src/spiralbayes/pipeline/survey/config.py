@@ -14,10 +14,14 @@ A survey file holds
   missing: ``preset``, ``flux`` [Jy, observed], ``r_eff`` [arcsec, 95 % flux radius], ``seed``),
   and per-disc overrides of any schema section (``[disc.limits]``, ``[disc.frank]``, ...).
 
-Each disc becomes one merged single-disc configuration (checked exactly like a ``scan`` config)
-whose ``[output] dir`` is ``OUTPUT/discs/<name>``, so every disc's folder is what ``spiralbayes
-scan`` and ``limits`` would have written for it. Relative paths are taken relative to the survey
-file.
+Each disc becomes one merged single-disc configuration (checked exactly like a ``scan`` config,
+by :func:`spiralbayes.config.merge_config`) whose ``[output] dir`` is ``OUTPUT/discs/<name>``, so
+every disc's folder is what ``spiralbayes scan`` and ``limits`` would have written for it. A disc's
+name needs a letter or digit (``"."`` or ``".."`` would name the output folder itself) and its
+distance must lie in :data:`DISTANCE_RANGE_PC`. The file is read, its values coerced and its
+paths resolved (relative to the survey file) by the single-disc loader's functions
+(:func:`~spiralbayes.config.read_toml`, :func:`~spiralbayes.config.merge_section`,
+:func:`~spiralbayes.config.resolve_paths`).
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ from ...cluster import check_scheduler
 from ...config import SCHEMA, merge_config, merge_section, read_toml, resolve_paths
 from ...exceptions import ConfigError, InputError
 
-__all__ = ["BANK_SCHEMA", "DISC_KEYS", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey", "parse_survey"]
+__all__ = ["BANK_SCHEMA", "DISC_KEYS", "DISTANCE_RANGE_PC", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey",
+           "parse_survey", "slugify"]
 
 SURVEY_SCHEMA: dict[str, tuple[object, str]] = {
     "name": ("survey", "name of the survey (table captions, provenance)"),
@@ -126,10 +131,8 @@ def slugify(name: str) -> str:
     return slug
 
 
-def _check_distance(entry: dict, label: str) -> None:
-    distance = entry.get("distance")
-    if distance is None or isinstance(distance, bool) or not isinstance(distance, (int, float)):
-        return  # a missing or mistyped distance is the single-disc schema's to report
+def _check_distance(config: dict, label: str) -> None:
+    distance = config["geometry"]["distance"]
     low, high = DISTANCE_RANGE_PC
     if not (math.isfinite(distance) and low <= distance <= high):
         raise ConfigError(f"{label}: distance = {distance!r} pc is outside {low:g}-{high:g} pc: give the distance "
@@ -156,7 +159,6 @@ def _disc_job(entry: dict, shared: dict, out_dir: Path, root: Path, index: int) 
                           f"{sorted(SCHEMA)}")
     if not isinstance(entry.get("path", ""), str) or not entry.get("path"):
         raise ConfigError(f"{label} needs path = the visibility file (uvtable, .npz, .h5 or a Measurement Set)")
-    _check_distance(entry, label)
     overrides = {s: v for s, v in entry.items() if s in SCHEMA}
     disc = {"data": {"path": entry["path"]}, "geometry": {}, "output": {"dir": ""}, "limits": {}}
     for key in ("distance", "inc", "PA", "dRA", "dDec"):
@@ -175,6 +177,7 @@ def _disc_job(entry: dict, shared: dict, out_dir: Path, root: Path, index: int) 
         config = merge_config(user)
     except ConfigError as exc:
         raise ConfigError(f"{label}: {exc}") from None
+    _check_distance(config, label)
     simulate = entry.get("simulate")
     if simulate is not None:
         simulate = merge_section(f"{label}.simulate", simulate, {k: (v, "") for k, v in SIMULATE_KEYS.items()})
