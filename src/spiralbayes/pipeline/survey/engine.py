@@ -24,9 +24,9 @@ import uuid
 from dataclasses import dataclass, field
 
 from ..._threads import blas_threads
-from ...cluster import SchedulerUnreachableError, describe_scheduler, jobqueue_cluster
+from ...cluster import describe_scheduler
 
-__all__ = ["Engine", "Outcome", "Ref", "SchedulerUnreachableError", "Task", "jobqueue_cluster"]
+__all__ = ["Engine", "Outcome", "Ref", "Task"]
 
 log = logging.getLogger(__name__)
 
