@@ -15,6 +15,7 @@ from .settings import LimitSettings
 from .table3 import (
     build_table3,
     describe_family_limits,
+    families_text,
     limits_table,
     markdown_table,
     morphologies,
@@ -81,6 +82,7 @@ __all__ = [
     "compute_limits",
     "data_resolution",
     "describe_family_limits",
+    "families_text",
     "format_range",
     "format_ranges",
     "guard_sentences",

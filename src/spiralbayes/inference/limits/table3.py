@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["build_table3", "describe_family_limits", "limits_table", "markdown_table", "morphologies", "price_text",
-           "table_markdown", "write_table"]
+__all__ = ["build_table3", "describe_family_limits", "families_text", "limits_table", "markdown_table", "morphologies",
+           "price_text", "table_markdown", "write_table"]
 
 from .wording import THRESHOLDS, _family_list, _span, format_range, format_ranges, guard_sentences, runs
 
@@ -39,6 +39,21 @@ def morphologies(limits, families=None) -> list[str]:
         if variant not in out:
             out.append(variant)
     return out
+
+
+def families_text(limits) -> str:
+    """The template families a limit over all of them assumes, in a few words: the one family's label, or
+    ``"all 24 families (each must rule it out): tau0 0.3, 3; beta 0, 10; h_p 0.05, 0.07, 0.1"``."""
+    fams = list(limits.families)
+    if len(fams) == 1:
+        return fams[0].label
+    values = {}
+    for fam in fams:
+        for key in ("tau0", "beta", "h_p"):
+            if fam.key.get(key) is not None and fam.key[key] not in values.setdefault(key, []):
+                values[key].append(fam.key[key])
+    spelled = "; ".join(f"{k} " + ", ".join(f"{v:g}" for v in sorted(vs)) for k, vs in values.items() if vs)
+    return f"all {len(fams)} families (each must rule it out): {spelled}"
 
 
 def price_text(limits) -> str:
@@ -106,8 +121,7 @@ def build_table3(limits, completeness=None, *, name: str = "disc", thresholds=TH
     from astropy.table import Table
 
     fams = list(limits.families)
-    sets = ([(f"all {len(fams)} families (each must rule it out)", None)] if len(fams) > 1 else []) + \
-        [(fam.label, fam) for fam in fams]
+    sets = ([(families_text(limits), None)] if len(fams) > 1 else []) + [(fam.label, fam) for fam in fams]
     rows = []
     for label, fam in sets:
         row = {"disc": name, "families": label, "morphologies": ", ".join(morphologies(limits, fam)),

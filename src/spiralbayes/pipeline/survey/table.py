@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..._provenance import atomic_path
-from ...inference.limits.table3 import format_ranges, morphologies, price_text
+from ...inference.limits.table3 import families_text, format_ranges, morphologies, price_text
 from ...inference.limits.table3 import write_table as write_ecsv_and_markdown
 from ..outputs import save_figure
 
@@ -66,7 +66,7 @@ def disc_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> di
         "test1": _pass(verdict.get("test1_passed")), "test2": _pass(verdict.get("test2_passed")),
         "test3": _pass(verdict.get("test3_passed")),
         "test3_alternative": verdict.get("best_alternative_label") or "",
-        "family": " / ".join(f.label for f in limits.families),
+        "family": families_text(limits),
         "morphologies": ", ".join(morphologies(limits)),
         "price_of_robustness": price_text(limits),
         "p_planet": float("nan") if posterior is None else float(posterior["p_planet"]),
