@@ -427,3 +427,35 @@ def test_a_file_the_survey_did_not_write_is_never_replaced(pair_run, survey_dir,
         run.rows[0]["error"]
     assert (fresh / "discs" / "Disc_A" / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in (fresh / "discs" / "Disc_A").iterdir()) == ["notes.txt"]
+
+
+def test_stage_markers_own_exactly_what_their_stage_wrote(tmp_path):
+    from spiralbayes.pipeline.survey.files import (ForeignFileError, begin, claim, clear, done, mark, superseded,
+                                                   write_text)
+
+    out = tmp_path / "disc"
+    out.mkdir()
+    (out / "notes.txt").write_text("the user's")
+    since = begin(out, "frank", "k1")
+    assert done(out, "frank", "k1") is None  # running is not done
+    write_text(out / "axisymmetric.h5", "model 1")
+    assert claim(out, ["axisymmetric.h5"]) == ["axisymmetric.h5"]  # an interrupted stage's file is the survey's
+    with pytest.raises(ForeignFileError, match=r"notes.txt was not written by this survey .* move it away or delete"):
+        claim(out, ["notes.txt"])  # there before the stage began: never the survey's
+    assert begin(out, "frank", "k1")["before"] == since["before"]  # a retry keeps the first attempt's snapshot
+    mark(out, "frank", "k1", {"n": 1}, since=since)
+    assert done(out, "frank", "k1", "axisymmetric.h5") == {"n": 1} and done(out, "frank", "k2") is None
+    assert superseded(out, "frank", "k2") and not superseded(out, "frank", "k1")
+    (out / "axisymmetric.h5").write_text("edited by hand")
+    with pytest.raises(ForeignFileError, match="axisymmetric.h5 was not written by this survey \\(or was changed"):
+        claim(out, ["axisymmetric.h5", "absent.h5"])
+    # chains the survey wrote are cleared for a new posterior; a foreign one stops it and nothing is deleted
+    since = begin(out, "posterior", "p1")
+    write_text(out / "chains" / "run.h5", "chain")
+    mark(out, "posterior", "p1", since=since)
+    assert clear(out, "chains") == ["chains/run.h5"] and not (out / "chains" / "run.h5").exists()
+    write_text(out / "chains" / "run.h5", "someone else's chain")
+    with pytest.raises(ForeignFileError, match="chains/run.h5"):
+        clear(out, "chains")
+    assert (out / "chains" / "run.h5").read_text() == "someone else's chain"
+    assert (out / "notes.txt").read_text() == "the user's"

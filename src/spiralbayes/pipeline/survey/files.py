@@ -20,7 +20,8 @@ from pathlib import Path
 
 from ..._provenance import atomic_path, to_json
 
-__all__ = ["ForeignFileError", "begin", "check_folder", "claim", "done", "file_hash", "mark", "snapshot", "write_text"]
+__all__ = ["ForeignFileError", "begin", "check_folder", "claim", "clear", "done", "file_hash", "mark", "snapshot",
+           "superseded", "write_text"]
 
 log = logging.getLogger(__name__)
 
@@ -95,6 +96,21 @@ def _owned(name: str, digest: str, markers: list[dict]) -> bool:
         if record.get("status") == "running" and before.get(name) != digest:
             return True  # written by a stage that was interrupted here: the survey's own
     return False
+
+
+def superseded(out_dir, stage: str, key: str) -> bool:
+    """Whether ``stage`` ran (or began) in ``out_dir`` with another key than ``key``: its outputs are stale."""
+    record = _read(_marker(out_dir, stage))
+    return record is not None and record.get("key") != key
+
+
+def clear(out_dir, folder: str, *, where: str = "[survey] output") -> list[str]:
+    """Delete the files under ``out_dir/folder`` after :func:`claim` found them all the survey's; return them."""
+    base = Path(out_dir) / folder
+    names = [p.relative_to(out_dir).as_posix() for p in sorted(base.rglob("*")) if p.is_file()] if base.is_dir() else []
+    for name in claim(out_dir, names, where=where):
+        (Path(out_dir) / name).unlink()
+    return names
 
 
 def begin(out_dir, stage: str, key: str) -> dict[str, str]:

@@ -28,7 +28,7 @@ import numpy as np
 from ..._provenance import content_hash, data_hash
 from ...config import describe_config
 from ...exceptions import ResumeMismatchError, SpiralbayesError
-from .files import begin, check_folder, claim, done, mark, write_text
+from .files import begin, check_folder, claim, clear, done, mark, superseded, write_text
 
 __all__ = ["StageError", "stage_alternatives", "stage_bank", "stage_detect", "stage_frank", "stage_limits",
            "stage_posterior", "stage_prepare", "stage_row", "stage_scan_chunk", "stage_scan_setup",
@@ -368,6 +368,8 @@ def stage_posterior(job, prep: Prepared, verdict: dict, mode: str, steps: int) -
     info = done(out, "posterior", key, f"{sample['run_name']}_summary.json")
     if info is None:
         replaced = claim(out, [f"{sample['run_name']}_summary.json", f"{sample['run_name']}_posterior.h5"])
+        if superseded(out, "posterior", key):  # chains of other inputs: sampled afresh, not resumed
+            replaced += clear(out, "chains")
         since = begin(out, "posterior", key)
         post = run_sample_config(config, progress=False)
         info = {"p_planet": float(post.p_planet), "verdict": str(post.verdict)}
