@@ -138,3 +138,23 @@ def test_survey_engine_closes_its_local_cluster(tmp_path, monkeypatch):
             Client(cluster) as client:
         run = run_survey(path, scheduler=client, progress=False)
         assert client.status == "running" and run.engine == "LocalCluster(1 worker x 1 thread)"
+
+
+def test_a_dask_engine_without_distributed_says_what_to_install(monkeypatch):
+    import builtins
+
+    from spiralbayes.exceptions import MissingDependencyError
+
+    real_import = builtins.__import__
+
+    def no_distributed(name, *args, **kw):
+        if name.startswith("distributed"):
+            raise ImportError("no distributed here")
+        return real_import(name, *args, **kw)
+
+    monkeypatch.setattr(builtins, "__import__", no_distributed)
+    with pytest.raises(MissingDependencyError, match=r"scheduler = 'local' needs dask.distributed: pip install"):
+        with open_scheduler("local"):
+            pass
+    with open_scheduler("serial") as client:  # serial needs no Dask
+        assert client is None

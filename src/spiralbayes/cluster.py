@@ -181,7 +181,11 @@ def open_scheduler(scheduler, *, n_workers: int | None = None, threads_per_worke
     if scheduler == "serial":
         yield None
         return
-    from distributed import Client
+    try:
+        from distributed import Client
+    except ImportError:
+        raise MissingDependencyError(f"scheduler = {scheduler!r} needs dask.distributed: pip install "
+                                     "'dask[distributed]', or use scheduler = 'serial'") from None
 
     cluster = client = None
     try:
