@@ -76,7 +76,7 @@ def taurus_survey_toml() -> str:
         "[survey]",
         'name = "Taurus (synthetic analogues)"',
         'output = "taurus-survey"',
-        'scheduler = ""            # "": LocalCluster on this machine; "serial"; or tcp://host:8786',
+        'scheduler = ""            # "local" or "": LocalCluster on this machine; "serial"; "slurm"/"pbs"; or tcp://host:8786',
         'posterior = "candidates"  # "candidates" | "none" | "all"',
         "chunk_templates = 2",
         "",
