@@ -36,7 +36,7 @@ def _load() -> str:
 
 def run_example(out: Path, scheduler: str, workers: int) -> dict:
     from spiralbayes.pipeline.survey import run_survey
-    from spiralbayes.pipeline.survey_demo import taurus_survey_toml
+    from spiralbayes.pipeline.survey.demo import taurus_survey_toml
 
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)

@@ -27,7 +27,7 @@ import spiralbayes
 PACKAGE = Path(spiralbayes.__file__).parent
 LAYERS = {
     "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "results": 0, "_casa": 0,
-    "_threads": 0, "settings": 0, "_compat": 0,
+    "_threads": 0, "settings": 0, "_compat": 0, "cluster": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
     "axisymmetric": 2, "templates": 2, "model": 2, "alternatives": 2, "quadrature": 2,
     "simulate": 3,

@@ -146,7 +146,7 @@ def test_limits_from_config_reuses_the_scan_and_writes_table3(tmp_path, capsys, 
     assert main(["-q", "limits", str(tmp_path / "run.toml")]) == 0
     printed = capsys.readouterr().out
     assert "test disc" in printed and "tau0=0.3, beta=10, h_p=0.07" in printed
-    for name in ("limits.h5", "table3.md", "table3.csv", "limits_summary.txt", "config_used_limits.toml"):
+    for name in ("limits.h5", "table3.md", "table3.ecsv", "limits_summary.txt", "config_used_limits.toml"):
         assert (out / name).exists(), name
     assert len(list(out.glob("completeness_*.h5"))) == 1 and len(list(out.glob("mass_radius_*.png"))) == 1
     limits = ExclusionLimits.load(out / "limits.h5")

@@ -133,10 +133,14 @@ def test_survey_equals_single_disc_runs(cluster_run, tmp_path):
         assert row["delta_bic"] == run.verdict.delta_bic
         assert row["verdict"] == ("detected" if run.verdict.detected else
                                   "candidate" if run.verdict.candidate else "not detected")
-        fam = limits.limits.families[0]
-        expected = ", ".join(f"{lo * job.config['geometry']['distance']:.0f}-{hi * job.config['geometry']['distance']:.0f}"
-                             for lo, hi in limits.limits.excluded_ranges(fam, 1.0)) or "none"
-        assert row["excl_ge1Mth_au"] == expected
+        d = job.config["geometry"]["distance"]
+        ranges = limits.limits.excluded_ranges(None, 1.0)
+        expected = "; ".join(f"{lo * d:.0f}-{hi * d:.0f} au (" for lo, hi in ranges) or "none"
+        assert row["excluded_ge1Mth"].startswith(expected.split(" (")[0]), (row["excluded_ge1Mth"], expected)
+        assert row["excluded_ge1Mth"].count(" au (") == len(ranges)
+        # the survey row and the disc's Table 3 are one writer's: the robust (first) row's ranges
+        assert row["excluded_ge1Mth"] in limits.table
+        assert row["morphologies"] == "compromise" and row["price_of_robustness"] == "1"
     assert rows["Disc B"]["R_eff95_arcsec"] == pytest.approx(0.3, abs=0.02)  # the simulated 95 % radius
 
 
@@ -204,7 +208,7 @@ def test_unreachable_scheduler_fails_in_one_line_naming_it(survey_dir):
 
 def test_survey_file_errors_name_the_option(tmp_path):
     from spiralbayes.exceptions import ConfigError
-    from spiralbayes.pipeline.survey_config import load_survey
+    from spiralbayes.pipeline.survey.config import load_survey
 
     path = tmp_path / "s.toml"
     for text, words in (('[survey]\nposterior = "some"\n[[disc]]\nname="a"\npath="x.h5"\n', "survey.posterior"),
@@ -217,8 +221,8 @@ def test_survey_file_errors_name_the_option(tmp_path):
 
 
 def test_example_survey_is_the_demo_and_parses():
-    from spiralbayes.pipeline.survey_config import load_survey
-    from spiralbayes.pipeline.survey_demo import TAURUS_DISCS, taurus_survey_toml
+    from spiralbayes.pipeline.survey.config import load_survey
+    from spiralbayes.pipeline.survey.demo import TAURUS_DISCS, taurus_survey_toml
 
     example = ROOT / "examples" / "taurus_survey.toml"
     assert example.read_text() == taurus_survey_toml()
@@ -231,9 +235,9 @@ def test_example_survey_is_the_demo_and_parses():
 
 def test_jobqueue_cluster_from_configuration():
     pytest.importorskip("dask_jobqueue")
-    import tomllib
+    from spiralbayes._compat import tomllib
 
-    from spiralbayes.pipeline.survey_engine import jobqueue_cluster
+    from spiralbayes.cluster import jobqueue_cluster
 
     options = tomllib.loads('jobs = 4\ncores = 2\nmemory = "8GB"\nwalltime = "02:00:00"\n'
                             'job_extra_directives = ["--account=disc-survey"]\n')
@@ -252,7 +256,7 @@ def test_jobqueue_cluster_from_configuration():
 
 
 def test_posterior_policy():
-    from spiralbayes.pipeline.survey_stages import wants_posterior
+    from spiralbayes.pipeline.survey.stages import wants_posterior
 
     quiet, candidate, detected = {"detected": False, "candidate": None}, \
         {"detected": False, "candidate": {"template": "t"}}, {"detected": True, "candidate": None}
@@ -276,3 +280,182 @@ def test_posterior_all_runs_the_sample_stage(survey_dir, tmp_path):
     assert row["status"] == "ok", row
     assert 0.0 <= row["p_planet"] <= 1.0
     assert (tmp_path / "post" / "discs" / "Disc_A" / "posterior_summary.json").exists()
+
+
+def _tree_hashes(folder: Path) -> dict:
+    import hashlib
+
+    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()} if folder.exists() else {}
+
+
+@pytest.mark.parametrize("name", [".", "..", "_", "./..", "/"])
+def test_disc_name_that_names_no_folder_of_its_own_is_refused(tmp_path, name):
+    from spiralbayes.exceptions import ConfigError
+    from spiralbayes.pipeline.survey import load_survey, run_survey
+
+    path = tmp_path / "s.toml"
+    path.write_text(f'[survey]\noutput = "out"\nscheduler = "serial"\n[[disc]]\nname = {name!r}\npath = "x.h5"\n'
+                    'distance = 140.0\ninc = 30.0\nPA = 10.0\n'.replace("'", '"'))
+    before = _tree_hashes(tmp_path)
+    with pytest.raises(ConfigError, match=r"disc\.name = .* no letter or digit.*give the disc a name"):
+        load_survey(path)
+    with pytest.raises(ConfigError, match="disc.name"):
+        run_survey(path, progress=False)
+    assert _tree_hashes(tmp_path) == before and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("distance", [1e9, 0.5, 20000.0])
+def test_implausible_distance_is_refused_with_the_range(tmp_path, distance):
+    from spiralbayes.exceptions import ConfigError
+    from spiralbayes.pipeline.survey import load_survey
+
+    path = tmp_path / "s.toml"
+    value = repr(distance)
+    path.write_text(f'[[disc]]\nname = "far"\npath = "x.h5"\ndistance = {value}\ninc = 30.0\nPA = 10.0\n')
+    with pytest.raises(ConfigError, match=r"disc 'far': distance = .* pc is outside 1-10000 pc: give the distance in "
+                                          r"parsec"):
+        load_survey(path)
+    path.write_text(path.read_text().replace(f"distance = {value}", "distance = 9999.0"))
+    assert load_survey(path).discs[0].config["geometry"]["distance"] == 9999.0
+    shared = f'[geometry]\ndistance = {value}\n[[disc]]\nname = "far"\npath = "x.h5"\ninc = 30.0\nPA = 10.0\n'
+    path.write_text(shared)  # the distance shared by every disc is checked as well
+    with pytest.raises(ConfigError, match="disc 'far': distance = .* pc is outside 1-10000 pc"):
+        load_survey(path)
+
+
+def test_survey_file_reading_errors(tmp_path):
+    from spiralbayes.exceptions import ConfigError, MissingFileError
+    from spiralbayes.pipeline.survey import load_survey
+
+    binary = tmp_path / "s.toml"
+    binary.write_bytes(b"\xff\xfe\x00\x81 not text")
+    with pytest.raises(ConfigError, match="is not a text"):
+        load_survey(binary)
+    with pytest.raises(MissingFileError, match="survey file .* not found"):
+        load_survey(tmp_path / "none.toml")
+    binary.write_text('[survey]\nscheduler = "locl"\n[[disc]]\nname="a"\npath="x.h5"\n')
+    with pytest.raises(ConfigError, match="survey.scheduler = 'locl' is not a Dask engine"):
+        load_survey(binary)
+
+
+def test_failed_discs_give_a_nonzero_exit_after_the_table(cluster_run, survey_dir):
+    from spiralbayes.pipeline.survey import SurveyFailedError
+
+    assert cluster_run.failed == ["Damaged"] and cluster_run.exit_code == 1
+    assert (survey_dir / "out" / "survey_table.ecsv").exists()
+    with pytest.raises(SurveyFailedError, match=r"^1 of 4 discs failed \(Damaged\): their errors are in .*survey_table"):
+        cluster_run.check()
+
+
+def _pair_survey(survey_dir: Path, inc_c: float = 20.0) -> str:
+    """Discs A and C of SURVEY with the bank and data at absolute paths, so that only [output] moves with a copy."""
+    discs = SURVEY.split("[[disc]]")
+    text = discs[0].replace("[bank]\nmass = [1.0]\ntau0 = [0.3]\nbeta = [10.0]\n",
+                         f"[templates]\nbank = {str(survey_dir / 'out' / 'bank.h5')!r}\n")
+    for disc in (discs[1], discs[3]):
+        text += "[[disc]]" + disc.replace('path = "data/', f'path = "{survey_dir}/data/')
+    return text.replace("inc = 20.0", f"inc = {inc_c}").replace("'", '"')
+
+
+@pytest.fixture(scope="module")
+def pair_run(cluster_run, survey_dir, tmp_path_factory):
+    from spiralbayes.pipeline.survey import run_survey
+
+    folder = tmp_path_factory.mktemp("pair")
+    (folder / "pair.toml").write_text(_pair_survey(survey_dir))
+    run = run_survey(folder / "pair.toml", scheduler="serial", progress=False)
+    assert [r["status"] for r in run.rows] == ["ok", "ok"]
+    return folder
+
+
+def test_changed_disc_reruns_exactly_its_changed_stages(pair_run, survey_dir, tmp_path):
+    """One disc's inclination changed: its frank, scan and limits run again; the other disc's scan is untouched."""
+    import json
+
+    from spiralbayes.pipeline.survey import run_survey
+
+    out = tmp_path / "out"
+    shutil.copytree(pair_run / "out", out)
+    path = tmp_path / "changed.toml"
+    path.write_text(_pair_survey(survey_dir, inc_c=25.0))
+    others = {d: _tree_hashes(out / "discs" / d) for d in ("Disc_A",)}
+    scans = {d: (out / "discs" / d / "scan.h5").stat().st_mtime_ns for d in ("Disc_A", "Disc_C")}
+    rerun = run_survey(path, scheduler="serial", output=str(out), progress=False)
+    assert [r["status"] for r in rerun.rows] == ["ok", "ok"]
+    for d in ("Disc_A",):
+        assert (out / "discs" / d / "scan.h5").stat().st_mtime_ns == scans[d]
+        now = _tree_hashes(out / "discs" / d)
+        # only the limits stage reran there ([output] dir is in its key and the folder moved)
+        assert {k for k in now if now[k] != others[d].get(k)} <= {"survey_stage_limits.json", "limits.h5",
+                                                                   "config_used_limits.toml"} | {
+            k for k in now if k.startswith(("mass_radius", "excluded_fraction", "table3", "limits_summary"))}
+        assert "scan.h5" in now and now["scan.h5"] == others[d]["scan.h5"]
+    disc_c = out / "discs" / "Disc_C"
+    assert (disc_c / "scan.h5").stat().st_mtime_ns != scans["Disc_C"]
+    from spiralbayes.inference.scan import ScanResult
+
+    assert ScanResult.load(disc_c / "scan.h5").geometry.inc == 25.0
+    scan_marker = json.loads((disc_c / "survey_stage_scan.json").read_text())
+    assert scan_marker["status"] == "done" and "scan.h5" in scan_marker["files"]
+    frank_marker = json.loads((disc_c / "survey_stage_frank.json").read_text())
+    assert frank_marker["info"]["replaced"] == ["axisymmetric.h5"]
+
+
+def test_a_file_the_survey_did_not_write_is_never_replaced(pair_run, survey_dir, tmp_path):
+    from spiralbayes.pipeline.survey import run_survey
+
+    out = tmp_path / "out"
+    shutil.copytree(pair_run / "out", out)
+    foreign = out / "discs" / "Disc_C" / "scan_checkpoint.h5"
+    foreign.write_bytes(b"a checkpoint of another scan")
+    path = tmp_path / "changed.toml"
+    path.write_text(_pair_survey(survey_dir, inc_c=26.0))
+    before = _tree_hashes(out / "discs" / "Disc_C")
+    run = run_survey(path, scheduler="serial", output=str(out), progress=False)
+    row = run.rows[1]
+    assert row["status"] == "failed" and "scan_checkpoint.h5 was not written by this survey" in row["error"]
+    assert "move it away or delete it" in row["error"] and "\n" not in row["error"]
+    after = _tree_hashes(out / "discs" / "Disc_C")
+    assert after["scan_checkpoint.h5"] == before["scan_checkpoint.h5"]
+    assert after["scan.h5"] == before["scan.h5"] and after["verdict.json"] == before["verdict.json"]
+    fresh = tmp_path / "fresh"
+    (fresh / "discs" / "Disc_A").mkdir(parents=True)
+    (fresh / "discs" / "Disc_A" / "notes.txt").write_text("mine")
+    run = run_survey(survey_dir / "survey.toml", scheduler="serial", output=str(fresh), progress=False)
+    assert run.rows[0]["status"] == "failed" and "already holds files the survey did not write (notes.txt)" in \
+        run.rows[0]["error"]
+    assert (fresh / "discs" / "Disc_A" / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in (fresh / "discs" / "Disc_A").iterdir()) == ["notes.txt"]
+
+
+def test_stage_markers_own_exactly_what_their_stage_wrote(tmp_path):
+    from spiralbayes.pipeline.survey.files import (ForeignFileError, begin, claim, clear, done, mark, superseded,
+                                                   write_text)
+
+    out = tmp_path / "disc"
+    out.mkdir()
+    (out / "notes.txt").write_text("the user's")
+    since = begin(out, "frank", "k1")
+    assert done(out, "frank", "k1") is None  # running is not done
+    write_text(out / "axisymmetric.h5", "model 1")
+    assert claim(out, ["axisymmetric.h5"]) == ["axisymmetric.h5"]  # an interrupted stage's file is the survey's
+    with pytest.raises(ForeignFileError, match=r"notes.txt was not written by this survey .* move it away or delete"):
+        claim(out, ["notes.txt"])  # there before the stage began: never the survey's
+    assert begin(out, "frank", "k1")["before"] == since["before"]  # a retry keeps the first attempt's snapshot
+    mark(out, "frank", "k1", {"n": 1}, since=since)
+    assert done(out, "frank", "k1", "axisymmetric.h5") == {"n": 1} and done(out, "frank", "k2") is None
+    assert superseded(out, "frank", "k2") and not superseded(out, "frank", "k1")
+    (out / "axisymmetric.h5").write_text("edited by hand")
+    with pytest.raises(ForeignFileError, match="axisymmetric.h5 was not written by this survey \\(or was changed"):
+        claim(out, ["axisymmetric.h5", "absent.h5"])
+    # chains the survey wrote are cleared for a new posterior; a foreign one stops it and nothing is deleted
+    since = begin(out, "posterior", "p1")
+    write_text(out / "chains" / "run.h5", "chain")
+    mark(out, "posterior", "p1", since=since)
+    assert clear(out, "chains") == ["chains/run.h5"] and not (out / "chains" / "run.h5").exists()
+    write_text(out / "chains" / "run.h5", "someone else's chain")
+    with pytest.raises(ForeignFileError, match="chains/run.h5"):
+        clear(out, "chains")
+    assert (out / "chains" / "run.h5").read_text() == "someone else's chain"
+    assert (out / "notes.txt").read_text() == "the user's"

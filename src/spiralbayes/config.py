@@ -35,8 +35,8 @@ from .inference.posterior.settings import SamplingSettings
 from .inference.scan.settings import GRID_FIELDS, ScanSettings, field_error
 from .settings import config_options
 
-__all__ = ["CHECKS", "PATH_KEYS", "RENAMED", "SCHEMA", "default_config", "describe_config", "geometry_given", "load_config",
-           "merge_config"]
+__all__ = ["CHECKS", "PATH_KEYS", "RENAMED", "SCHEMA", "default_config", "describe_config", "geometry_given",
+           "load_config", "merge_config", "merge_section", "read_toml", "resolve_paths"]
 
 # section -> key -> (default, description). The [grid], [scan], [alternatives], [sample] and [limits]
 # options are the fields of their settings dataclasses (spiralbayes.settings); [frank] takes its defaults
@@ -277,18 +277,14 @@ def default_config() -> dict:
 
 def merge_config(user: dict, schema: dict = SCHEMA) -> dict:
     """Defaults overlaid with ``user``; unknown sections/keys, wrong types and bad values raise ConfigError."""
-    config = default_config() if schema is SCHEMA else {s: {k: v[0] for k, v in ks.items()} for s, ks in schema.items()}
+    config = default_config() if schema is SCHEMA else {s: {k: copy.deepcopy(v[0]) for k, v in ks.items()}
+                                                         for s, ks in schema.items()}
     for section, values in user.items():
         if section not in schema:
             raise ConfigError(f"unknown config section [{section}]; valid sections: {sorted(schema)}")
-        if not isinstance(values, dict):
-            raise ConfigError(f"[{section}] must be a table of options")
-        for key, value in values.items():
-            key = _current_name(section, key, values)
-            if key not in schema[section]:
-                raise ConfigError(f"unknown option {section}.{key}; valid options of [{section}]: "
-                                  f"{sorted(schema[section])}")
-            config[section][key] = _coerce(section, key, value, schema[section][key][0])
+        if isinstance(values, dict):
+            values = {_current_name(section, key, values): value for key, value in values.items()}
+        config[section].update(merge_section(section, values, schema[section], defaults=False))
     _check_values(config)
     return config
 
@@ -306,6 +302,23 @@ def _current_name(section: str, key: str, values: dict) -> str:
     warnings.warn(f"{section}.{key} is renamed {section}.{new}: write '{new} = ...' (the old name will be removed)",
                   FutureWarning, stacklevel=4)
     return new
+
+
+def merge_section(section: str, values, options: dict, *, defaults: bool = True) -> dict:
+    """One section's ``values`` type-checked against ``options`` (option -> ``(default, description)``).
+
+    Unknown options and values of the wrong type raise ConfigError naming ``section.option``; integers
+    given for float options become floats, a single value for a list option a one-element list.
+    With ``defaults`` the options not in ``values`` are filled with their defaults.
+    """
+    if not isinstance(values, dict):
+        raise ConfigError(f"[{section}] must be a table of options")
+    out = {k: copy.deepcopy(v[0]) for k, v in options.items()} if defaults else {}
+    for key, value in values.items():
+        if key not in options:
+            raise ConfigError(f"unknown option {section}.{key}; valid options of [{section}]: {sorted(options)}")
+        out[key] = _coerce(section, key, value, options[key][0])
+    return out
 
 
 def _coerce(section: str, key: str, value, default):
@@ -341,14 +354,7 @@ def load_config(path, schema: dict = SCHEMA) -> LoadedConfig:
         Not valid TOML, an unknown section or option, or a bad value (the message names it).
     """
     path = Path(path)
-    if not path.exists():
-        raise MissingFileError(f"configuration file {path} not found (write one with --print-config)")
-    try:
-        user = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path} is not valid TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise ConfigError(f"{path} is not a text (TOML) file") from None
+    user = read_toml(path)
     try:
         config = merge_config(user, schema)
     except ConfigError as exc:
@@ -356,12 +362,40 @@ def load_config(path, schema: dict = SCHEMA) -> LoadedConfig:
     config = LoadedConfig(config)
     config.given = {section: sorted(values) for section, values in user.items() if isinstance(values, dict)}
     config.source = str(path)
+    return resolve_paths(config, path.parent)
+
+
+def read_toml(path, *, what: str = "configuration file", hint: str = "write one with --print-config") -> dict:
+    """The parsed TOML of the file at ``path``.
+
+    Raises
+    ------
+    MissingFileError
+        No file at ``path`` (the message names the ``what`` and the ``hint``).
+    ConfigError
+        Not valid TOML, or not a text file.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise MissingFileError(f"{what} {path} not found ({hint})")
+    try:
+        return tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path} is not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path} is not a text (TOML) file") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path} is a folder, not a {what}") from None
+
+
+def resolve_paths(config: dict, root) -> dict:
+    """``config`` with its relative path options (:data:`PATH_KEYS`) taken relative to ``root`` (``~`` expanded)."""
     for section, key in PATH_KEYS:
         value = config.get(section, {}).get(key)
         if not value or (section, key) == ("templates", "bank") and value in BUILT_IN_BANKS:
             continue
         resolved = Path(value).expanduser()
-        config[section][key] = str(resolved if resolved.is_absolute() else (path.parent / resolved).resolve())
+        config[section][key] = str(resolved if resolved.is_absolute() else (Path(root) / resolved).resolve())
     return config
 
 

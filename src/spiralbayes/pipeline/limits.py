@@ -47,7 +47,7 @@ def _slug(text: str) -> str:
 def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict | None = None, name: str = "disc",
                distance: float | None = None, progress: bool = True, plots: bool = True,
                verdict=None) -> LimitsRun:
-    """Exclusion limits, completeness (optional), Table 3 (Markdown, CSV), HDF5 and plots in ``out_dir``.
+    """Exclusion limits, completeness (optional), Table 3 (ECSV and Markdown), HDF5 and plots in ``out_dir``.
 
     ``verdict`` (the scan's detection verdict or its dict, ``verdict.json``): radii near its planet or
     candidate and near its significant asymmetry models are flagged, not excluded
@@ -56,7 +56,7 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
     from ..inference.limits.exclusion import compute_limits
     from ..inference.limits.settings import LimitSettings
     from ..settings import from_config
-    from ..inference.limits.table3 import table_csv, table_markdown
+    from ..inference.limits.table3 import build_table3, markdown_table, write_table
     from ..plotting.limits import plot_completeness, plot_excluded_fraction, plot_mass_radius
 
     lc = {**default_limits_config(), **(limits_config or {})}
@@ -80,14 +80,12 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
             files.append(comp.save(out_dir / f"completeness_{_slug(fam.label)}.h5"))
     thresholds = tuple(lc["thresholds"])
     first = {c.family.label: c for c in comps}
-    table = table_markdown(limits, comps[0] if len(comps) == 1 else None, name=name, thresholds=thresholds)
+    table3 = build_table3(limits, comps[0] if len(comps) == 1 else None, name=name, thresholds=thresholds)
     if len(comps) > 1:
-        table += "\n" + "\n".join(f"Minimum detectable mass, {label}: 50 %: {_det(c, 0.5)}; 90 %: {_det(c, 0.9)}"
-                                  for label, c in first.items()) + "\n"
-    table += f"\n{limits.morphology_note()}\n"  # the morphologies assumed and the price of robustness
-    files.append(_write_text(out_dir / "table3.md", table))
-    files.append(_write_text(out_dir / "table3.csv", table_csv(limits, comps[0] if len(comps) == 1 else None,
-                                                                 name=name, thresholds=thresholds)))
+        table3.meta["notes"] = list(table3.meta["notes"]) + [
+            f"Minimum detectable mass, {label}: 50 %: {_det(c, 0.5)}; 90 %: {_det(c, 0.9)}" for label, c in first.items()]
+    table = markdown_table(table3)
+    files += write_table(table3, out_dir / "table3")
     several = len(limits.families) > 1  # then the first line is the limit that holds for every family
     files.append(_write_text(out_dir / "limits_summary.txt",
                              "\n".join(([limits.summary()] if several else [])

@@ -5,7 +5,7 @@ import pytest
 from scipy.stats import norm
 
 from spiralbayes.inference.limits.exclusion import ExclusionLimits, amplitude_upper_limit, compute_limits, z_score
-from spiralbayes.inference.limits.table3 import limits_table, table_csv, table_markdown
+from spiralbayes.inference.limits.table3 import build_table3, limits_table, table_markdown, write_table
 from spiralbayes.inference.scan.run import ScanResult
 from spiralbayes.units import mth_to_mjup
 from tests._support import limits_setup
@@ -120,8 +120,16 @@ def test_table3_names_the_family_and_ranges(tmp_path):
     three = [r for r in rows if r["mass_mth"] == 3.0]
     assert three[0]["r_min_au"] == pytest.approx(28.0) and three[0]["r_max_au"] == pytest.approx(56.0)
     assert three[0]["m_min_mjup"] == pytest.approx(mth_to_mjup(3.0, 0.2, 0.8, distance=140.0))
-    csv_text = table_csv(limits, name="synthetic")
-    assert csv_text.splitlines()[0].startswith("disc,family,hands,cl,method,mass_mth")
+    table = build_table3(limits, name="synthetic")
+    assert table.colnames == ["disc", "families", "morphologies", "price_of_robustness", "excluded_ge3Mth",
+                              "excluded_ge1Mth"]
+    assert table["excluded_ge3Mth"][0].startswith("28-56 au (") and table["morphologies"][0] == "compromise"
+    ecsv, md = write_table(table, tmp_path / "table3")
+    from astropy.table import Table
+
+    back = Table.read(ecsv, format="ascii.ecsv")
+    assert list(back["excluded_ge3Mth"]) == list(table["excluded_ge3Mth"]) and back.meta["caption"] in text
+    assert md.read_text() == text
     assert "family tau0=0.3, beta=10, h_p=0.07" in limits.summary()
     path = limits.save(tmp_path / "limits.h5")
     loaded = ExclusionLimits.load(path)

@@ -2,7 +2,8 @@
 
 * :mod:`.exclusion` — :func:`compute_limits`, the limiting mass M_lim(r_p); :mod:`.settings` — its options;
 * :mod:`.families` — templates grouped by everything but mass and hand;
-* :mod:`.table3` — the paper's Table 3 from computed limits;
+* :mod:`.table3` — the paper's Table 3 from computed limits (astropy Table, ECSV and Markdown);
+* :mod:`.wording` — thresholds, r_p ranges and sentences as every output spells them;
 * :mod:`.injection` — injected planets' Δχ² without re-scanning;
 * :mod:`.recovery` — detection completeness by injection–recovery, M_det;
 * :mod:`.forecasting` — expected Δχ², detection probability and time on source for a set-up.
@@ -11,7 +12,18 @@
 
 from .families import Family, select_family, template_families
 from .settings import LimitSettings
-from .table3 import describe_family_limits, limits_table, runs, table_csv, table_markdown
+from .table3 import (
+    build_table3,
+    describe_family_limits,
+    families_text,
+    limits_table,
+    markdown_table,
+    morphologies,
+    price_text,
+    table_markdown,
+    write_table,
+)
+from .wording import THRESHOLDS, format_range, format_ranges, guard_sentences, runs
 from .exclusion import (
     ExclusionLimits,
     amplitude_upper_limit,
@@ -68,9 +80,11 @@ __all__ = [
     "LimitSettings",
     "amplitude_upper_limit",
     "ASYMMETRY_THRESHOLD",
+    "THRESHOLDS",
     "asymmetry_bands",
     "planet_radii",
     "bright_extent",
+    "build_table3",
     "brute_force_injection",
     "compare_setups",
     "completeness",
@@ -78,6 +92,10 @@ __all__ = [
     "compute_limits",
     "data_resolution",
     "describe_family_limits",
+    "families_text",
+    "format_range",
+    "format_ranges",
+    "guard_sentences",
     "detectable_mass",
     "forecast",
     "format_minutes",
@@ -85,11 +103,14 @@ __all__ = [
     "injection_engine",
     "injection_plan",
     "limits_table",
+    "markdown_table",
+    "morphologies",
+    "price_text",
     "runs",
     "select_family",
     "setup_for_time",
-    "table_csv",
     "table_markdown",
     "template_families",
+    "write_table",
     "z_score",
 ]

@@ -178,20 +178,10 @@ def near_planet_mask(r_p, planets, beam: float) -> np.ndarray:
     return np.any(np.abs(r_p[:, None] - planets[None, :]) <= beam * (1 + 1e-9), axis=1)
 
 
-def _range_text_over(limits, lo: float, hi: float, mass: float) -> str:
-    """``"a-b au (m1-m2 M_Jup)"``; the M_Jup span covers every family's own ``h_p``."""
-    if not limits.distance:
-        return f"{lo:.3f} arcsec" if lo == hi else f"{lo:.3f}-{hi:.3f} arcsec"
-    a, b = f"{lo * limits.distance:.0f}", f"{hi * limits.distance:.0f}"
-    masses = np.concatenate([limits.to_mjup(mass, np.array([lo, hi]), family=f) for f in limits.families])
-    m_lo, m_hi = f"{np.min(masses):.2g}", f"{np.max(masses):.2g}"
-    return (f"{a} au" if a == b else f"{a}-{b} au") + (f" ({m_lo} M_Jup)" if m_lo == m_hi else f" ({m_lo}-{m_hi} M_Jup)")
-
-
 def describe_over_families(limits) -> str:
     """Sentences for :meth:`.ExclusionLimits.summary` without ``family=``: the robust limit over every
     family, the set named, and the price of robustness where variants exist."""
-    from .table3 import THRESHOLDS, guard_sentences, runs
+    from .wording import THRESHOLDS, format_ranges, guard_sentences, runs
 
     fams = list(limits.families)
     m_lim, status = combined_m_lim(limits, fams)
@@ -199,7 +189,7 @@ def describe_over_families(limits) -> str:
            "where every family rules it out.", morphology_note(limits)]
     for mass in THRESHOLDS:
         ok = np.isin(status, _LIMITED) & (np.nan_to_num(m_lim, nan=np.inf) <= mass * (1 + 1e-9))
-        where = "; ".join(_range_text_over(limits, lo, hi, mass) for lo, hi in runs(limits.r_p, ok)) or "no radius"
+        where = format_ranges(limits, runs(limits.r_p, ok), mass, empty="no radius")
         out.append(f"Planets of >= {mass:g} M_th are ruled out at {limits.cl:.0%} confidence at {where}.")
     groups = [g for g in variant_groups(fams) if len(g["members"]) > 1]
     for group in groups if len(fams) <= _LISTED_FAMILIES else []:  # else the overall price above says it

@@ -2,34 +2,71 @@
 
 Stevenson et al. (2024, Table 3) list, per Taurus disc, the orbital radii at which planets of at
 least 3 M_th and at least 1 M_th would have been detected had they been there, with the
-corresponding Jupiter masses. :func:`limits_table` gives the same from an
-:class:`~spiralbayes.inference.limits.ExclusionLimits` (and, optionally, the minimum detectable
-mass from a :class:`~spiralbayes.inference.completeness.CompletenessResult`), one row per template
-family — the limit is only as good as the family it assumes, so every row names it.
+corresponding Jupiter masses. :func:`build_table3` gives the same from an
+:class:`~spiralbayes.inference.limits.ExclusionLimits` as an astropy Table (and, optionally, the
+minimum detectable mass from a :class:`~spiralbayes.inference.completeness.CompletenessResult`):
+on a scan of several families first the row that holds for every family (:mod:`.robust`), then
+one row per family. The limit is only as good as the templates it assumes, so every row names
+its family, the morphologies (template variants) it covers and, over several morphologies, the
+price of robustness. :func:`write_table` writes any such table as ECSV and Markdown — the one
+writer of ``spiralbayes limits``' ``table3`` and of the survey's table — and :func:`format_range`
+is the one spelling of an r_p range (``"28-56 au (2.3-2.5 M_Jup)"``).
 """
 
 from __future__ import annotations
 
-import csv
-import io
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["describe_family_limits", "limits_table", "runs", "table_csv", "table_markdown"]
+__all__ = ["build_table3", "describe_family_limits", "families_text", "limits_table", "markdown_table", "morphologies",
+           "price_text", "table_markdown", "write_table"]
 
-THRESHOLDS = (3.0, 1.0)
+from .wording import THRESHOLDS, _family_list, _span, format_range, format_ranges, guard_sentences, runs
 
 
-def _range_text(limits, lo: float, hi: float, mass: float | None, family=None) -> str:
-    if limits.distance:
-        a, b, unit = f"{lo * limits.distance:.0f}", f"{hi * limits.distance:.0f}", "au"
-    else:
-        a, b, unit = f"{lo:.3f}", f"{hi:.3f}", "arcsec"
-    text = f"{a} {unit}" if a == b else f"{a}-{b} {unit}"
-    if mass is not None and limits.distance:
-        m_lo, m_hi = (f"{m:.2g}" for m in limits.to_mjup(mass, np.array([lo, hi]), family=family))
-        text += f" ({m_lo} M_Jup)" if m_lo == m_hi else f" ({m_lo}-{m_hi} M_Jup)"
-    return text
+def morphologies(limits, families=None) -> list[str]:
+    """The morphology variants a set of families covers (a family without one is the compromise wake)."""
+    named = getattr(limits, "morphologies", None) if families is None else None
+    named = named() if callable(named) else named
+    if named:
+        return list(named)
+    from .robust import SINGLE_VARIANT
+
+    out = []
+    for fam in _family_list(limits, families):
+        variant = str(fam.key.get("variant") or SINGLE_VARIANT)
+        if variant not in out:
+            out.append(variant)
+    return out
+
+
+def families_text(limits) -> str:
+    """The template families a limit over all of them assumes, in a few words: the one family's label, or
+    ``"all 24 families (each must rule it out): tau0 0.3, 3; beta 0, 10; h_p 0.05, 0.07, 0.1"``."""
+    fams = list(limits.families)
+    if len(fams) == 1:
+        return fams[0].label
+    values = {}
+    for fam in fams:
+        for key in ("tau0", "beta", "h_p"):
+            if fam.key.get(key) is not None and fam.key[key] not in values.setdefault(key, []):
+                values[key].append(fam.key[key])
+    spelled = "; ".join(f"{k} " + ", ".join(f"{v:g}" for v in sorted(vs)) for k, vs in values.items() if vs)
+    return f"all {len(fams)} families (each must rule it out): {spelled}"
+
+
+def price_text(limits) -> str:
+    """The price of robustness, ``M_lim(robust) / M_lim(compromise)``, over every variant group and radius:
+    ``"1.2-3.4"``; ``"1"`` for a single morphology; ``"undefined"`` where no variant sets a limit."""
+    from .robust import price_of_robustness, variant_groups
+
+    groups = [g for g in variant_groups(limits.families) if len(g["members"]) > 1]
+    if not groups:
+        return "1"
+    price = np.concatenate([np.ravel(price_of_robustness(limits, g)) for g in groups])
+    ok = np.isfinite(price)
+    return _span(np.min(price[ok]), np.max(price[ok])) if ok.any() else "undefined"
 
 
 def limits_table(limits, completeness=None, *, name: str = "disc", thresholds=THRESHOLDS) -> list[dict]:
@@ -71,51 +108,83 @@ def _physical(limits, mass, lo, hi, family=None) -> dict:
     return out
 
 
-def table_markdown(limits, completeness=None, *, name: str = "disc", thresholds=THRESHOLDS) -> str:
-    """Table 3 as Markdown: one line per family, the excluded r_p ranges (and M_Jup) per threshold."""
-    hands = "both hands" if limits.hand == "both" else f"{limits.hand}-handed"
-    head = [f"Exclusion limits for {name}: CL = {limits.cl:.0%} one-sided, "
-            f"{'excluded at every phi_p' if limits.method == 'all_phi' else 'phi_p marginalised'}, {hands}. "
-            "Each row assumes the template family named in it; masses above the bank's largest are not tested.",
-            ""]
-    cols = ["disc", "template family"] + [f"ruled out for M >= {m:g} M_th" for m in thresholds]
-    with_det = completeness is not None
-    if with_det:
-        cols.append("M_det (50 % / 90 % completeness)")
-    head += ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for fam in limits.families:
-        cells = [name, fam.label]
+def build_table3(limits, completeness=None, *, name: str = "disc", thresholds=THRESHOLDS):
+    """Table 3 as an astropy Table: the limit over every family first (when there are several), then each family.
+
+    Columns: ``disc``, ``families`` (what the row assumes), ``morphologies`` (the template variants
+    it covers), ``price_of_robustness`` (M_lim over the morphologies / M_lim of the compromise wake;
+    the robust row only), ``excluded_ge{M}Mth`` per threshold M (the r_p ranges, :func:`format_range`)
+    and, with ``completeness``, ``m_det`` (50 % / 90 % completeness, on its family's row).
+    ``meta["caption"]`` states the confidence level, the method and the hands; ``meta["notes"]``
+    the morphologies assumed with their price of robustness, and the radii flagged rather than excluded.
+    """
+    from astropy.table import Table
+
+    fams = list(limits.families)
+    sets = ([(families_text(limits), None)] if len(fams) > 1 else []) + [(fam.label, fam) for fam in fams]
+    rows = []
+    for label, fam in sets:
+        row = {"disc": name, "families": label, "morphologies": ", ".join(morphologies(limits, fam)),
+               "price_of_robustness": price_text(limits) if fam is None or len(fams) == 1 else ""}
         for mass in thresholds:
-            ranges = limits.excluded_ranges(fam, mass)
-            cells.append("; ".join(_range_text(limits, lo, hi, mass, fam) for lo, hi in ranges) or "none")
-        if with_det:
-            cells.append(_m_det_text(limits, completeness, fam) if completeness.family.label == fam.label else "-")
-        head.append("| " + " | ".join(cells) + " |")
-    flagged = [(f, r) for f, r in zip(limits.flags, limits.r_p) if f]
-    if flagged:
-        kinds = sorted({f for f, _ in flagged})
-        head += ["", "Flagged (not excluded): " + "; ".join(
-            f"{k}: " + ", ".join(_range_text(limits, lo, hi, None) for lo, hi in _flag_runs(limits, k))
-            for k in kinds) + f" (resolution {limits.resolution:.3f} arcsec, bright extent "
-            f"{limits.bright_radius:.3f} arcsec)."]
-    return "\n".join(head) + "\n"
+            row[f"excluded_ge{mass:g}Mth"] = format_ranges(limits, limits.excluded_ranges(fam, mass), mass, fam)
+        if completeness is not None:
+            same = fam is not None and completeness.family.label == fam.label
+            row["m_det"] = _m_det_text(limits, completeness, fam) if same else "-"
+        rows.append(row)
+    hands = "both hands" if limits.hand == "both" else f"{limits.hand}-handed"
+    caption = (f"Exclusion limits for {name}: CL = {limits.cl:.0%} one-sided, "
+               f"{'excluded at every phi_p' if limits.method == 'all_phi' else 'phi_p marginalised'}, {hands}. "
+               "Each row assumes the template families and morphologies named in it; masses above the bank's "
+               "largest are not tested.")
+    return Table(rows=rows, names=list(rows[0]), meta={"caption": caption,
+                                                       "notes": [limits.morphology_note(), *_flag_notes(limits)]})
+
+
+def _flag_notes(limits) -> list[str]:
+    flagged = sorted({f for f in limits.flags if f})
+    if not flagged:
+        return []
+    return ["Flagged (not excluded): " + "; ".join(
+        f"{k}: " + ", ".join(format_range(limits, lo, hi) for lo, hi in _flag_runs(limits, k)) for k in flagged)
+        + f" (resolution {limits.resolution:.3f} arcsec, bright extent {limits.bright_radius:.3f} arcsec)."]
+
+
+def _cell(value) -> str:
+    if isinstance(value, (float, np.floating)):
+        return "" if not np.isfinite(value) else f"{value:.4g}"
+    return str(value)
+
+
+def markdown_table(table) -> str:
+    """An astropy Table as Markdown: ``meta["caption"]`` above, ``meta["notes"]`` below, numbers to 4 digits."""
+    lines = [table.meta["caption"], ""] if table.meta.get("caption") else []
+    lines += ["| " + " | ".join(table.colnames) + " |", "|" + "---|" * len(table.colnames)]
+    lines += ["| " + " | ".join(_cell(row[c]) for c in table.colnames) + " |" for row in table]
+    notes = list(table.meta.get("notes") or [])
+    return "\n".join(lines + ([""] + notes if notes else [])) + "\n"
+
+
+def table_markdown(limits, completeness=None, *, name: str = "disc", thresholds=THRESHOLDS) -> str:
+    """:func:`build_table3` as Markdown (:func:`markdown_table`)."""
+    return markdown_table(build_table3(limits, completeness, name=name, thresholds=thresholds))
+
+
+def write_table(table, stem) -> list[Path]:
+    """``<stem>.ecsv`` and ``<stem>.md`` of an astropy Table (:func:`markdown_table`), each written atomically."""
+    from ..._provenance import atomic_path
+
+    stem = Path(stem)
+    ecsv, md = stem.with_name(stem.name + ".ecsv"), stem.with_name(stem.name + ".md")
+    with atomic_path(ecsv) as tmp:
+        table.write(tmp, format="ascii.ecsv", overwrite=True)
+    with atomic_path(md) as tmp:
+        tmp.write_text(markdown_table(table))
+    return [ecsv, md]
 
 
 def _flag_runs(limits, kind):
     return runs(limits.r_p, limits.flags == kind)
-
-
-def runs(r_p, mask) -> list[tuple[float, float]]:
-    """``(first, last)`` r_p of each run of True in ``mask``."""
-    out, start = [], None
-    for i, flag in enumerate(mask):
-        if flag and start is None:
-            start = i
-        if start is not None and (not flag or i == len(mask) - 1):
-            end = i if flag else i - 1
-            out.append((float(r_p[start]), float(r_p[end])))
-            start = None
-    return out
 
 
 def _m_det_text(limits, completeness, family=None) -> str:
@@ -134,25 +203,6 @@ def _m_det_text(limits, completeness, family=None) -> str:
     return " / ".join(parts)
 
 
-def _span(lo: float, hi: float) -> str:
-    a, b = f"{lo:.2g}", f"{hi:.2g}"
-    return a if a == b else f"{a}-{b}"
-
-
-def table_csv(limits, completeness=None, *, name: str = "disc", thresholds=THRESHOLDS) -> str:
-    """The rows of :func:`limits_table` as CSV text."""
-    rows = limits_table(limits, completeness, name=name, thresholds=thresholds)
-    keys = []
-    for row in rows:
-        keys += [k for k in row if k not in keys]
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=keys, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: ("" if isinstance(v, float) and not np.isfinite(v) else v) for k, v in row.items()})
-    return buffer.getvalue()
-
-
 def describe_family_limits(limits, family=None) -> str:
     """Sentences: the r_p ranges where planets of at least 3 and 1 M_th are ruled out, and the radii
     not reported because of a detection (:func:`guard_sentences`)."""
@@ -160,23 +210,7 @@ def describe_family_limits(limits, family=None) -> str:
     out = []
     for mass in THRESHOLDS:
         ranges = limits.excluded_ranges(fam, mass)
-        where = "; ".join(_range_text(limits, lo, hi, mass, fam) for lo, hi in ranges) or "no radius"
+        where = format_ranges(limits, ranges, mass, fam, empty="no radius")
         out.append(f"Planets of >= {mass:g} M_th (template family {fam.label}) are ruled out at "
                    f"{limits.cl:.0%} confidence at {where}.")
     return " ".join(out + guard_sentences(limits))
-
-
-def guard_sentences(limits) -> list[str]:
-    """Why radii near a detected planet or a significant non-spiral asymmetry are not reported
-    (``compute_limits(planets=...)``; empty without them)."""
-    out = []
-    prov = limits.provenance or {}
-    if prov.get("near_planets"):
-        out.append("Radii within one beam of the planet(s) at " + ", ".join(f"{r:.3g}" for r in prov["near_planets"])
-                   + " arcsec are not reported as excluded (the planet is not in the model).")
-    if prov.get("near_asymmetries"):
-        out.append("Radii within one beam of significant non-spiral asymmetries ("
-                   + "; ".join(f"{b['model']} at {b['r_min']:.3g}-{b['r_max']:.3g} arcsec, Delta BIC {b['delta_bic']:.0f}"
-                               for b in prov["near_asymmetries"])
-                   + ") are not reported as excluded (no template stands for them).")
-    return out

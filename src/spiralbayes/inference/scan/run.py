@@ -602,25 +602,21 @@ def _run_serial(context, units, result, checkpoint, progress, scheduler=None) ->
 
 def _run_dask(context, units, result, checkpoint, progress, scheduler) -> None:
     try:
-        from dask.distributed import Client, LocalCluster, as_completed
+        from dask.distributed import as_completed
     except ImportError:
         log.warning("dask.distributed is not installed: scanning serially (pip install 'dask[distributed]')")
         _run_serial(context, units, result, checkpoint, progress)
         return
 
-    own, client = None, scheduler
-    if isinstance(scheduler, str):
-        if scheduler == "local":
-            own = Client(LocalCluster(processes=True, threads_per_worker=1))
-        else:
-            own = Client(scheduler)
-        client = own
-    try:
-        shared = client.scatter(context, broadcast=True)
-        futures = [client.submit(run_unit, shared, unit, pure=False) for unit in units]
+    from ...cluster import open_scheduler
+
+    # the engine closes what it started (client, cluster, worker processes) and never a client passed in
+    with open_scheduler(scheduler, default="serial") as engine:
+        if engine is None:
+            _run_serial(context, units, result, checkpoint, progress)
+            return
+        shared = engine.scatter(context, broadcast=True)
+        futures = [engine.submit(run_unit, shared, unit, pure=False) for unit in units]
         with _progress(_todo_rows(result, units), progress) as bar:
             for future in as_completed(futures):
                 bar.update(_store_unit(result, future.result(), checkpoint))
-    finally:
-        if own is not None:
-            own.close()

@@ -2,7 +2,9 @@
 
 Each stage writes what the single-disc command writes, in the disc's ``[output] dir``, and a
 marker ``survey_stage_<stage>.json`` holding its resume key (a hash of the configuration sections
-it depends on and of the data). A stage whose marker matches is skipped on a rerun. The scan is
+it depends on and of the data) and the files it wrote (:mod:`.files`). A stage whose marker
+matches is skipped on a rerun; one whose key changed runs again and replaces its earlier outputs,
+never a file the survey did not write. The scan is
 split into template chunks: :func:`stage_scan_setup` builds the :class:`ScanContext` once (the
 uv grids; workers fetch it once from the worker that built it), resumes from
 ``scan_checkpoint.h5`` and from the chunks already written to ``survey_parts/``, and every
@@ -23,9 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._provenance import content_hash, data_hash, to_json
-from ..config import describe_config
-from ..exceptions import SpiralbayesError
+from ..._provenance import content_hash, data_hash
+from ...config import describe_config
+from ...exceptions import ResumeMismatchError, SpiralbayesError
+from .files import begin, check_folder, claim, clear, done, mark, superseded, write_text
 
 __all__ = ["StageError", "stage_alternatives", "stage_bank", "stage_detect", "stage_frank", "stage_limits",
            "stage_posterior", "stage_prepare", "stage_row", "stage_scan_chunk", "stage_scan_setup",
@@ -34,6 +37,12 @@ __all__ = ["StageError", "stage_alternatives", "stage_bank", "stage_detect", "st
 log = logging.getLogger(__name__)
 
 SCAN_SECTIONS = ("data", "geometry", "frank", "templates", "grid", "scan", "alternatives")
+SCAN_OUTPUTS = ("scan.h5", "verdict.json", "verdict.txt", "scan_checkpoint.h5", "config_used.toml",
+                "alternatives.h5", "alternatives.txt")
+"""Files of the scan stage that a rerun with other inputs replaces (checked to be the survey's own first)."""
+LIMITS_OUTPUTS = ("limits.h5", "table3.md", "table3.ecsv", "table3.csv", "limits_summary.txt",
+                  "config_used_limits.toml")
+"""Files of the limits stage that a rerun with other inputs replaces."""
 
 
 class StageError(SpiralbayesError, RuntimeError):
@@ -59,29 +68,6 @@ def _staged(name: str):
     return wrap
 
 
-# --- markers ---------------------------------------------------------------------------------------
-def _marker(out_dir: Path, stage: str) -> Path:
-    return Path(out_dir) / f"survey_stage_{stage}.json"
-
-
-def done(out_dir: Path, stage: str, key: str, *needed: str) -> dict | None:
-    """The marker's info when ``stage`` finished with ``key`` and its files are there, else None."""
-    path = _marker(out_dir, stage)
-    if not path.exists() or not all((Path(out_dir) / f).exists() for f in needed):
-        return None
-    try:
-        record = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return record.get("info", {}) if record.get("key") == key else None
-
-
-def mark(out_dir: Path, stage: str, key: str, info: dict | None = None) -> None:
-    from .outputs import _write_text
-
-    _write_text(_marker(out_dir, stage), to_json({"stage": stage, "key": key, "info": info or {}}, indent=1))
-
-
 @dataclass
 class Prepared:
     """The disc's data on a worker, with its content hash and the stage keys that depend on it."""
@@ -100,18 +86,32 @@ class ScanSetup:
     todo: list
     finished: bool
     key: str
+    since: dict | None = None
+
+
+def _replaced(job, stage: str, names: list[str]) -> None:
+    if names:
+        log.info("disc %s: %s inputs changed; replacing the survey's earlier %s", job.name, stage, ", ".join(names))
+
+
+def geometry_error_significant(alternatives) -> bool:
+    """Whether test 3's geometry-error model beats the axisymmetric one by more than the Delta BIC threshold."""
+    from ...inference.detection.verdict import DELTA_BIC_THRESHOLD
+
+    return "geometry" in alternatives.fits and alternatives.delta_bic()["geometry"] > DELTA_BIC_THRESHOLD
 
 
 # --- stages ----------------------------------------------------------------------------------------
 @_staged("bank")
 def stage_bank(bank: dict, path: str) -> str:
     """Build the survey's template bank (both hands of every listed template) at ``path``, once."""
-    from ..templates import TemplateBank, make_template
+    from ...templates import TemplateBank, make_template
 
     path = Path(path)
     key = content_hash(bank)
     if done(path.parent, "bank", key, path.name) is not None:
         return str(path)
+    claim(path.parent, [path.name])
     templates = []
     for h_p in bank["h_p"]:
         for tau0 in bank["tau0"]:
@@ -120,14 +120,14 @@ def stage_bank(bank: dict, path: str) -> str:
                     right = make_template(mass, tau0, beta, "R", h_p=h_p, wavelength=bank["wavelength"])
                     templates += [right, right.mirror()]
     TemplateBank(templates, provenance={"survey_bank": bank}).save(path)
-    mark(path.parent, "bank", key)
+    mark(path.parent, "bank", key, written=[path.name])
     return str(path)
 
 
 @_staged("templates")
 def stage_templates(templates_section: dict, bank_path: str | None = None) -> list:
     """The templates of a ``[templates]`` section (``bank_path`` only orders this after the bank)."""
-    from .inputs import load_templates
+    from ..inputs import load_templates
 
     return load_templates(templates_section)
 
@@ -135,11 +135,12 @@ def stage_templates(templates_section: dict, bank_path: str | None = None) -> li
 @_staged("load")
 def stage_prepare(job) -> Prepared:
     """Simulate the disc's data if missing and asked for, then load it as ``spiralbayes scan`` does."""
-    from .inputs import load_data
+    from ..inputs import load_data
 
+    check_folder(job.out_dir)
     path = Path(job.config["data"]["path"])
     if not path.exists() and job.simulate is not None:
-        from .survey_demo import simulate_disc
+        from .demo import simulate_disc
 
         simulate_disc(job, path)
     vis = load_data(job.config["data"])
@@ -150,21 +151,24 @@ def stage_prepare(job) -> Prepared:
 @_staged("frank")
 def stage_frank(job, prep: Prepared):
     """The axisymmetric model: ``axisymmetric.h5`` when the frank stage finished, else a frank fit."""
-    from ..axisymmetric import AxisymmetricModel
-    from .inputs import load_axisymmetric
+    from ...axisymmetric import AxisymmetricModel
+    from ..inputs import load_axisymmetric
 
     out = job.out_dir
     key = job.key("data", "geometry", "frank", extra=prep.data_key, bank=False)
     if done(out, "frank", key, "axisymmetric.h5") is not None:
         return AxisymmetricModel.load(out / "axisymmetric.h5")
+    replaced = claim(out, ["axisymmetric.h5"])
+    since = begin(out, "frank", key)
     axisym = load_axisymmetric(job.config, prep.vis, progress=False)
     axisym.save(out / "axisymmetric.h5")
-    mark(out, "frank", key)
+    _replaced(job, "frank", replaced)
+    mark(out, "frank", key, {"replaced": replaced} if replaced else None, since=since)
     return axisym
 
 
 def _grid(config: dict, axisym):
-    from .scan_command import scan_settings
+    from ..scan_command import scan_settings
 
     settings = scan_settings(config)
     return settings.planet_radii(axisym), settings.n_phi_p
@@ -173,14 +177,16 @@ def _grid(config: dict, axisym):
 @_staged("scan")
 def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     """The scan's context and partly filled result (resumed from the checkpoint and saved chunks)."""
-    from ..inference.scan.run import ScanResult, empty_result, resume_from_checkpoint, warn_beyond_rmax, resume_key
-    from ..inference.scan.accuracy import check_terms
-    from ..inference.scan.engine import ScanContext
-    from .scan_command import scan_settings
+    from ...inference.scan.run import ScanResult, empty_result, resume_from_checkpoint, warn_beyond_rmax, resume_key
+    from ...inference.scan.accuracy import check_terms
+    from ...inference.scan.engine import ScanContext
+    from ..scan_command import scan_settings
 
     out = job.out_dir
     if done(out, "scan", prep.scan_key, "scan.h5", "verdict.json") is not None:
         return ScanSetup(None, ScanResult.load(out / "scan.h5"), [], True, prep.scan_key)
+    replaced = claim(out, SCAN_OUTPUTS)
+    since = begin(out, "scan", prep.scan_key)
     s = job.config["scan"]
     r_p, n_phi_p = _grid(job.config, axisym)
     settings = scan_settings(job.config)
@@ -192,7 +198,10 @@ def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     result.provenance["resume_key"] = rkey = resume_key(prep.vis, axisym, templates, context)
     checkpoint = out / "scan_checkpoint.h5"
     if s["checkpoint"] and checkpoint.exists():
-        result = resume_from_checkpoint(checkpoint, result)
+        try:
+            result = resume_from_checkpoint(checkpoint, result)
+        except ResumeMismatchError:  # the inputs changed since the survey wrote it: scan again
+            checkpoint.unlink()
     part_key = content_hash(rkey)
     for i in range(len(templates)):
         if not result.completed[i]:
@@ -203,7 +212,8 @@ def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     if todo and settings.quadrature == "product":
         context.algorithm_error = check_terms(context, templates[0])
         result.provenance["power_check"] = context.algorithm_error
-    return ScanSetup(context, result, todo, False, part_key)
+    _replaced(job, "scan", replaced)
+    return ScanSetup(context, result, todo, False, part_key, since)
 
 
 def _part_path(out: Path, index: int) -> Path:
@@ -211,7 +221,7 @@ def _part_path(out: Path, index: int) -> Path:
 
 
 def _load_part(out: Path, index: int, key: str):
-    from ..inference.scan.engine import TemplateTerms
+    from ...inference.scan.engine import TemplateTerms
 
     path = _part_path(out, index)
     if not path.exists():
@@ -226,7 +236,7 @@ def _load_part(out: Path, index: int, key: str):
 
 
 def _store_terms(result, index: int, terms) -> None:
-    from ..inference.scan.run import store_template_terms
+    from ...inference.scan.run import store_template_terms
 
     store_template_terms(result, index, terms, None)
 
@@ -234,8 +244,8 @@ def _store_terms(result, index: int, terms) -> None:
 @_staged("scan")
 def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
     """The terms of templates ``indices`` still to do; each saved to ``survey_parts/`` when computed."""
-    from .._provenance import atomic_path
-    from ..inference.scan.engine import scan_template
+    from ..._provenance import atomic_path
+    from ...inference.scan.engine import scan_template
 
     out = {}
     for i in indices:
@@ -253,8 +263,8 @@ def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
 
 
 def _alt_kwargs(config: dict) -> dict:
-    from ..inference.detection.settings import AlternativesSettings
-    from ..settings import from_config
+    from ...inference.detection.settings import AlternativesSettings
+    from ...settings import from_config
 
     settings = from_config(AlternativesSettings, config["alternatives"], nthreads=config["scan"]["nthreads"])
     return {"settings": settings, "progress": False}
@@ -263,7 +273,7 @@ def _alt_kwargs(config: dict) -> dict:
 @_staged("alternatives")
 def stage_alternatives(job, prep: Prepared, axisym, setup: ScanSetup):
     """Test 3's competing asymmetry models (None when switched off or the scan stage is done)."""
-    from ..inference.detection.alternatives import fit_alternatives
+    from ...inference.detection.alternatives import fit_alternatives
 
     if setup.finished or not job.config["alternatives"]["fit"]:
         return None
@@ -275,11 +285,11 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
     """Assemble the scan, decide (tests 1-3), write the scan's outputs as ``spiralbayes scan`` does."""
     if setup.finished:
         return json.loads((job.out_dir / "verdict.json").read_text())
-    from ..inference.detection.follow_up import rescan_at_fitted_geometry
-    from ..inference.detection.planet_peak import detect_with_planet_peak
-    from ..inference.scan.accuracy import warn_if_inaccurate
-    from .outputs import _write_text, write_scan_outputs
-    from .scan_command import _geometry_error_significant, scan_settings
+    from ...inference.detection.follow_up import rescan_at_fitted_geometry
+    from ...inference.detection.planet_peak import detect_with_planet_peak
+    from ...inference.scan.accuracy import warn_if_inaccurate
+    from ..outputs import write_scan_outputs
+    from ..scan_command import scan_settings
 
     config, out = job.config, job.out_dir
     result = setup.result
@@ -300,9 +310,9 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
     write_scan_outputs(result, verdict, out, plots, amplitude, alternatives=alts, vis=prep.vis, axisymmetric=axisym,
                        templates=templates)
     axisym.save(out / "axisymmetric.h5")
-    _write_text(out / "config_used.toml", describe_config(config))
+    write_text(out / "config_used.toml", describe_config(config))
     info = {}
-    if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
+    if alts is not None and a["refit_geometry"] and geometry_error_significant(alts) and not verdict.detected:
         follow = rescan_at_fitted_geometry(prep.vis, axisym, templates, alts, settings=scan_settings(config),
                                            scan_result=result, progress=False, alternative_kwargs=_alt_kwargs(config),
                                            detect_kwargs=detect_kwargs)
@@ -311,7 +321,7 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
                            vis=prep.vis, axisymmetric=follow.axisymmetric, templates=templates)
         follow.axisymmetric.save(sub / "axisymmetric.h5")
         info["refit_detected"] = bool(follow.verdict.detected)
-    mark(out, "scan", prep.scan_key, info)
+    mark(out, "scan", prep.scan_key, info, since=setup.since)
     shutil.rmtree(out / "survey_parts", ignore_errors=True)
     return verdict.to_dict()
 
@@ -319,19 +329,21 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
 @_staged("limits")
 def stage_limits(job, prep: Prepared, axisym, templates, verdict: dict) -> str:
     """Exclusion limits and Table 3 of the disc, as ``spiralbayes limits`` writes them."""
-    from ..inference.scan import ScanResult
-    from .outputs import _write_text
-    from .limits import run_limits
+    from ...inference.scan import ScanResult
+    from ..limits import run_limits
 
     config, out = job.config, job.out_dir
     key = content_hash(prep.scan_key, config["limits"], config["output"])
     if done(out, "limits", key, "limits.h5", "table3.md") is None:
+        replaced = claim(out, LIMITS_OUTPUTS)
+        since = begin(out, "limits", key)
         result = ScanResult.load(out / "scan.h5")
-        _write_text(out / "config_used_limits.toml", describe_config(config))
+        write_text(out / "config_used_limits.toml", describe_config(config))
         run_limits(prep.vis, axisym, templates, result, out, limits_config=config["limits"],
                    name=config["limits"]["name"], distance=config["geometry"]["distance"], progress=False,
                    plots=config["output"]["plots"], verdict=verdict)
-        mark(out, "limits", key)
+        _replaced(job, "limits", replaced)
+        mark(out, "limits", key, {"replaced": replaced} if replaced else None, since=since)
     return str(out / "limits.h5")
 
 
@@ -343,7 +355,7 @@ def wants_posterior(mode: str, verdict: dict) -> bool:
 @_staged("posterior")
 def stage_posterior(job, prep: Prepared, verdict: dict, mode: str, steps: int) -> dict | None:
     """The posterior (``spiralbayes sample``) of a disc the policy selects, with the candidate's template."""
-    from .sample_command import run_sample_config
+    from ..sample_command import run_sample_config
 
     if not wants_posterior(mode, verdict):
         return None
@@ -358,15 +370,20 @@ def stage_posterior(job, prep: Prepared, verdict: dict, mode: str, steps: int) -
     key = content_hash(prep.scan_key, sample, config["priors"])
     info = done(out, "posterior", key, f"{sample['run_name']}_summary.json")
     if info is None:
+        replaced = claim(out, [f"{sample['run_name']}_summary.json", f"{sample['run_name']}_posterior.h5"])
+        if superseded(out, "posterior", key):  # chains of other inputs: sampled afresh, not resumed
+            replaced += clear(out, "chains")
+        since = begin(out, "posterior", key)
         post = run_sample_config(config, progress=False)
         info = {"p_planet": float(post.p_planet), "verdict": str(post.verdict)}
-        mark(out, "posterior", key, info)
+        _replaced(job, "posterior", replaced)
+        mark(out, "posterior", key, {**info, "replaced": replaced} if replaced else info, since=since)
     return info
 
 
 @_staged("row")
 def stage_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> dict:
     """The disc's survey-table row, read back from its files (so a resumed run gives the same row)."""
-    from .survey_table import disc_row
+    from .table import disc_row
 
     return disc_row(job, json.loads((job.out_dir / "verdict.json").read_text()), limits_path, posterior)

@@ -2,14 +2,17 @@
 
 Columns (``COLUMNS``): ``disc``; ``R_eff95_arcsec`` and ``R_eff95_au`` (radius holding 95 %
 of the frank profile's flux); for each mass threshold M of ``[limits] thresholds`` (the paper's
-3 and 1 M_th) ``excl_ge{M}Mth_au`` (orbital radii [au] where planets of at least M thermal masses
-are ruled out at ``[limits] cl``) and ``excl_ge{M}Mth_MJup`` (the Jupiter masses M corresponds to
-at the ends of those ranges); ``verdict`` (detected / candidate / not detected);
-``best_candidate``; ``delta_bic`` (of the best spiral against the axisymmetric model);
-``test1`` ... ``test3``; ``test3_alternative``; ``family`` (the template family the limits
-assume); ``p_planet`` (the posterior's P(planet | data), when run); ``status`` (ok / failed) and
-``error`` (the failed stage's one-line error). The table holds no timings, so a resumed survey
-writes the same bytes as an uninterrupted one.
+3 and 1 M_th) ``excluded_geMMth`` (orbital radii where planets of at least M thermal masses are
+ruled out at ``[limits] cl`` by every template family of the disc, with the Jupiter masses M
+corresponds to at the ends, as :func:`~spiralbayes.inference.limits.table3.format_range` writes
+them in ``table3``); ``verdict`` (detected / candidate / not detected); ``best_candidate``;
+``delta_bic`` (of the best spiral against the axisymmetric model); ``test1`` ... ``test3``;
+``test3_alternative``; ``family`` (the template families the limits assume); ``morphologies``
+(the template variants they cover); ``price_of_robustness`` (M_lim over the morphologies / M_lim
+of the compromise wake); ``p_planet`` (the posterior's P(planet | data), when run); ``status``
+(ok / failed) and ``error`` (the failed stage's one-line error). The table holds no timings, so a
+resumed survey writes the same bytes as an uninterrupted one. It is written by the writer of
+``spiralbayes limits``' Table 3 (:func:`~spiralbayes.inference.limits.table3.write_table`).
 """
 
 from __future__ import annotations
@@ -20,8 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._provenance import atomic_path
-from .outputs import _write_text, save_figure
+from ..._provenance import atomic_path
+from ...inference.limits.table3 import families_text, format_ranges, morphologies, price_text
+from ...inference.limits.table3 import write_table as write_ecsv_and_markdown
+from ..outputs import save_figure
 
 __all__ = ["disc_row", "failed_row", "survey_table", "write_figures", "write_table"]
 
@@ -30,22 +35,6 @@ log = logging.getLogger(__name__)
 
 def _pass(flag) -> str:
     return "not run" if flag is None else ("pass" if flag else "fail")
-
-
-def _mass_key(mass: float) -> str:
-    return f"{mass:g}".replace(".", "p")
-
-
-def _ranges(limits, fam, mass: float) -> tuple[str, str]:
-    ranges = limits.excluded_ranges(fam, mass)
-    if not ranges:
-        return "none", ""
-    d = limits.distance
-    au = ", ".join(f"{lo * d:.0f}-{hi * d:.0f}" if d else f"{lo:.3f}-{hi:.3f} arcsec" for lo, hi in ranges)
-    mj = ""
-    if d:
-        mj = ", ".join("-".join(f"{m:.2g}" for m in limits.to_mjup(mass, np.array([lo, hi]))) for lo, hi in ranges)
-    return au, mj
 
 
 def _where(v: dict, c: dict | None) -> str:
@@ -57,8 +46,8 @@ def _where(v: dict, c: dict | None) -> str:
 
 def disc_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> dict:
     """One table row from the disc's ``verdict.json``, ``limits.h5`` and ``axisymmetric.h5``."""
-    from ..axisymmetric import AxisymmetricModel
-    from ..inference.limits import ExclusionLimits
+    from ...axisymmetric import AxisymmetricModel
+    from ...inference.limits import ExclusionLimits
 
     out = Path(job.out_dir)
     axisym = AxisymmetricModel.load(out / "axisymmetric.h5")
@@ -67,9 +56,7 @@ def disc_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> di
     r_eff = float(axisym.R_eff(0.95))
     row = {"disc": job.name, "R_eff95_arcsec": round(r_eff, 4), "R_eff95_au": round(r_eff * distance, 1)}
     for mass in job.config["limits"]["thresholds"]:
-        texts = [_ranges(limits, fam, mass) for fam in limits.families]
-        row[f"excl_ge{_mass_key(mass)}Mth_au"] = " / ".join(t[0] for t in texts)
-        row[f"excl_ge{_mass_key(mass)}Mth_MJup"] = " / ".join(t[1] for t in texts)
+        row[f"excluded_ge{mass:g}Mth"] = format_ranges(limits, limits.excluded_ranges(None, mass), mass)
     candidate = verdict.get("candidate")
     state = "detected" if verdict["detected"] else ("candidate" if candidate is not None else "not detected")
     row.update({
@@ -79,7 +66,9 @@ def disc_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> di
         "test1": _pass(verdict.get("test1_passed")), "test2": _pass(verdict.get("test2_passed")),
         "test3": _pass(verdict.get("test3_passed")),
         "test3_alternative": verdict.get("best_alternative_label") or "",
-        "family": " / ".join(f.label for f in limits.families),
+        "family": families_text(limits),
+        "morphologies": ", ".join(morphologies(limits)),
+        "price_of_robustness": price_text(limits),
         "p_planet": float("nan") if posterior is None else float(posterior["p_planet"]),
         "status": "ok", "error": "",
     })
@@ -93,7 +82,7 @@ def failed_row(name: str, error: str) -> dict:
 
 COLUMNS = ("disc", "R_eff95_arcsec", "R_eff95_au")
 TAIL = ("verdict", "best_candidate", "delta_bic", "test1", "test2", "test3", "test3_alternative", "family",
-        "p_planet", "status", "error")
+        "morphologies", "price_of_robustness", "p_planet", "status", "error")
 UNITS = {"R_eff95_arcsec": "arcsec", "R_eff95_au": "AU"}
 
 
@@ -103,7 +92,7 @@ def survey_table(rows: list[dict], *, name: str = "survey"):
 
     middle = []
     for row in rows:
-        middle += [k for k in row if k.startswith("excl_") and k not in middle]
+        middle += [k for k in row if k.startswith("excluded_") and k not in middle]
     names = [*COLUMNS, *middle, *TAIL]
     columns = {}
     for key in names:
@@ -117,26 +106,9 @@ def survey_table(rows: list[dict], *, name: str = "survey"):
     return table
 
 
-def _cell(value) -> str:
-    if isinstance(value, (float, np.floating)):
-        return "" if not np.isfinite(value) else f"{value:.4g}"
-    return str(value)
-
-
-def table_markdown(table) -> str:
-    """The table as Markdown (numbers to 4 significant digits)."""
-    head = ["| " + " | ".join(table.colnames) + " |", "|" + "---|" * len(table.colnames)]
-    body = ["| " + " | ".join(_cell(row[c]) for c in table.colnames) + " |" for row in table]
-    return "\n".join(head + body) + "\n"
-
-
 def write_table(table, out_dir: Path) -> list[Path]:
     """``survey_table.ecsv`` and ``survey_table.md`` in ``out_dir``, written atomically."""
-    ecsv = Path(out_dir) / "survey_table.ecsv"
-    with atomic_path(ecsv) as tmp:
-        table.write(tmp, format="ascii.ecsv", overwrite=True)
-    md = _write_text(Path(out_dir) / "survey_table.md", table_markdown(table))
-    return [ecsv, md]
+    return write_ecsv_and_markdown(table, Path(out_dir) / "survey_table")
 
 
 def _tile(paths: list[tuple[str, Path]], title: str):

@@ -1,14 +1,9 @@
-"""``spiralbayes survey``: the same search, verdict and limits over many discs, on dask.distributed.
+"""Running a survey: the task graph of every disc, its engine, the table, figures and provenance.
 
-:func:`run_survey` reads a survey file (:mod:`.survey_config`), builds one task graph for all
-discs — per disc load → frank → scan (split into template chunks) and test 3 in parallel →
-detect → limits and, by the ``[survey] posterior`` policy, the posterior → table row
-(:mod:`.survey_stages`) — and runs it (:mod:`.survey_engine`). Every disc's folder
-``OUTPUT/discs/<name>/`` holds what ``spiralbayes scan`` and ``limits`` write for that disc; the
-survey writes ``survey_table.ecsv`` / ``.md`` (:mod:`.survey_table`), ``figures/`` and
-``survey_provenance.json``. A disc that fails (after ``retries``) is a row with its error; a rerun
-skips every stage whose resume key is unchanged, so a survey killed at any point and run again
-ends with the same table, byte for byte.
+A disc that fails (after ``retries``) is a row with its error; a rerun skips every stage whose
+resume key is unchanged, so a survey killed at any point and run again ends with the same table,
+byte for byte. The table is written also when discs failed; :attr:`SurveyRun.exit_code` is then
+1 and :meth:`SurveyRun.check` raises :class:`SurveyFailedError`.
 """
 
 from __future__ import annotations
@@ -20,11 +15,13 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._provenance import content_hash, provenance_record, to_json
-from .outputs import _write_text
-from .survey_config import SurveySpec, load_survey
-from .survey_engine import Ref, Task, open_engine
-from .survey_stages import (
+from ..._provenance import content_hash, provenance_record, to_json
+from ...cluster import open_scheduler
+from ...exceptions import SpiralbayesError
+from .config import SurveySpec, load_survey
+from .engine import Engine, Ref, Task
+from .files import write_text
+from .stages import (
     stage_alternatives,
     stage_bank,
     stage_detect,
@@ -37,11 +34,15 @@ from .survey_stages import (
     stage_scan_setup,
     stage_templates,
 )
-from .survey_table import failed_row, survey_table, write_figures, write_table
+from .table import failed_row, survey_table, write_figures, write_table
 
-__all__ = ["SurveyRun", "run_survey", "run_survey_demo"]
+__all__ = ["SurveyFailedError", "SurveyRun", "run_survey", "run_survey_demo"]
 
 log = logging.getLogger(__name__)
+
+
+class SurveyFailedError(SpiralbayesError, RuntimeError):
+    """Some discs of a survey failed (their errors are in the table, which was written)."""
 
 
 @dataclass
@@ -57,7 +58,21 @@ class SurveyRun:
 
     @property
     def failed(self) -> list[str]:
+        """Names of the discs that failed."""
         return [r["disc"] for r in self.rows if r.get("status") != "ok"]
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every disc finished, 1 when any failed (``spiralbayes survey``'s exit status)."""
+        return 1 if self.failed else 0
+
+    def check(self) -> SurveyRun:
+        """Raise :class:`SurveyFailedError` (one line naming the failed discs) when any disc failed; else self."""
+        if self.failed:
+            table = next((str(f) for f in self.files if str(f).endswith(".md")), "the survey table")
+            raise SurveyFailedError(f"{len(self.failed)} of {len(self.rows)} discs failed "
+                                    f"({', '.join(self.failed)}): their errors are in {table}")
+        return self
 
 
 def _count(templates: list) -> int:
@@ -125,16 +140,26 @@ def run_survey(survey, *, scheduler: str | None = None, n_workers: int | None = 
     Parameters
     ----------
     survey : path or SurveySpec
-        The survey file (:mod:`spiralbayes.pipeline.survey_config`).
-    scheduler : str, optional
-        Overrides ``[survey] scheduler``: ``""`` a LocalCluster, ``"serial"``, or ``tcp://host:port``.
+        The survey file (:mod:`spiralbayes.pipeline.survey.config`).
+    scheduler : str or distributed.Client, optional
+        Overrides ``[survey] scheduler``: ``"local"`` (a LocalCluster; also ``""``, the default),
+        ``"serial"``, ``"slurm"``/``"pbs"`` (dask-jobqueue from ``[cluster]``), ``tcp://host:port``
+        or a client of the caller's (left open); :func:`spiralbayes.cluster.open_scheduler`.
     n_workers : int, optional
         Overrides ``[survey] n_workers`` (LocalCluster only).
     progress : bool
         A progress bar over the survey's tasks.
     output : str, optional
         Overrides ``[survey] output`` (relative to the survey file).
+
+    Returns
+    -------
+    SurveyRun
+        Also when discs failed (their rows hold the error): see :attr:`SurveyRun.exit_code`.
     """
+    given = scheduler if scheduler is not None and not isinstance(scheduler, str) else None
+    if given is not None:
+        scheduler = None
     spec = survey if isinstance(survey, SurveySpec) else load_survey(
         survey, scheduler=scheduler, n_workers=n_workers, output=output)
     if isinstance(survey, SurveySpec) and scheduler is not None:
@@ -142,11 +167,13 @@ def run_survey(survey, *, scheduler: str | None = None, n_workers: int | None = 
     settings = spec.settings
     out = spec.out_dir
     t0 = time.perf_counter()
-    engine = open_engine(settings["scheduler"], n_workers=settings["n_workers"],
-                         connect_timeout=settings["connect_timeout"], retries=settings["retries"],
-                         cluster_options=spec.cluster)
-    t_engine = time.perf_counter() - t0
-    try:
+    with open_scheduler(given if given is not None else settings["scheduler"], n_workers=settings["n_workers"] or None,
+                        connect_timeout=settings["connect_timeout"], cluster_options=spec.cluster,
+                        default="local") as client:
+        engine = Engine(client, retries=settings["retries"])
+        t_engine = time.perf_counter() - t0
+        log.info("survey engine: %s; %d workers; Dask dashboard: %s", engine.description, engine.n_workers,
+                 engine.dashboard)
         out.mkdir(parents=True, exist_ok=True)
         first, tkeys = _template_tasks(spec)
         counted = engine.run(first, [k + "_n" for k in set(tkeys.values())], progress=False)
@@ -161,8 +188,6 @@ def run_survey(survey, *, scheduler: str | None = None, n_workers: int | None = 
         outcome = engine.run(tasks, wanted, progress=progress)
         t_graph = time.perf_counter() - t1
         description, n_workers_used, dashboard = engine.description, engine.n_workers, engine.dashboard
-    finally:
-        engine.close()
     rows = []
     for job in spec.discs:
         key = f"{job.slug}_row"
@@ -186,7 +211,7 @@ def run_survey(survey, *, scheduler: str | None = None, n_workers: int | None = 
         discs=[{"name": j.name, "folder": str(j.out_dir), "config_hash": content_hash(j.config),
                 "status": r.get("status"), "error": r.get("error", "")} for j, r in zip(spec.discs, rows)],
         timings=timings)
-    files.append(_write_text(out / "survey_provenance.json", to_json(record, indent=2)))
+    files.append(write_text(out / "survey_provenance.json", to_json(record, indent=2)))
     n_failed = sum(r.get("status") != "ok" for r in rows)
     log.info("survey %s: %d discs, %d failed, %.1f s (%s)", settings["name"], len(rows), n_failed,
              timings["total_s"], description)
@@ -200,8 +225,8 @@ def run_survey_demo(out_dir="spiralbayes-survey-demo", *, scheduler: str | None 
     Writes ``out_dir/taurus_survey.toml`` (the text of ``examples/taurus_survey.toml``), simulates
     the six observations into ``out_dir/taurus-data/`` and runs the survey into ``out_dir/taurus-survey/``.
     """
-    from .survey_demo import taurus_survey_toml
+    from .demo import taurus_survey_toml
 
     out_dir = Path(out_dir)
-    path = _write_text(out_dir / "taurus_survey.toml", taurus_survey_toml())
+    path = write_text(out_dir / "taurus_survey.toml", taurus_survey_toml())
     return run_survey(path, scheduler=scheduler, n_workers=n_workers, progress=progress)

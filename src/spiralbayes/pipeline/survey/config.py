@@ -14,32 +14,37 @@ A survey file holds
   missing: ``preset``, ``flux`` [Jy, observed], ``r_eff`` [arcsec, 95 % flux radius], ``seed``),
   and per-disc overrides of any schema section (``[disc.limits]``, ``[disc.frank]``, ...).
 
-Each disc becomes one merged single-disc configuration (checked exactly like a ``scan`` config)
-whose ``[output] dir`` is ``OUTPUT/discs/<name>``, so every disc's folder is what ``spiralbayes
-scan`` and ``limits`` would have written for it. Relative paths are taken relative to the survey
-file.
+Each disc becomes one merged single-disc configuration (checked exactly like a ``scan`` config,
+by :func:`spiralbayes.config.merge_config`) whose ``[output] dir`` is ``OUTPUT/discs/<name>``, so
+every disc's folder is what ``spiralbayes scan`` and ``limits`` would have written for it. A disc's
+name needs a letter or digit (``"."`` or ``".."`` would name the output folder itself) and its
+distance must lie in :data:`DISTANCE_RANGE_PC`. The file is read, its values coerced and its
+paths resolved (relative to the survey file) by the single-disc loader's functions
+(:func:`~spiralbayes.config.read_toml`, :func:`~spiralbayes.config.merge_section`,
+:func:`~spiralbayes.config.resolve_paths`).
 """
 
 from __future__ import annotations
 
 import copy
 import math
-from .._compat import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._provenance import content_hash
-from ..config import BUILT_IN_BANKS, PATH_KEYS, SCHEMA, merge_config
-from ..exceptions import ConfigError, MissingFileError
+from ..._provenance import content_hash
+from ...cluster import check_scheduler
+from ...config import SCHEMA, merge_config, merge_section, read_toml, resolve_paths
+from ...exceptions import ConfigError, InputError
 
-__all__ = ["BANK_SCHEMA", "DISC_KEYS", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey", "parse_survey"]
+__all__ = ["BANK_SCHEMA", "DISC_KEYS", "DISTANCE_RANGE_PC", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey",
+           "parse_survey", "slugify"]
 
 SURVEY_SCHEMA: dict[str, tuple[object, str]] = {
     "name": ("survey", "name of the survey (table captions, provenance)"),
     "output": ("spiralbayes-survey", "output folder: the survey table, figures, provenance and discs/<name>/"),
-    "scheduler": ("", "empty: a dask.distributed LocalCluster sized to the machine; 'serial': no Dask, in "
-                      "this process; 'slurm' or 'pbs': a dask-jobqueue cluster from [cluster]; else the address "
-                      "of a running scheduler (tcp://host:8786)"),
+    "scheduler": ("", "'local' (also empty): a dask.distributed LocalCluster sized to the machine; 'serial': no "
+                      "Dask, in this process; 'slurm' or 'pbs': a dask-jobqueue cluster from [cluster]; else the "
+                      "address of a running scheduler (tcp://host:8786)"),
     "n_workers": (0, "LocalCluster worker processes, one thread each (0: one per core)"),
     "connect_timeout": (10.0, "seconds to wait for a scheduler at the given address before giving up"),
     "posterior": ("candidates", "'candidates': the posterior for discs with a detection or a candidate; "
@@ -63,8 +68,11 @@ BANK_SCHEMA: dict[str, tuple[object, str]] = {
 DISC_KEYS = ("name", "path", "distance", "inc", "PA", "dRA", "dDec", "fit_geometry", "simulate")
 SIMULATE_KEYS = {"preset": "taurus", "flux": 0.1, "r_eff": 0.4, "seed": 0}
 
+DISTANCE_RANGE_PC = (1.0, 10000.0)
+"""Distances [pc] a survey disc may have (1 pc to 10 kpc): a value outside is a typo or another unit
+(au, m), and would put the planet grid and the masses at absurd radii."""
+
 _SURVEY_CHECKS = {
-    "scheduler": lambda v: None,
     "n_workers": lambda v: None if v >= 0 else "must be 0 (one per core) or a positive integer",
     "connect_timeout": lambda v: None if math.isfinite(v) and v > 0 else "must be a positive number of seconds",
     "posterior": lambda v: None if v in ("candidates", "none", "all") else "must be 'candidates', 'none' or 'all'",
@@ -111,32 +119,24 @@ class SurveySpec:
 
 
 def slugify(name: str) -> str:
-    """A folder name for a disc: letters, digits, '.', '-' kept, the rest '_'."""
+    """A folder name for a disc: letters, digits, '.', '-' kept, the rest '_'.
+
+    Raises ConfigError for a name with no letter or digit (``"."``, ``".."``, ``"_"``): its folder
+    would be the survey's output or ``discs/`` itself, or escape it.
+    """
     slug = "".join(c if c.isalnum() or c in ".-" else "_" for c in name).strip("_")
-    if not slug:
-        raise ConfigError(f"disc name {name!r} gives an empty folder name: use letters or digits")
+    if not any(c.isalnum() for c in slug):
+        raise ConfigError(f"disc.name = {name!r} has no letter or digit, so it names no folder of its own under "
+                          "discs/: give the disc a name such as \"DS Tau\"")
     return slug
 
 
-def _merge_section(schema: dict, values: dict, label: str) -> dict:
-    out = {k: copy.deepcopy(v[0]) for k, v in schema.items()}
-    if not isinstance(values, dict):
-        raise ConfigError(f"[{label}] must be a table of options")
-    for key, value in values.items():
-        if key not in schema:
-            raise ConfigError(f"unknown option {label}.{key}; valid options of [{label}]: {sorted(schema)}")
-        default = schema[key][0]
-        if isinstance(default, bool) != isinstance(value, bool) or (
-                isinstance(default, (int, float)) and not isinstance(value, (int, float))) or (
-                isinstance(default, str) and not isinstance(value, str)):
-            raise ConfigError(f"{label}.{key} = {value!r} must be of the type of its default {default!r}")
-        if isinstance(default, int) and not isinstance(default, bool) and isinstance(value, float):
-            if not value.is_integer():
-                raise ConfigError(f"{label}.{key} = {value!r} must be an integer")
-            value = int(value)
-        out[key] = float(value) if isinstance(default, float) else ([value] if isinstance(default, list)
-                                                                     and not isinstance(value, list) else value)
-    return out
+def _check_distance(config: dict, label: str) -> None:
+    distance = config["geometry"]["distance"]
+    low, high = DISTANCE_RANGE_PC
+    if not (math.isfinite(distance) and low <= distance <= high):
+        raise ConfigError(f"{label}: distance = {distance!r} pc is outside {low:g}-{high:g} pc: give the distance "
+                          "in parsec (e.g. distance = 140.0)")
 
 
 def _deep_merge(base: dict, over: dict) -> dict:
@@ -144,16 +144,6 @@ def _deep_merge(base: dict, over: dict) -> dict:
     for section, values in over.items():
         out.setdefault(section, {}).update(copy.deepcopy(values))
     return out
-
-
-def _resolve(config: dict, root: Path) -> dict:
-    for section, key in PATH_KEYS:
-        value = config.get(section, {}).get(key)
-        if not value or (section, key) == ("templates", "bank") and value in BUILT_IN_BANKS:
-            continue
-        p = Path(value).expanduser()
-        config[section][key] = str(p if p.is_absolute() else (root / p).resolve())
-    return config
 
 
 def _disc_job(entry: dict, shared: dict, out_dir: Path, root: Path, index: int) -> DiscJob:
@@ -179,27 +169,34 @@ def _disc_job(entry: dict, shared: dict, out_dir: Path, root: Path, index: int) 
     user = _deep_merge(_deep_merge(shared, overrides), disc)
     slug = slugify(name)
     user["output"]["dir"] = str(out_dir / "discs" / slug)
+    if Path(user["output"]["dir"]).resolve().parent != (out_dir / "discs").resolve():
+        raise ConfigError(f"disc.name = {name!r} names a folder outside discs/: give the disc a plain name")
     if not user["limits"].get("name"):
         user["limits"]["name"] = name
     try:
         config = merge_config(user)
     except ConfigError as exc:
         raise ConfigError(f"{label}: {exc}") from None
+    _check_distance(config, label)
     simulate = entry.get("simulate")
     if simulate is not None:
-        simulate = _merge_section({k: (v, "") for k, v in SIMULATE_KEYS.items()}, simulate, f"{label}.simulate")
-    return DiscJob(name, slug, _resolve(config, root), simulate)
+        simulate = merge_section(f"{label}.simulate", simulate, {k: (v, "") for k, v in SIMULATE_KEYS.items()})
+    return DiscJob(name, slug, resolve_paths(config, root), simulate)
 
 
 def parse_survey(user: dict, root: Path = Path("."), *, source: str = "") -> SurveySpec:
     """A :class:`SurveySpec` from the survey file's parsed TOML ``user`` (paths relative to ``root``)."""
     user = dict(user)
-    settings = _merge_section(SURVEY_SCHEMA, user.pop("survey", {}), "survey")
+    settings = merge_section("survey", user.pop("survey", {}), SURVEY_SCHEMA)
     for key, check in _SURVEY_CHECKS.items():
         error = check(settings[key])
         if error:
             raise ConfigError(f"survey.{key} = {settings[key]!r} {error}")
-    bank = _merge_section(BANK_SCHEMA, user.pop("bank"), "bank") if "bank" in user else None
+    try:
+        check_scheduler(settings["scheduler"], "survey.scheduler")
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
+    bank = merge_section("bank", user.pop("bank"), BANK_SCHEMA) if "bank" in user else None
     cluster = user.pop("cluster", {})
     if not isinstance(cluster, dict):
         raise ConfigError("[cluster] must be a table of dask-jobqueue options (cores, memory, walltime, jobs, ...)")
@@ -238,15 +235,10 @@ def load_survey(path, **overrides) -> SurveySpec:
     MissingFileError
         No file at ``path``.
     ConfigError
-        Invalid TOML, an unknown section, option or disc key, or a bad value (named).
+        Invalid TOML or not a text file, an unknown section, option or disc key, or a bad value (named).
     """
     path = Path(path)
-    if not path.exists():
-        raise MissingFileError(f"survey file {path} not found (see examples/taurus_survey.toml)")
-    try:
-        user = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path} is not valid TOML: {exc}") from None
+    user = read_toml(path, what="survey file", hint="see examples/taurus_survey.toml")
     survey = dict(user.get("survey", {}))
     survey.update({k: v for k, v in overrides.items() if v is not None})
     user["survey"] = survey

@@ -40,7 +40,7 @@ def _r95(disc, wavelength: float) -> float:
 
 def outer_radius_for(r_eff: float, distance: float, wavelength: float = 1.33e-3) -> float:
     """Outer radius r_out [au] of the power-law disc (r_in = 0.1 r_out) whose 95 % radius is ``r_eff`` [arcsec]."""
-    from ..simulate import DiscModel
+    from ...simulate import DiscModel
 
     lo, hi = 5.0, 1000.0
     for _ in range(60):
@@ -52,9 +52,9 @@ def outer_radius_for(r_eff: float, distance: float, wavelength: float = 1.33e-3)
 
 def simulate_disc(job, path: Path) -> Path:
     """Write the synthetic observation of a survey disc's ``simulate`` table to ``path``."""
-    from ..geometry import DiscGeometry
-    from ..io import save_visibilities
-    from ..simulate import DiscModel, get_preset, simulate_observation
+    from ...geometry import DiscGeometry
+    from ...io import save_visibilities
+    from ...simulate import DiscModel, get_preset, simulate_observation
 
     sim, g = job.simulate, job.config["geometry"]
     wavelength = get_preset(sim["preset"]).wavelength
@@ -76,7 +76,7 @@ def taurus_survey_toml() -> str:
         "[survey]",
         'name = "Taurus (synthetic analogues)"',
         'output = "taurus-survey"',
-        'scheduler = ""            # "": LocalCluster on this machine; "serial"; or tcp://host:8786',
+        'scheduler = ""            # "local" or "": LocalCluster on this machine; "serial"; "slurm"/"pbs"; or tcp://host:8786',
         'posterior = "candidates"  # "candidates" | "none" | "all"',
         "chunk_templates = 2",
         "",
