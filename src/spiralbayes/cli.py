@@ -49,16 +49,16 @@ def _cmd_demo(args) -> int:
     check_simulated_folder(args.out, args.overwrite)
     scheduler = _scheduler(args)
     demo = run_demo(args.out, seed=args.seed, progress=not args.quiet,
-                    dask=None if scheduler in (None, "", "serial") else scheduler)
+                    scheduler=scheduler)
     print(demo.verdict.summary())
     print(f"Delta BIC = {demo.verdict.delta_bic:.1f}; test 1 (Delta BIC > 10): "
           f"{'pass' if demo.verdict.test1_passed else 'fail'}; test 2 (handedness and compactness): "
           f"{'pass' if demo.verdict.test2_passed else 'fail'}; test 3 (spiral beats every competing "
           f"asymmetry model): {_pass(demo.verdict.test3_passed)}")
     print("timings: " + ", ".join(f"{k} {v:.1f}" for k, v in demo.timings.items()))
-    print("templates: the built-in wake model at H/r = 0.07 (the default bank spans H/r 0.05, 0.07, 0.10 x "
-          "4 masses x 4 tau0 x 2 beta x 2 hands = 192), calibrated against wakeflow and FARGO3D maps: "
-          "docs/templates.md")
+    print(f"templates: {len(demo.scan.templates)} of the default bank (tau0 3, beta 10, H/r 0.07; every "
+          "morphology: compromise, hydro, wakeflow; the whole bank spans 4 masses x 4 tau0 x 2 beta x 3 H/r x "
+          "3 morphologies x 2 hands = 576): docs/templates.md")
     print("wrote:\n  " + "\n  ".join(str(f) for f in demo.files))
     return 0
 

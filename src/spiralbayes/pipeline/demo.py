@@ -7,7 +7,6 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from .._provenance import check_output_name
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..geometry import DiscGeometry
@@ -16,7 +15,7 @@ from ..inference.detection.planet_peak import detect_with_planet_peak
 from ..inference.scan.run import scan
 from ..plotting.axisymmetric import plot_binned_visibilities, plot_profile
 from ..simulate import DiscModel, simulate_observation
-from ..templates import make_template
+from ..templates import default_bank, make_template
 from ..visibilities import Visibilities
 from .outputs import _save_figure, write_scan_outputs
 from .scan_command import check_dask_address
@@ -42,22 +41,21 @@ class DemoResult:
 
 
 def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0), progress: bool = True,
-             dask=None, alternatives: bool = True) -> DemoResult:
+             scheduler=None, alternatives: bool = True) -> DemoResult:
     """Simulate a fiducial-set observation with a planet, fit frank, scan, and decide.
 
     The planet: 1 M_th, tau0 = 3, beta = 10, right-handed, at 50 au (140 pc), phi_p = 0, in a
     power-law disc (10-110 au) whose optical depth at 50 au is the template's tau0 = 3, of
-    inclination 30 deg and PA 60 deg. The scan uses the masses given, tau0 = 3 and
-    beta = 10, both hands, on the paper's grid (25 radii from 0.02 to 0.5 arcsec, 90 azimuths).
-    With ``alternatives`` the competing asymmetry models are fitted too (test 3).
-
-    The templates are the default bank's at H/r = 0.07 (``wake_m{M}_tau3_b10_h0.07_{R,L}``); the
-    full default bank also spans H/r = 0.05 and 0.10 (192 templates). The wake generator is
-    calibrated against wakeflow and FARGO3D reference maps (docs/templates.md).
+    inclination 30 deg and PA 60 deg. The scan takes the default bank's templates (:func:`~spiralbayes.templates.default_bank`:
+    every morphology, both hands) at the masses given, tau0 = 3, beta = 10 and H/r = 0.07, on the
+    default grid (:class:`~spiralbayes.inference.scan.settings.ScanSettings`): the path a user's own
+    ``sb.scan(vis, disc, sb.default_bank().select(...))`` takes, on a smaller template set.
+    With ``alternatives`` the competing asymmetry models are fitted too (test 3). ``scheduler`` as
+    for :func:`~spiralbayes.inference.scan.run.scan` (default serial).
     """
     out_dir = Path(out_dir)
-    if isinstance(dask, str):
-        check_dask_address(dask)
+    if isinstance(scheduler, str):
+        check_dask_address(scheduler)
     timings = {}
     t0 = time.perf_counter()
     geometry = DiscGeometry(30.0, 60.0)
@@ -70,13 +68,9 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
     t1 = time.perf_counter()
     axisym = fit_axisymmetric(vis, geometry, progress=progress)
     timings["frank_s"] = time.perf_counter() - t1
-    templates = []
-    for mass in masses:
-        right = truth if mass == 1.0 else make_template(mass, 3.0, 10.0, "R")
-        templates += [right, right.mirror()]
+    templates = list(default_bank().select(mass=list(masses), tau0=truth.tau0, beta=truth.beta, h_p=truth.h_p))
     t2 = time.perf_counter()
-    result = scan(vis, axisym, templates, geometry, r_p=np.linspace(0.02, 0.5, 25), distance=DEMO_DISTANCE,
-                  progress=progress, client=dask)
+    result = scan(vis, axisym, templates, geometry, distance=DEMO_DISTANCE, progress=progress, scheduler=scheduler)
     timings["scan_s"] = time.perf_counter() - t2
     alts = None
     if alternatives:

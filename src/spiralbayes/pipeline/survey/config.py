@@ -35,6 +35,7 @@ from ..._provenance import content_hash
 from ...cluster import check_scheduler
 from ...config import SCHEMA, merge_config, merge_section, read_toml, resolve_paths
 from ...exceptions import ConfigError, InputError
+from ...templates.variants import DEFAULT_VARIANTS, VARIANTS
 
 __all__ = ["BANK_SCHEMA", "DISC_KEYS", "DISTANCE_RANGE_PC", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey",
            "parse_survey", "slugify"]
@@ -62,6 +63,9 @@ BANK_SCHEMA: dict[str, tuple[object, str]] = {
     "beta": ([10.0], "cooling times t_c Omega"),
     "h_p": ([0.07], "aspect ratios H/r at r_p"),
     "wavelength": (1.33e-3, "observing wavelength of the templates [m]"),
+    "morphologies": (list(DEFAULT_VARIANTS), "spiral morphologies (template variants) of every template: the "
+                     "default set makes the limits robust to the spiral's shape; ['compromise'] alone is the "
+                     "single-morphology bank of the paper's comparison"),
 }
 """``[bank]`` option -> (default, description): a bank built by the survey (both hands)."""
 
@@ -197,6 +201,10 @@ def parse_survey(user: dict, root: Path = Path("."), *, source: str = "") -> Sur
     except InputError as exc:
         raise ConfigError(str(exc)) from None
     bank = merge_section("bank", user.pop("bank"), BANK_SCHEMA) if "bank" in user else None
+    unknown_variants = [v for v in (bank or {}).get("morphologies", []) if v not in VARIANTS]
+    if unknown_variants or bank is not None and not bank["morphologies"]:
+        raise ConfigError(f"bank.morphologies = {bank['morphologies']!r}: give one or more of {sorted(VARIANTS)} "
+                          f"(default {list(DEFAULT_VARIANTS)})")
     cluster = user.pop("cluster", {})
     if not isinstance(cluster, dict):
         raise ConfigError("[cluster] must be a table of dask-jobqueue options (cores, memory, walltime, jobs, ...)")

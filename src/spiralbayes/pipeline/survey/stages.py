@@ -104,8 +104,10 @@ def geometry_error_significant(alternatives) -> bool:
 # --- stages ----------------------------------------------------------------------------------------
 @_staged("bank")
 def stage_bank(bank: dict, path: str) -> str:
-    """Build the survey's template bank (both hands of every listed template) at ``path``, once."""
-    from ...templates import TemplateBank, make_template
+    """Build the survey's template bank (both hands of every listed template, in every listed
+    morphology) at ``path``, once."""
+    from ...templates import TemplateBank
+    from ...templates.variants import variant_template
 
     path = Path(path)
     key = content_hash(bank)
@@ -116,9 +118,11 @@ def stage_bank(bank: dict, path: str) -> str:
     for h_p in bank["h_p"]:
         for tau0 in bank["tau0"]:
             for beta in bank["beta"]:
-                for mass in bank["mass"]:
-                    right = make_template(mass, tau0, beta, "R", h_p=h_p, wavelength=bank["wavelength"])
-                    templates += [right, right.mirror()]
+                for variant in bank["morphologies"]:
+                    for mass in bank["mass"]:
+                        right = variant_template(mass, tau0, beta, "R", variant, h_p=h_p,
+                                                 wavelength=bank["wavelength"])
+                        templates += [right, right.mirror()]
     TemplateBank(templates, provenance={"survey_bank": bank}).save(path)
     mark(path.parent, "bank", key, written=[path.name])
     return str(path)
