@@ -10,7 +10,7 @@
 """
 
 from .families import Family, select_family, template_families
-from .settings import LimitSettings
+from .settings import HANDS, LIMIT_METHODS, TABLE3_THRESHOLDS, CompletenessSettings, LimitSettings
 from .table3 import describe_family_limits, limits_table, runs, table_csv, table_markdown
 from .exclusion import (
     ExclusionLimits,
@@ -50,6 +50,10 @@ __all__ = [
     "combined_m_lim",
     "SINGLE_VARIANT",
     "CompletenessResult",
+    "CompletenessSettings",
+    "HANDS",
+    "LIMIT_METHODS",
+    "TABLE3_THRESHOLDS",
     "ExclusionLimits",
     "Family",
     "Forecast",

@@ -15,9 +15,11 @@ import io
 
 import numpy as np
 
+from .settings import TABLE3_THRESHOLDS
+
 __all__ = ["describe_family_limits", "limits_table", "runs", "table_csv", "table_markdown"]
 
-THRESHOLDS = (3.0, 1.0)
+THRESHOLDS = TABLE3_THRESHOLDS
 
 
 def _range_text(limits, lo: float, hi: float, mass: float | None, family=None) -> str:

@@ -31,6 +31,7 @@ import numpy as np
 from ..._provenance import json_safe
 from ...exceptions import InputError
 from ...results import ResultMixin
+from ...settings import DEFAULT_MSTAR_MSUN
 from ...units import M_JUP, M_SUN, wrap_angle
 from .diagnostics import chain_inference_data
 from .priors import GEOMETRY_NAMES, Priors
@@ -39,8 +40,8 @@ INCONCLUSIVE_LN_B = 1.0
 """``|ln B(planet : none)|`` below this is "inconclusive" (Jeffreys scale: B < e either way)."""
 MASS_LEVEL = 0.95
 """Credibility of the reported mass range."""
-DEFAULT_MSTAR = 0.8
-"""Stellar mass [M_sun] for Jupiter masses when none is given (the config's default)."""
+DEFAULT_MSTAR = DEFAULT_MSTAR_MSUN
+"""Stellar mass [M_sun] for Jupiter masses when none is given (:data:`spiralbayes.settings.DEFAULT_MSTAR_MSUN`)."""
 
 __all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
 
