@@ -109,3 +109,49 @@ def test_the_variant_bank_is_a_built_in_name_not_a_path(tmp_path, monkeypatch):
     monkeypatch.setattr(inputs, "variant_bank", lambda: small)
     chosen = inputs.load_templates(config["templates"])
     assert sorted(t.name for t in chosen) == ["hydro_m1_tau0.3_b0_h0.07_R", "wake_m1_tau0.3_b0_h0.07_R"]
+
+
+@pytest.mark.parametrize("user,match", [
+    ({"sample": {"n_walkers": 5}}, r"sample.n_walkers = 5: emcee needs at least 2 x 6 = 12 walkers"),
+    ({"sample": {"max_steps": 0}}, r"sample.max_steps = 0 must be an integer >= 1"),
+    ({"sample": {"run_name": "../x"}}, r"sample.run_name = '../x' must be a plain name"),
+    ({"frank": {"N": 1}}, r"frank.N = 1: the number of collocation points must be an integer >= 2"),
+    ({"frank": {"alpha": 0.5}}, r"frank.alpha = 0.5: .* alpha >= 1"),
+    ({"priors": {"r_p_min": 0.5, "r_p_max": 0.3}}, r"priors.r_p_min = 0.5 must be smaller than r_p_max = 0.3"),
+    ({"priors": {"inc_sigma": -1.0}}, r"priors.inc_sigma = -1.0 must be a positive width \[deg\]"),
+    ({"priors": {"amplitude_max": -2.0}}, r"priors.amplitude_max = -2.0"),
+    ({"limits": {"cl": 1.5}}, r"limits.cl = 1.5 must be a confidence level in \(0.5, 1\)"),
+    ({"limits": {"thresholds": [3, -1]}}, r"limits.thresholds = \(3, -1\) must be a list of positive planet masses"),
+    ({"limits": {"inject_hand": ["X"]}}, r"limits.inject_hand = \('X',\) must be a non-empty list of 'R' and/or 'L'"),
+    ({"alternatives": {"threshold": float("nan")}}, r"alternatives.threshold = nan must be a finite number"),
+])
+def test_settings_sections_are_checked_by_their_dataclass(user, match):
+    with pytest.raises(ValueError, match=match):
+        merge_config(user)
+
+
+def test_defaults_and_sentinels_of_settings_sections_pass():
+    config = merge_config({"priors": {"r_p_min": 0.0, "amplitude_max": 0.0}, "frank": {"N": 0},
+                           "sample": {"n_steps": 0, "n_walkers": 12}})
+    assert (config["priors"]["r_p_min"], config["frank"]["N"], config["sample"]["n_walkers"]) == (0.0, 0, 12)
+
+
+def test_sample_config_is_refused_before_the_data_are_read(tmp_path, monkeypatch, capsys):
+    """``[sample] n_walkers = 5`` stops ``spiralbayes sample`` when the file is read: no data file is opened."""
+    from spiralbayes import io
+    from spiralbayes.cli import main
+    from spiralbayes.pipeline import inputs
+
+    def no_reading(*args, **kwargs):
+        raise AssertionError("the data were read before the configuration was checked")
+
+    monkeypatch.setattr(inputs, "load_visibilities", no_reading)
+    monkeypatch.setattr(io, "load_visibilities", no_reading)
+    data = tmp_path / "disc.txt"
+    data.write_text("# u v Re Im w\n1 2 3 4 5\n")
+    config = tmp_path / "run.toml"
+    config.write_text('[data]\npath = "disc.txt"\n[geometry]\ninc = 30\nPA = 60\n[sample]\nn_walkers = 5\n')
+    assert main(["-q", "sample", str(config)]) == 2
+    err = capsys.readouterr().err
+    assert "sample.n_walkers = 5" in err and "12 walkers" in err
+    assert not (tmp_path / "spiralbayes-output").exists()
