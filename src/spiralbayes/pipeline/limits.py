@@ -11,6 +11,7 @@ import numpy as np
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..config import describe_config
 from ..geometry import DiscGeometry
+from ..settings import DEFAULT_DISTANCE_PC
 from ..inference.scan.run import scan
 from ..simulate import DiscModel, simulate_observation
 from ..templates import make_template
@@ -25,7 +26,7 @@ __all__ = ["LimitsRun", "TAURUS_DEMO", "default_limits_config", "run_forecast", 
 
 log = logging.getLogger(__name__)
 
-TAURUS_DEMO = {"distance": 140.0, "tau0": 0.3, "beta": 10.0, "masses": (0.1, 0.3, 1.0, 3.0)}
+TAURUS_DEMO = {"distance": DEFAULT_DISTANCE_PC, "tau0": 0.3, "beta": 10.0, "masses": (0.1, 0.3, 1.0, 3.0)}
 
 
 @dataclass
