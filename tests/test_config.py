@@ -115,7 +115,7 @@ def test_the_variant_bank_is_a_built_in_name_not_a_path(tmp_path, monkeypatch):
     ({"sample": {"n_walkers": 5}}, r"sample.n_walkers = 5: emcee needs at least 2 x 6 = 12 walkers"),
     ({"sample": {"max_steps": 0}}, r"sample.max_steps = 0 must be an integer >= 1"),
     ({"sample": {"run_name": "../x"}}, r"sample.run_name = '../x' must be a plain name"),
-    ({"frank": {"N": 1}}, r"frank.N = 1: the number of collocation points must be an integer >= 2"),
+    ({"frank": {"N": 1}}, r"frank.N = 1 must be None \(0 in a configuration file: automatic\) or an integer >= 2"),
     ({"frank": {"alpha": 0.5}}, r"frank.alpha = 0.5: .* alpha >= 1"),
     ({"priors": {"r_p_min": 0.5, "r_p_max": 0.3}}, r"priors.r_p_min = 0.5 must be smaller than r_p_max = 0.3"),
     ({"priors": {"inc_sigma": -1.0}}, r"priors.inc_sigma = -1.0 must be a positive width \[deg\]"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 from ..exceptions import InputError
@@ -49,6 +50,9 @@ class FrankSettings:
     blas_threads: int | None = option(1, "BLAS threads during the fit (None: leave them alone)", config=False)
 
     def __post_init__(self):
+        if self.N is not None and (isinstance(self.N, bool) or not isinstance(self.N, numbers.Integral) or self.N < 2):
+            raise InputError(f"N = {self.N!r} must be None (0 in a configuration file: automatic) or an integer >= 2 "
+                             f"(the paper uses {DEFAULT_HYPERPARAMETERS['N']})")
         _check_hyperparameters(DEFAULT_HYPERPARAMETERS["N"] if self.N is None else self.N, self.Rmax, self.alpha,
                                self.p0, self.weights_smooth)
         if self.method not in FRANK_METHODS:
@@ -58,7 +62,7 @@ class FrankSettings:
         if isinstance(self.tol, bool) or not (isinstance(self.tol, (int, float)) and 0 < self.tol < 1):
             raise InputError(f"tol = {self.tol!r}: frank's convergence tolerance must be a fraction in (0, 1), "
                              "e.g. 1e-3")
-        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, int) or self.max_iter < 1:
+        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, numbers.Integral) or self.max_iter < 1:
             raise InputError(f"max_iter = {self.max_iter!r} must be a positive number of iterations")
         if self.fit_geometry is not None and self.fit_geometry not in GEOMETRY_FITTERS:
             raise InputError(f"fit_geometry = {self.fit_geometry!r} must be one of {GEOMETRY_FITTERS} or None")

@@ -71,7 +71,8 @@ class SamplingSettings:
             raise InputError(f"run_name = {self.run_name!r} must be a plain name (no '/', '\\', '..' or leading "
                              "'.'): the chains stay inside their folder") from None
         if self.convergence not in CONVERGENCE_POLICIES:
-            raise InputError(f"convergence = {self.convergence!r}: use 'warn', 'raise' or 'ignore'")
+            raise InputError(f"convergence = {self.convergence!r} must be one of "
+                             f"{', '.join(map(repr, CONVERGENCE_POLICIES))}")
         if not _integer(self.n_walkers) or self.n_walkers < 2 * N_DIM:
             raise InputError(f"n_walkers = {self.n_walkers!r}: emcee needs at least 2 x {N_DIM} = {2 * N_DIM} "
                              "walkers")
