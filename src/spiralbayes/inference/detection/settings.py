@@ -53,7 +53,7 @@ class AlternativesSettings:
         if self.models is not None:
             unknown = [m for m in self.models if m not in ALTERNATIVE_MODELS]
             if isinstance(self.models, str) or unknown:
-                raise InputError(f"models = {self.models!r} has unknown models; choose from "
+                raise InputError(f"models = {self.models!r} names an unknown asymmetry model; choose from "
                                  f"{', '.join(repr(m) for m in ALTERNATIVE_MODELS)}")
         if not _is_number(self.threshold):
             raise InputError(f"threshold = {self.threshold!r} must be a finite number (Delta BIC)")

@@ -114,7 +114,9 @@ class LimitSettings:
                 raise InputError(f"{name} = {getattr(self, name)!r} must be a positive, finite number")
         for name in ("h_ref", "resolution", "bright_radius", "planet_beam"):
             value = getattr(self, name)
-            if value is not None and (not _number(value) or value < 0):
+            # an infinite bright radius or planet beam is allowed: no radius is flagged for it
+            unbounded = name in ("bright_radius", "planet_beam") and value == float("inf")
+            if value is not None and not unbounded and (not _number(value) or value < 0):
                 raise InputError(f"{name} = {value!r} must be a finite number >= 0 (or None: automatic)")
         if not _number(self.flaring):
             raise InputError(f"flaring = {self.flaring!r} must be a finite number")
