@@ -342,9 +342,9 @@ def test_docstrings_hold_no_change_history():
 
 # --- one settings pattern, each default written once ------------------------------------------------
 STAGE_FUNCTIONS = ["fit_axisymmetric", "detect", "fit_alternatives", "compute_limits", "completeness",
-                   "sample_posterior"]
+                   "sample_posterior", "forecast"]
 """Public stage functions (``spiralbayes.<name>``) that take ``settings=`` plus the few arguments a notebook changes."""
-STAGE_FUNCTIONS_PENDING = ["scan", "rescan_at_fitted_geometry", "forecast"]
+STAGE_FUNCTIONS_PENDING = ["scan", "rescan_at_fitted_geometry"]
 """Stage functions still taking loose keywords: move each to :data:`STAGE_FUNCTIONS` once it takes ``settings=``."""
 
 

@@ -25,7 +25,7 @@ from .inference.detection.verdict import Verdict, detect  # noqa: E402
 from .inference.limits.exclusion import ExclusionLimits, compute_limits  # noqa: E402
 from .inference.limits.forecasting import Forecast, forecast  # noqa: E402
 from .inference.limits.recovery import CompletenessResult, completeness  # noqa: E402
-from .inference.limits.settings import CompletenessSettings, LimitSettings  # noqa: E402
+from .inference.limits.settings import CompletenessSettings, ForecastSettings, LimitSettings  # noqa: E402
 from .inference.posterior.conditional import SpiralLikelihood  # noqa: E402
 from .inference.posterior.priors import Priors  # noqa: E402
 from .inference.posterior.results import PosteriorResult  # noqa: E402
@@ -67,7 +67,7 @@ DETECTION = ["Verdict", "DetectionSettings", "detect", "AlternativesResult", "Al
              "rescan_at_fitted_geometry"]
 """Detection: tests 1-3, the competing asymmetries, the geometry follow-up."""
 LIMITS = ["ExclusionLimits", "LimitSettings", "compute_limits", "CompletenessResult", "CompletenessSettings",
-          "completeness", "Forecast", "forecast"]
+          "completeness", "Forecast", "ForecastSettings", "forecast"]
 """Limits: exclusion limits, completeness, forecasts."""
 POSTERIOR = ["PosteriorResult", "Priors", "PriorSettings", "SamplingSettings", "SpiralLikelihood", "sample_posterior"]
 """Posterior: the sampled posterior and its parts."""

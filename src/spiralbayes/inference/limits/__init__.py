@@ -10,7 +10,14 @@
 """
 
 from .families import Family, select_family, template_families
-from .settings import HANDS, LIMIT_METHODS, TABLE3_THRESHOLDS, CompletenessSettings, LimitSettings
+from .settings import (
+    HANDS,
+    LIMIT_METHODS,
+    TABLE3_THRESHOLDS,
+    CompletenessSettings,
+    ForecastSettings,
+    LimitSettings,
+)
 from .table3 import describe_family_limits, limits_table, runs, table_csv, table_markdown
 from .exclusion import (
     ExclusionLimits,
@@ -57,6 +64,7 @@ __all__ = [
     "ExclusionLimits",
     "Family",
     "Forecast",
+    "ForecastSettings",
     "Injection",
     "InjectionEngine",
     "LimitSettings",

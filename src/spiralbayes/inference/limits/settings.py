@@ -10,7 +10,7 @@ from ...exceptions import InputError
 from ...settings import DEFAULT_MSTAR_MSUN, option
 from ..detection.settings import DetectionSettings
 
-__all__ = ["CompletenessSettings", "HANDS", "LIMIT_METHODS", "LimitSettings", "TABLE3_THRESHOLDS"]
+__all__ = ["CompletenessSettings", "ForecastSettings", "HANDS", "LIMIT_METHODS", "LimitSettings", "TABLE3_THRESHOLDS"]
 
 TABLE3_THRESHOLDS = (3.0, 1.0)
 """Planet masses [M_th] of the columns of Stevenson et al. (2024) Table 3: radii where planets of at least
@@ -131,3 +131,25 @@ class LimitSettings:
             raise InputError(f"thresholds = {self.thresholds!r} must be a list of positive planet masses [M_th]")
         object.__setattr__(self, "inject_hand", tuple(self.inject_hand))
         object.__setattr__(self, "thresholds", tuple(self.thresholds))
+
+
+@dataclass(frozen=True)
+class ForecastSettings:
+    """Options of :func:`~spiralbayes.inference.limits.forecast` (and :func:`~spiralbayes.inference.limits.compare_setups`,
+    which uses ``n_phi`` and ``nthreads``). Every field's description is its ``metadata["doc"]``."""
+
+    n_phi: int = option(90, "planet azimuths averaged over (the scan's 4 deg steps)")
+    time_on_source: float | None = option(None, "total time on source [min]: rebuilds the tracks for that time "
+                                                "(default: the set-up's)")
+    sensitivity: float | None = option(None, "image noise [Jy/beam] at that time (default: the set-up's, scaled "
+                                             "as t^-1/2)")
+    nthreads: int = option(1, "threads of the NUFFTs")
+
+    def __post_init__(self):
+        for name in ("n_phi", "nthreads"):
+            if not _integer(getattr(self, name)) or getattr(self, name) < 1:
+                raise InputError(f"{name} = {getattr(self, name)!r} must be an integer >= 1")
+        for name in ("time_on_source", "sensitivity"):
+            value = getattr(self, name)
+            if value is not None and (not _number(value) or value <= 0):
+                raise InputError(f"{name} = {value!r} must be a positive, finite number (or None: the set-up's)")
