@@ -23,7 +23,7 @@ class FrankSettings:
     """Options of :func:`~spiralbayes.axisymmetric.fit_axisymmetric` (TOML section ``[frank]``, which adds
     the pipeline's ``model``: a saved fit to use instead).
 
-    The defaults are the paper's hyperparameters (:data:`~spiralbayes.axisymmetric.DEFAULT_HYPERPARAMETERS`).
+    The defaults are the paper's hyperparameters (:data:`~spiralbayes.axisymmetric.model.DEFAULT_HYPERPARAMETERS`).
     Every field's description is its ``metadata["doc"]``; ``--print-config`` shows them. ``None``
     means automatic (written ``0`` in the TOML file).
     """
