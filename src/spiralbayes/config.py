@@ -11,9 +11,10 @@ the scan and the image-plane comparisons of ``[compare]`` (needs CASA). Relative
 ``[output] dir`` alike — are taken relative to the configuration file, so a configuration means
 the same wherever it is run from.
 
-Values are checked when the file is read (:data:`CHECKS`): a wrong type, a value out of range or
-an unknown choice raises :class:`~spiralbayes.exceptions.ConfigError` naming the option and what
-it accepts, before any data is read or any fit is run.
+Values are checked when the file is read (the settings dataclasses of :data:`SECTION_SETTINGS` and,
+for the other sections, :data:`CHECKS`): a wrong type, a value out of range or an unknown choice
+raises :class:`~spiralbayes.exceptions.ConfigError` naming the option (``section.key``) and what it
+accepts, before any data is read or any fit is run.
 """
 
 from __future__ import annotations
@@ -34,8 +35,8 @@ from .inference.posterior.settings import PriorSettings, SamplingSettings
 from .inference.scan.engine import ScanSettings
 from .settings import DEFAULT_DISTANCE_PC, config_options, from_config
 
-__all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "SECTION_SETTINGS", "default_config", "describe_config", "geometry_given", "load_config",
-           "merge_config"]
+__all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "SECTION_SETTINGS", "default_config", "describe_config", "geometry_given",
+           "load_config", "merge_config"]
 
 # section -> key -> (default, description). The [frank], [alternatives], [sample], [priors] and [limits]
 # options are the fields of their settings dataclasses (spiralbayes.settings); [scan] takes its defaults
