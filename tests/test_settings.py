@@ -149,9 +149,13 @@ def test_prior_settings_make_the_priors():
 
     from spiralbayes.geometry import DiscGeometry
 
+    from spiralbayes.inference.posterior import Priors
+
     disc = SimpleNamespace(geometry=DiscGeometry(30.0, 60.0), Rmax=1.2, R_eff=lambda: 0.5)
     priors = PriorSettings().priors(disc)
     assert priors.r_p == (0.02, 0.5) and priors.inc == (30.0, 5.0) and priors.amplitude_max == 2.0
+    # the command line (the default [priors] section) and the notebook (Priors.default) agree
+    assert from_config(PriorSettings, default_config()["priors"]).priors(disc) == priors == Priors.default(disc)
     priors = PriorSettings(r_p_max=0.4, PA_sigma=2.0, amplitude_max=0.0).priors(disc)
     assert priors.r_p == (0.02, 0.4) and priors.PA == (60.0, 2.0) and priors.amplitude_max is None
     with pytest.raises(InputError, match="r_p_min = 0.5 must be smaller than r_p_max = 0.3"):
