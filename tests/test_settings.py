@@ -160,3 +160,12 @@ def test_prior_settings_make_the_priors():
     assert priors.r_p == (0.02, 0.4) and priors.PA == (60.0, 2.0) and priors.amplitude_max is None
     with pytest.raises(InputError, match="r_p_min = 0.5 must be smaller than r_p_max = 0.3"):
         PriorSettings(r_p_min=0.5, r_p_max=0.3)
+
+
+def test_settings_take_numpy_numbers_and_refuse_booleans():
+    import numpy as np
+
+    assert DetectionSettings(neighbourhood=np.int64(3), mstar=np.float32(1.0)).neighbourhood == 3
+    assert FrankSettings(N=np.int64(50)).N == 50 and SamplingSettings(n_walkers=np.int64(12)).n_walkers == 12
+    with pytest.raises(InputError, match="n_azimuths = True"):
+        CompletenessSettings(n_azimuths=True)

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 
 from ..exceptions import InputError
-from ..settings import option
+from ..settings import is_integer, option
 from .model import DEFAULT_HYPERPARAMETERS, _check_hyperparameters
 
 __all__ = ["FRANK_METHODS", "FrankSettings", "GEOMETRY_FITTERS"]
@@ -50,7 +49,7 @@ class FrankSettings:
     blas_threads: int | None = option(1, "BLAS threads during the fit (None: leave them alone)", config=False)
 
     def __post_init__(self):
-        if self.N is not None and (isinstance(self.N, bool) or not isinstance(self.N, numbers.Integral) or self.N < 2):
+        if self.N is not None and (not is_integer(self.N) or self.N < 2):
             raise InputError(f"N = {self.N!r} must be None (0 in a configuration file: automatic) or an integer >= 2 "
                              f"(the paper uses {DEFAULT_HYPERPARAMETERS['N']})")
         _check_hyperparameters(DEFAULT_HYPERPARAMETERS["N"] if self.N is None else self.N, self.Rmax, self.alpha,
@@ -62,7 +61,7 @@ class FrankSettings:
         if isinstance(self.tol, bool) or not (isinstance(self.tol, (int, float)) and 0 < self.tol < 1):
             raise InputError(f"tol = {self.tol!r}: frank's convergence tolerance must be a fraction in (0, 1), "
                              "e.g. 1e-3")
-        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, numbers.Integral) or self.max_iter < 1:
+        if not is_integer(self.max_iter) or self.max_iter < 1:
             raise InputError(f"max_iter = {self.max_iter!r} must be a positive number of iterations")
         if self.fit_geometry is not None and self.fit_geometry not in GEOMETRY_FITTERS:
             raise InputError(f"fit_geometry = {self.fit_geometry!r} must be one of {GEOMETRY_FITTERS} or None")

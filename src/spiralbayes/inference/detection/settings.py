@@ -3,12 +3,11 @@ and :class:`AlternativesSettings` (how test 3's competing asymmetries are fitted
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from ...alternatives import ALTERNATIVE_MODELS, DEFAULT_CELL_FACTOR
 from ...exceptions import InputError
-from ...settings import DEFAULT_MSTAR_MSUN, option
+from ...settings import DEFAULT_MSTAR_MSUN, is_finite_number, is_integer, option
 
 __all__ = ["AlternativesSettings", "DELTA_BIC_THRESHOLD", "DetectionSettings", "MASS_BAND"]
 
@@ -16,14 +15,6 @@ DELTA_BIC_THRESHOLD = 10.0
 """Test 1: the best template's ΔBIC must exceed this ("very strong" evidence, Stevenson et al. 2024)."""
 MASS_BAND = 10.0
 """Templates within this ΔBIC of the best (near its position) make the reported mass range."""
-
-
-def _is_int(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclass(frozen=True)
@@ -55,11 +46,11 @@ class AlternativesSettings:
             if isinstance(self.models, str) or unknown:
                 raise InputError(f"models = {self.models!r} names an unknown asymmetry model; choose from "
                                  f"{', '.join(repr(m) for m in ALTERNATIVE_MODELS)}")
-        if not _is_number(self.threshold):
+        if not is_finite_number(self.threshold):
             raise InputError(f"threshold = {self.threshold!r} must be a finite number (Delta BIC)")
-        if not _is_int(self.n_starts) or self.n_starts < 1:
+        if not is_integer(self.n_starts) or self.n_starts < 1:
             raise InputError(f"n_starts = {self.n_starts!r} must be an integer >= 1")
-        if not _is_int(self.max_iter) or self.max_iter < 1:
+        if not is_integer(self.max_iter) or self.max_iter < 1:
             raise InputError(f"max_iter = {self.max_iter!r} must be an integer >= 1")
 
 
@@ -86,14 +77,14 @@ class DetectionSettings:
                                               "(M_th = h_p^3 M_*)")
 
     def __post_init__(self):
-        if not _is_int(self.neighbourhood) or self.neighbourhood < 0:
+        if not is_integer(self.neighbourhood) or self.neighbourhood < 0:
             raise InputError(f"neighbourhood = {self.neighbourhood!r} must be an integer >= 0 (radius steps)")
         for name in ("max_handedness_ratio", "max_localisation"):
             value = getattr(self, name)
-            if not _is_number(value) or value <= 0:
+            if not is_finite_number(value) or value <= 0:
                 raise InputError(f"{name} = {value!r} must be a positive fraction")
         for name in ("bic_threshold_value", "alternative_threshold", "mass_band"):
-            if not _is_number(getattr(self, name)):
+            if not is_finite_number(getattr(self, name)):
                 raise InputError(f"{name} = {getattr(self, name)!r} must be a finite number (Delta BIC)")
-        if not _is_number(self.mstar) or self.mstar <= 0:
+        if not is_finite_number(self.mstar) or self.mstar <= 0:
             raise InputError(f"mstar = {self.mstar!r} must be a positive stellar mass [M_sun]")

@@ -3,11 +3,10 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from ...exceptions import InputError
-from ...settings import DEFAULT_MSTAR_MSUN, option
+from ...settings import DEFAULT_MSTAR_MSUN, is_finite_number, is_integer, option
 from ..detection.settings import DetectionSettings
 
 __all__ = ["CompletenessSettings", "ForecastSettings", "HANDS", "LIMIT_METHODS", "LimitSettings", "TABLE3_THRESHOLDS"]
@@ -19,14 +18,6 @@ LIMIT_METHODS = ("all_phi", "marginal")
 """How the limit at one r_p treats phi_p: excluded at every phi_p, or phi_p marginalised."""
 HANDS = ("R", "L")
 """Spiral hands: right-handed (the paper's) and its mirror image."""
-
-
-def _number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _integer(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _check_hands(name: str, hands) -> None:
@@ -52,11 +43,11 @@ class CompletenessSettings:
 
     def __post_init__(self):
         for name in ("n_azimuths", "chunk", "nthreads"):
-            if not _integer(getattr(self, name)) or getattr(self, name) < 1:
+            if not is_integer(getattr(self, name)) or getattr(self, name) < 1:
                 raise InputError(f"{name} = {getattr(self, name)!r} must be an integer >= 1")
-        if not _integer(self.max_rp_steps) or self.max_rp_steps < 0:
+        if not is_integer(self.max_rp_steps) or self.max_rp_steps < 0:
             raise InputError(f"max_rp_steps = {self.max_rp_steps!r} must be an integer >= 0")
-        if not _number(self.max_phi_deg) or not 0 < self.max_phi_deg <= 180:
+        if not is_finite_number(self.max_phi_deg) or not 0 < self.max_phi_deg <= 180:
             raise InputError(f"max_phi_deg = {self.max_phi_deg!r} must be an angle in (0, 180] degrees")
         _check_hands("hands", self.hands)
         object.__setattr__(self, "hands", tuple(self.hands))
@@ -103,31 +94,31 @@ class LimitSettings:
                                              "(default: resolution)", config=False)
 
     def __post_init__(self):
-        if not _number(self.cl) or not 0.5 < self.cl < 1:
+        if not is_finite_number(self.cl) or not 0.5 < self.cl < 1:
             raise InputError(f"cl = {self.cl!r} must be a confidence level in (0.5, 1), e.g. 0.95")
         if self.method not in LIMIT_METHODS:
             raise InputError(f"method = {self.method!r} must be one of {', '.join(map(repr, LIMIT_METHODS))}")
         if self.hand not in ("both", *HANDS):
             raise InputError(f"hand = {self.hand!r} must be one of 'both', 'R', 'L'")
         for name in ("mstar", "r_ref"):
-            if not _number(getattr(self, name)) or getattr(self, name) <= 0:
+            if not is_finite_number(getattr(self, name)) or getattr(self, name) <= 0:
                 raise InputError(f"{name} = {getattr(self, name)!r} must be a positive, finite number")
         for name in ("h_ref", "resolution", "bright_radius", "planet_beam"):
             value = getattr(self, name)
             # an infinite bright radius or planet beam is allowed: no radius is flagged for it
             unbounded = name in ("bright_radius", "planet_beam") and value == float("inf")
-            if value is not None and not unbounded and (not _number(value) or value < 0):
+            if value is not None and not unbounded and (not is_finite_number(value) or value < 0):
                 raise InputError(f"{name} = {value!r} must be a finite number >= 0 (or None: automatic)")
-        if not _number(self.flaring):
+        if not is_finite_number(self.flaring):
             raise InputError(f"flaring = {self.flaring!r} must be a finite number")
-        if not _number(self.resolution_factor) or self.resolution_factor < 0:
+        if not is_finite_number(self.resolution_factor) or self.resolution_factor < 0:
             raise InputError(f"resolution_factor = {self.resolution_factor!r} must be a finite number >= 0")
-        if not _number(self.extent_fraction) or not 0 < self.extent_fraction <= 1:
+        if not is_finite_number(self.extent_fraction) or not 0 < self.extent_fraction <= 1:
             raise InputError(f"extent_fraction = {self.extent_fraction!r} must be a fraction in (0, 1]")
-        if not _integer(self.n_azimuths) or self.n_azimuths < 1:
+        if not is_integer(self.n_azimuths) or self.n_azimuths < 1:
             raise InputError(f"n_azimuths = {self.n_azimuths!r} must be an integer >= 1")
         _check_hands("inject_hand", self.inject_hand)
-        if isinstance(self.thresholds, str) or any(not _number(m) or m <= 0 for m in self.thresholds):
+        if isinstance(self.thresholds, str) or any(not is_finite_number(m) or m <= 0 for m in self.thresholds):
             raise InputError(f"thresholds = {self.thresholds!r} must be a list of positive planet masses [M_th]")
         object.__setattr__(self, "inject_hand", tuple(self.inject_hand))
         object.__setattr__(self, "thresholds", tuple(self.thresholds))
@@ -147,9 +138,9 @@ class ForecastSettings:
 
     def __post_init__(self):
         for name in ("n_phi", "nthreads"):
-            if not _integer(getattr(self, name)) or getattr(self, name) < 1:
+            if not is_integer(getattr(self, name)) or getattr(self, name) < 1:
                 raise InputError(f"{name} = {getattr(self, name)!r} must be an integer >= 1")
         for name in ("time_on_source", "sensitivity"):
             value = getattr(self, name)
-            if value is not None and (not _number(value) or value <= 0):
+            if value is not None and (not is_finite_number(value) or value <= 0):
                 raise InputError(f"{name} = {value!r} must be a positive, finite number (or None: the set-up's)")

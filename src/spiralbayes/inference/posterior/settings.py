@@ -3,12 +3,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from ..._provenance import check_output_name
 from ...exceptions import InputError
-from ...settings import option
+from ...settings import is_finite_number, is_integer, option
 from .likelihood import DEFAULT_AMPLITUDE_MAX
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 
@@ -16,14 +15,6 @@ __all__ = ["CONVERGENCE_POLICIES", "PriorSettings", "SamplingSettings"]
 
 CONVERGENCE_POLICIES = ("raise", "warn", "ignore")
 """What a run does with a chain shorter than 50 autocorrelation times."""
-
-
-def _integer(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclass(frozen=True)
@@ -73,20 +64,20 @@ class SamplingSettings:
         if self.convergence not in CONVERGENCE_POLICIES:
             raise InputError(f"convergence = {self.convergence!r} must be one of "
                              f"{', '.join(map(repr, CONVERGENCE_POLICIES))}")
-        if not _integer(self.n_walkers) or self.n_walkers < 2 * N_DIM:
+        if not is_integer(self.n_walkers) or self.n_walkers < 2 * N_DIM:
             raise InputError(f"n_walkers = {self.n_walkers!r}: emcee needs at least 2 x {N_DIM} = {2 * N_DIM} "
                              "walkers")
-        if self.n_steps is not None and (not _integer(self.n_steps) or self.n_steps < 1):
+        if self.n_steps is not None and (not is_integer(self.n_steps) or self.n_steps < 1):
             raise InputError(f"n_steps = {self.n_steps!r} must be a positive number of steps")
         for name in ("max_steps", "check_every", "evidence_draws"):
-            if not _integer(getattr(self, name)) or getattr(self, name) < 1:
+            if not is_integer(getattr(self, name)) or getattr(self, name) < 1:
                 raise InputError(f"{name} = {getattr(self, name)!r} must be an integer >= 1")
-        if self.processes is not None and (not _integer(self.processes) or self.processes < 1):
+        if self.processes is not None and (not is_integer(self.processes) or self.processes < 1):
             raise InputError(f"processes = {self.processes!r} must be an integer >= 1")
-        if not _integer(self.seed) or self.seed < 0:
+        if not is_integer(self.seed) or self.seed < 0:
             raise InputError(f"seed = {self.seed!r} must be an integer >= 0")
         for name in ("min_ess", "prune_delta_lnL"):
-            if not _number(getattr(self, name)) or getattr(self, name) <= 0:
+            if not is_finite_number(getattr(self, name)) or getattr(self, name) <= 0:
                 raise InputError(f"{name} = {getattr(self, name)!r} must be a positive, finite number")
         if self.mcmc_templates is not None and (isinstance(self.mcmc_templates, str)
                                                 or not all(isinstance(n, str) for n in self.mcmc_templates)):
@@ -120,17 +111,17 @@ class PriorSettings:
     def __post_init__(self):
         for name in ("r_p_min", "r_p_max"):
             value = getattr(self, name)
-            if value is not None and (not _number(value) or value <= 0):
+            if value is not None and (not is_finite_number(value) or value <= 0):
                 raise InputError(f"{name} = {value!r} must be a positive radius [arcsec] (or 0: the disc's extent)")
         if self.r_p_min is not None and self.r_p_max is not None and self.r_p_min >= self.r_p_max:
             raise InputError(f"r_p_min = {self.r_p_min!r} must be smaller than r_p_max = {self.r_p_max!r} [arcsec] "
                              "(or 0 for the default)")
         for name in GEOMETRY_NAMES:
             value = getattr(self, f"{name}_sigma")
-            if not _number(value) or value <= 0:
+            if not is_finite_number(value) or value <= 0:
                 unit = "deg" if name in ("inc", "PA") else "arcsec"
                 raise InputError(f"{name}_sigma = {value!r} must be a positive width [{unit}]")
-        if not _number(self.amplitude_max) or self.amplitude_max < 0:
+        if not is_finite_number(self.amplitude_max) or self.amplitude_max < 0:
             raise InputError(f"amplitude_max = {self.amplitude_max!r} must be a finite number >= 0 (0: fix A = 1)")
 
     @property
