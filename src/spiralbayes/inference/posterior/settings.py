@@ -76,9 +76,10 @@ class SamplingSettings:
             raise InputError(f"processes = {self.processes!r} must be an integer >= 1")
         if not is_integer(self.seed) or self.seed < 0:
             raise InputError(f"seed = {self.seed!r} must be an integer >= 0")
-        for name in ("min_ess", "prune_delta_lnL"):
-            if not is_finite_number(getattr(self, name)) or getattr(self, name) <= 0:
-                raise InputError(f"{name} = {getattr(self, name)!r} must be a positive, finite number")
+        if not is_finite_number(self.min_ess) or self.min_ess < 0:
+            raise InputError(f"min_ess = {self.min_ess!r} must be a finite number >= 0 (0: no ESS requirement)")
+        if not is_finite_number(self.prune_delta_lnL) or self.prune_delta_lnL <= 0:
+            raise InputError(f"prune_delta_lnL = {self.prune_delta_lnL!r} must be a positive, finite number")
         if self.mcmc_templates is not None and (isinstance(self.mcmc_templates, str)
                                                 or not all(isinstance(n, str) for n in self.mcmc_templates)):
             raise InputError(f"mcmc_templates = {self.mcmc_templates!r} must be a list of template names")
