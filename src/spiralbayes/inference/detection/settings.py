@@ -3,6 +3,7 @@ and :class:`AlternativesSettings` (how test 3's competing asymmetries are fitted
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 from ...alternatives import ALTERNATIVE_MODELS, DEFAULT_CELL_FACTOR
@@ -81,8 +82,9 @@ class DetectionSettings:
             raise InputError(f"neighbourhood = {self.neighbourhood!r} must be an integer >= 0 (radius steps)")
         for name in ("max_handedness_ratio", "max_localisation"):
             value = getattr(self, name)
-            if not is_finite_number(value) or value <= 0:
-                raise InputError(f"{name} = {value!r} must be a positive fraction")
+            # infinity switches the criterion off
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not value > 0:
+                raise InputError(f"{name} = {value!r} must be a positive fraction (inf: no limit)")
         for name in ("bic_threshold_value", "alternative_threshold", "mass_band"):
             if not is_finite_number(getattr(self, name)):
                 raise InputError(f"{name} = {getattr(self, name)!r} must be a finite number (Delta BIC)")
