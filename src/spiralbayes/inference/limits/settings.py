@@ -126,8 +126,11 @@ class LimitSettings:
 
 @dataclass(frozen=True)
 class ForecastSettings:
-    """Options of :func:`~spiralbayes.inference.limits.forecast` (and :func:`~spiralbayes.inference.limits.compare_setups`,
-    which uses ``n_phi`` and ``nthreads``). Every field's description is its ``metadata["doc"]``."""
+    """Options of :func:`~spiralbayes.inference.limits.forecast` (and of
+    :func:`~spiralbayes.inference.limits.compare_setups`, which uses ``n_phi`` and ``nthreads``).
+
+    Every field's description is its ``metadata["doc"]``.
+    """
 
     n_phi: int = option(90, "planet azimuths averaged over (the scan's 4 deg steps)")
     time_on_source: float | None = option(None, "total time on source [min]: rebuilds the tracks for that time "

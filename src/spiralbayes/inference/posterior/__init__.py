@@ -5,7 +5,8 @@
 * :mod:`.conditional` — the likelihood at a fixed profile, the reference (:class:`SpiralLikelihood`);
 * :mod:`.interpolation`, :mod:`.perturbation` — the fast perturbation tables;
 * :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
-* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings` and :class:`PriorSettings`; :mod:`.moves` — the wrapped DE move;
+* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings` and
+  :class:`PriorSettings`; :mod:`.moves` — the wrapped DE move;
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files (an emcee backend) and the chain loop;
 * :mod:`.diagnostics` — convergence; :mod:`.stopping` — when a chain may stop (every parameter, or
   the geometry and the evidence when the planet is not preferred);
