@@ -90,12 +90,14 @@ def test_detect_takes_settings_and_the_old_keywords():
 
 
 def test_stellar_mass_and_thresholds_have_one_default():
-    from spiralbayes.inference.detection.verdict import DEFAULT_MSTAR
-    from spiralbayes.inference.limits.table3 import THRESHOLDS
-    from spiralbayes.inference.posterior import results
+    import inspect
 
-    assert DetectionSettings().mstar == LimitSettings().mstar == DEFAULT_MSTAR == results.DEFAULT_MSTAR \
-        == DEFAULT_MSTAR_MSUN
+    from spiralbayes.inference.detection.verdict import mass_range
+    from spiralbayes.inference.limits.table3 import THRESHOLDS
+    from spiralbayes.inference.posterior import PosteriorResult
+
+    mstar_defaults = {inspect.signature(f).parameters["mstar"].default for f in (mass_range, PosteriorResult.mass_range)}
+    assert {DetectionSettings().mstar, LimitSettings().mstar, *mstar_defaults} == {DEFAULT_MSTAR_MSUN}
     assert THRESHOLDS == LimitSettings().thresholds
     assert CompletenessSettings().detection.alternative_threshold == AlternativesSettings().threshold
     assert (LimitSettings().n_azimuths, LimitSettings().inject_hand) == (CompletenessSettings().n_azimuths,

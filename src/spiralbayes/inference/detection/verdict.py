@@ -49,7 +49,7 @@ import numpy as np
 
 from ...exceptions import InputError
 from ...results import ResultMixin, fields_dict
-from ...settings import DEFAULT_MSTAR_MSUN, with_overrides
+from ...settings import with_overrides
 from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, AlternativesSettings, DetectionSettings
 from ...units import M_JUP, M_SUN
 
@@ -59,8 +59,6 @@ __all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "lo
 ALTERNATIVE_THRESHOLD = AlternativesSettings.threshold
 """Test 3: the spiral's BIC must be lower than the best alternative's by more than this."""
 CANDIDATES_PER_TEMPLATE = 5
-DEFAULT_MSTAR = DEFAULT_MSTAR_MSUN
-"""Stellar mass [M_sun] for Jupiter masses when none is given (:data:`spiralbayes.settings.DEFAULT_MSTAR_MSUN`)."""
 
 
 def mirror_index(result, template: int) -> int | None:
@@ -189,7 +187,7 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = Detect
 
 
 def mass_range(result, amplitude=None, *, band: float = MASS_BAND, window: tuple = (2, 3),
-               mstar: float = DEFAULT_MSTAR) -> dict | None:
+               mstar: float = DetectionSettings.mstar) -> dict | None:
     """Planet masses of every template that explains the best instance nearly as well as the best one.
 
     A template belongs to the range when it has the best template's hand and its largest Δχ² within

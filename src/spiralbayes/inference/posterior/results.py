@@ -40,8 +40,6 @@ INCONCLUSIVE_LN_B = 1.0
 """``|ln B(planet : none)|`` below this is "inconclusive" (Jeffreys scale: B < e either way)."""
 MASS_LEVEL = 0.95
 """Credibility of the reported mass range."""
-DEFAULT_MSTAR = DEFAULT_MSTAR_MSUN
-"""Stellar mass [M_sun] for Jupiter masses when none is given (:data:`spiralbayes.settings.DEFAULT_MSTAR_MSUN`)."""
 
 __all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
 
@@ -352,7 +350,7 @@ class PosteriorResult(ResultMixin):
             text += f" ({j[0] if j[0] == j[1] else '-'.join(j)} M_Jup for M_* = {m['mstar']:g} M_sun)"
         return text + f" ({100 * m['level']:g} % credible, over morphology variants and H/r)"
 
-    def mass_range(self, level: float = MASS_LEVEL, mstar: float = DEFAULT_MSTAR) -> dict | None:
+    def mass_range(self, level: float = MASS_LEVEL, mstar: float = DEFAULT_MSTAR_MSUN) -> dict | None:
         """Credible range of the planet mass given a planet, over all templates.
 
         In M_th: the smallest set of masses whose marginal probability (:meth:`marginals`) reaches
