@@ -130,6 +130,14 @@ def test_settings_sections_are_checked_by_their_dataclass(user, match):
         merge_config(user)
 
 
+def test_a_distance_beyond_the_galaxy_is_refused():
+    """1e9 pc (a unit slip) would put planets at 1e8 au; the limit is MAX_DISTANCE_PC."""
+    with pytest.raises(ValueError, match=r"geometry.distance = 1000000000.0 must be a positive distance in pc, at "
+                                         r"most 10000 \(e.g. 140 for Taurus\)"):
+        merge_config({"geometry": {"distance": 1e9}})
+    assert merge_config({"geometry": {"distance": 400}})["geometry"]["distance"] == 400.0
+
+
 def test_defaults_and_sentinels_of_settings_sections_pass():
     config = merge_config({"priors": {"r_p_min": 0.0, "amplitude_max": 0.0}, "frank": {"N": 0},
                            "sample": {"n_steps": 0, "n_walkers": 12}})

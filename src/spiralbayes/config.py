@@ -33,7 +33,7 @@ from .inference.detection.settings import AlternativesSettings
 from .inference.limits.settings import LimitSettings
 from .inference.posterior.settings import PriorSettings, SamplingSettings
 from .inference.scan.engine import ScanSettings
-from .settings import DEFAULT_DISTANCE_PC, config_options, from_config
+from .settings import DEFAULT_DISTANCE_PC, MAX_DISTANCE_PC, config_options, from_config
 
 __all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "SECTION_SETTINGS", "default_config", "describe_config", "geometry_given",
            "load_config", "merge_config"]
@@ -156,6 +156,11 @@ def _even_positive(v):
     return None if v >= 2 and v % 2 == 0 else "must be a positive, even integer (the paper uses 90: 4 deg steps)"
 
 
+def _distance(v):
+    return None if math.isfinite(v) and 0 < v <= MAX_DISTANCE_PC else \
+        f"must be a positive distance in pc, at most {MAX_DISTANCE_PC:g} (e.g. {DEFAULT_DISTANCE_PC:g} for Taurus)"
+
+
 def _inclination(v):
     return None if math.isfinite(v) and 0 <= v < 90 else "must be an inclination in degrees in [0, 90)"
 
@@ -198,7 +203,7 @@ _UV_UNITS = ("", "lambda", "klambda", "m", "λ", "kλ", "wavelengths", "wle", "k
 
 CHECKS: dict[str, dict[str, object]] = {
     "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative},
-    "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _positive},
+    "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _distance},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),
                   "h_p": _each(_number(_positive))},
