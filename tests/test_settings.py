@@ -8,7 +8,14 @@ from spiralbayes.axisymmetric import FrankSettings, fit_axisymmetric
 from spiralbayes.config import SCHEMA, SECTION_SETTINGS, default_config
 from spiralbayes.exceptions import InputError
 from spiralbayes.inference.detection import AlternativesSettings, DetectionSettings, detect, fit_alternatives
-from spiralbayes.inference.limits import CompletenessSettings, LimitSettings, completeness, compute_limits
+from spiralbayes.inference.limits import (
+    CompletenessSettings,
+    ForecastSettings,
+    LimitSettings,
+    completeness,
+    compute_limits,
+    forecast,
+)
 from spiralbayes.inference.posterior import PriorSettings, SamplingSettings, sample_posterior
 from spiralbayes.settings import DEFAULT_MSTAR_MSUN, config_options, from_config, with_overrides
 
@@ -118,6 +125,10 @@ def test_stage_functions_refuse_bad_settings_before_any_work():
         completeness(None, None, [], None, n_azimuth=3)
     with pytest.warns(FutureWarning, match="scan_result"), pytest.raises(TypeError, match="n_walker"):
         sample_posterior(None, None, [], scan=object(), n_walker=32)
+    with pytest.raises(InputError, match="n_phi = 0 must be an integer >= 1"):
+        forecast(None, None, 0.1, n_phi=0)
+    with pytest.raises(InputError, match="time_on_source = -5"):
+        forecast(None, None, 0.1, settings=ForecastSettings(time_on_source=-5.0))
 
 
 def test_completeness_routes_detection_overrides():
