@@ -49,7 +49,7 @@ print(result_scan.best)
 # out; "no planet" competes with every template (weighted by their evidences)
 priors = Priors.default(axisym, r_p=(0.05, 0.6), widths={"inc": 3.0, "PA": 3.0, "dRA": 0.02, "dDec": 0.02})
 sampling = SamplingSettings(run_name="example", processes=2)  # every [sample] option, with its default
-post = sample_posterior(vis, axisym, templates, scan=result_scan, priors=priors, settings=sampling,
+post = sample_posterior(vis, axisym, templates, scan_result=result_scan, priors=priors, settings=sampling,
                         chains_dir=OUT / "chains")
 print(post.verdict)
 print("P(planet | data) =", post.p_planet, "ln B =", post.ln_bayes_factor)

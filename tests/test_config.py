@@ -164,6 +164,25 @@ def test_bad_grid_and_scan_values_name_the_option(user, match):
         merge_config(user)
 
 
+@pytest.mark.parametrize("user,match", [
+    ({"sample": {"n_walkers": 5}}, r"sample.n_walkers = 5: emcee needs at least 2 x 6 = 12 walkers"),
+    ({"sample": {"max_steps": 0}}, r"sample.max_steps = 0 must be an integer >= 1"),
+    ({"sample": {"run_name": "../x"}}, r"sample.run_name = '../x' must be a plain name"),
+    ({"frank": {"N": 1}}, r"frank.N = 1 must be None \(0 in a configuration file: automatic\) or an integer >= 2"),
+    ({"frank": {"alpha": 0.5}}, r"frank.alpha = 0.5: .* alpha >= 1"),
+    ({"priors": {"r_p_min": 0.5, "r_p_max": 0.3}}, r"priors.r_p_min = 0.5 must be smaller than r_p_max = 0.3"),
+    ({"priors": {"inc_sigma": -1.0}}, r"priors.inc_sigma = -1.0 must be a positive width \[deg\]"),
+    ({"priors": {"amplitude_max": -2.0}}, r"priors.amplitude_max = -2.0"),
+    ({"limits": {"cl": 1.5}}, r"limits.cl = 1.5 must be a confidence level in \(0.5, 1\)"),
+    ({"limits": {"thresholds": [3, -1]}}, r"limits.thresholds = \(3, -1\) must be a list of positive planet masses"),
+    ({"limits": {"inject_hand": ["X"]}}, r"limits.inject_hand = \('X',\) must be a non-empty list of 'R' and/or 'L'"),
+    ({"alternatives": {"threshold": float("nan")}}, r"alternatives.threshold = nan must be a finite number"),
+])
+def test_settings_sections_are_checked_by_their_dataclass(user, match):
+    with pytest.raises(ValueError, match=match):
+        merge_config(user)
+
+
 def test_only_one_bound_may_be_automatic():
     cfg = merge_config({"grid": {"r_p_min": 0.3}})  # r_p_max automatic: checked against the data's R_eff later
     assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"]) == (0.3, 0.0)
@@ -175,3 +194,37 @@ def test_old_dask_key_is_read_as_scheduler_with_a_future_warning():
         cfg = merge_config({"scan": {"dask": "local"}})
     assert cfg["scan"]["scheduler"] == "local" and "dask" not in cfg["scan"]
 
+
+def test_a_distance_beyond_the_galaxy_is_refused():
+    """1e9 pc (a unit slip) would put planets at 1e8 au; the limit is MAX_DISTANCE_PC."""
+    with pytest.raises(ValueError, match=r"geometry.distance = 1000000000.0 must be a positive distance in pc, at "
+                                         r"most 10000 \(e.g. 140 for Taurus\)"):
+        merge_config({"geometry": {"distance": 1e9}})
+    assert merge_config({"geometry": {"distance": 400}})["geometry"]["distance"] == 400.0
+
+
+def test_defaults_and_sentinels_of_settings_sections_pass():
+    config = merge_config({"priors": {"r_p_min": 0.0, "amplitude_max": 0.0}, "frank": {"N": 0},
+                           "sample": {"n_steps": 0, "n_walkers": 12}})
+    assert (config["priors"]["r_p_min"], config["frank"]["N"], config["sample"]["n_walkers"]) == (0.0, 0, 12)
+
+
+def test_sample_config_is_refused_before_the_data_are_read(tmp_path, monkeypatch, capsys):
+    """``[sample] n_walkers = 5`` stops ``spiralbayes sample`` when the file is read: no data file is opened."""
+    from spiralbayes import io
+    from spiralbayes.cli import main
+    from spiralbayes.pipeline import inputs
+
+    def no_reading(*args, **kwargs):
+        raise AssertionError("the data were read before the configuration was checked")
+
+    monkeypatch.setattr(inputs, "load_visibilities", no_reading)
+    monkeypatch.setattr(io, "load_visibilities", no_reading)
+    data = tmp_path / "disc.txt"
+    data.write_text("# u v Re Im w\n1 2 3 4 5\n")
+    config = tmp_path / "run.toml"
+    config.write_text('[data]\npath = "disc.txt"\n[geometry]\ninc = 30\nPA = 60\n[sample]\nn_walkers = 5\n')
+    assert main(["-q", "sample", str(config)]) == 2
+    err = capsys.readouterr().err
+    assert "sample.n_walkers = 5" in err and "12 walkers" in err
+    assert not (tmp_path / "spiralbayes-output").exists()

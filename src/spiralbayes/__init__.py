@@ -16,21 +16,21 @@ import logging
 
 from . import exceptions  # noqa: E402
 from ._version import __version__  # noqa: E402
-from .axisymmetric import AxisymmetricModel, fit_axisymmetric  # noqa: E402
+from .axisymmetric import AxisymmetricModel, FrankSettings, fit_axisymmetric  # noqa: E402
 from .geometry import DiscGeometry  # noqa: E402
 from .inference.detection.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
-from .inference.detection.settings import AlternativesSettings  # noqa: E402
+from .inference.detection.settings import AlternativesSettings, DetectionSettings  # noqa: E402
 from .inference.detection.follow_up import rescan_at_fitted_geometry  # noqa: E402
 from .inference.detection.verdict import Verdict, detect  # noqa: E402
 from .inference.limits.exclusion import ExclusionLimits, compute_limits  # noqa: E402
 from .inference.limits.forecasting import Forecast, forecast  # noqa: E402
 from .inference.limits.recovery import CompletenessResult, completeness  # noqa: E402
-from .inference.limits.settings import LimitSettings  # noqa: E402
+from .inference.limits.settings import CompletenessSettings, ForecastSettings, LimitSettings  # noqa: E402
 from .inference.posterior.conditional import SpiralLikelihood  # noqa: E402
 from .inference.posterior.priors import Priors  # noqa: E402
 from .inference.posterior.results import PosteriorResult  # noqa: E402
 from .inference.posterior.sampler import sample_posterior  # noqa: E402
-from .inference.posterior.settings import SamplingSettings  # noqa: E402
+from .inference.posterior.settings import PriorSettings, SamplingSettings  # noqa: E402
 from .inference.scan.run import ScanResult, scan  # noqa: E402
 from .inference.scan.settings import ScanSettings  # noqa: E402
 from .io import load_visibilities, save_visibilities  # noqa: E402
@@ -59,18 +59,18 @@ def __getattr__(name):
 DATA = ["Visibilities", "DiscGeometry", "load_visibilities", "save_visibilities", "bin_deprojected",
         "estimate_weights", "PRESETS", "DiscModel", "simulate_observation", "uv_coverage"]
 """Data: visibilities, disc geometry, files, synthetic observations."""
-MODELS = ["AxisymmetricModel", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank", "compromise_bank",
-          "variant_bank", "make_template"]
+MODELS = ["AxisymmetricModel", "FrankSettings", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank",
+          "compromise_bank", "variant_bank", "make_template"]
 """Models: the axisymmetric (frank) profile and the spiral templates."""
 SEARCH = ["ScanResult", "ScanSettings", "scan"]
 """Search: the template scan."""
-DETECTION = ["Verdict", "detect", "AlternativesResult", "AlternativesSettings", "fit_alternatives",
+DETECTION = ["Verdict", "DetectionSettings", "detect", "AlternativesResult", "AlternativesSettings", "fit_alternatives",
              "rescan_at_fitted_geometry"]
 """Detection: tests 1-3, the competing asymmetries, the geometry follow-up."""
-LIMITS = ["ExclusionLimits", "LimitSettings", "compute_limits", "CompletenessResult", "completeness", "Forecast",
-          "forecast"]
+LIMITS = ["ExclusionLimits", "LimitSettings", "compute_limits", "CompletenessResult", "CompletenessSettings",
+          "completeness", "Forecast", "ForecastSettings", "forecast"]
 """Limits: exclusion limits, completeness, forecasts."""
-POSTERIOR = ["PosteriorResult", "Priors", "SamplingSettings", "SpiralLikelihood", "sample_posterior"]
+POSTERIOR = ["PosteriorResult", "Priors", "PriorSettings", "SamplingSettings", "SpiralLikelihood", "sample_posterior"]
 """Posterior: the sampled posterior and its parts."""
 PLOTTING = ["plotting"]
 """Plotting: ``spiralbayes.plotting`` (Matplotlib, imported on first use)."""

@@ -11,26 +11,31 @@ the scan and the image-plane comparisons of ``[compare]`` (needs CASA). Relative
 ``[output] dir`` alike — are taken relative to the configuration file, so a configuration means
 the same wherever it is run from.
 
-Values are checked when the file is read (:data:`CHECKS`): a wrong type, a value out of range or
-an unknown choice raises :class:`~spiralbayes.exceptions.ConfigError` naming the option and what
-it accepts, before any data is read or any fit is run.
+Values are checked when the file is read (the settings dataclasses of :data:`SECTION_SETTINGS` and,
+for the other sections, :data:`CHECKS`): a wrong type, a value out of range or an unknown choice
+raises :class:`~spiralbayes.exceptions.ConfigError` naming the option (``section.key``) and what it
+accepts, before any data is read or any fit is run.
 """
 
 from __future__ import annotations
 
 import copy
 import math
+<<<<<<< HEAD
 import warnings
+=======
+import re
+>>>>>>> i30b2
 from dataclasses import fields
 from pathlib import Path
 
 from ._compat import tomllib
 
-from .alternatives import ALTERNATIVE_MODELS
-from .axisymmetric.model import DEFAULT_HYPERPARAMETERS
+from .axisymmetric.settings import FrankSettings
 from .exceptions import ConfigError, MissingFileError
 from .inference.detection.settings import AlternativesSettings
 from .inference.limits.settings import LimitSettings
+<<<<<<< HEAD
 from .inference.posterior.settings import SamplingSettings
 from .inference.scan.settings import GRID_FIELDS, ScanSettings, field_error
 from .settings import config_options
@@ -41,6 +46,18 @@ __all__ = ["CHECKS", "PATH_KEYS", "RENAMED", "SCHEMA", "default_config", "descri
 # section -> key -> (default, description). The [grid], [scan], [alternatives], [sample] and [limits]
 # options are the fields of their settings dataclasses (spiralbayes.settings); [frank] takes its defaults
 # from frank's hyperparameters: each default is written once, where the code uses it.
+=======
+from .inference.posterior.settings import PriorSettings, SamplingSettings
+from .inference.scan.engine import ScanSettings
+from .settings import DEFAULT_DISTANCE_PC, MAX_DISTANCE_PC, config_options, from_config
+
+__all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "SECTION_SETTINGS", "default_config", "describe_config", "geometry_given",
+           "load_config", "merge_config"]
+
+# section -> key -> (default, description). The [frank], [alternatives], [sample], [priors] and [limits]
+# options are the fields of their settings dataclasses (spiralbayes.settings); [scan] takes its defaults
+# from ScanSettings: each default is written once, where the code uses it.
+>>>>>>> i30b2
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     "data": {
         "path": ("", "visibility file: uvtable .txt/.npz, spiralbayes .h5, or a Measurement Set directory"),
@@ -55,15 +72,10 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "dRA": (0.0, "disc centre offset to the east [arcsec]"),
         "dDec": (0.0, "disc centre offset to the north [arcsec]"),
         "fit": (False, "fit the geometry with frank's nonparametric fitter (started from its Gaussian fit and the values above)"),
-        "distance": (140.0, "distance [pc], for au axes and planet masses"),
+        "distance": (DEFAULT_DISTANCE_PC, "distance [pc], for au axes and planet masses"),
     },
     "frank": {
-        "N": (0, "number of radial collocation points; 0: the paper's 200, or for fewer than 200 visibilities the count their longest baseline needs (x1.25)"),
-        "Rmax": (DEFAULT_HYPERPARAMETERS["Rmax"], "outer radius of the fit [arcsec]"),
-        "alpha": (DEFAULT_HYPERPARAMETERS["alpha"], "order parameter of the power-spectrum prior"),
-        "p0": (DEFAULT_HYPERPARAMETERS["p0"], "scale parameter of the power-spectrum prior [Jy^2]"),
-        "weights_smooth": (DEFAULT_HYPERPARAMETERS["weights_smooth"], "strength of the power-spectrum smoothing"),
-        "nonnegative": (False, "use frank's non-negative profile"),
+        **config_options(FrankSettings),
         "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
     "templates": {
@@ -92,15 +104,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         **config_options(SamplingSettings, [f.name for f in fields(SamplingSettings)
                                             if f.metadata["config"] and f.name != "run_name"]),
     },
-    "priors": {
-        "r_p_min": (0.0, "smallest planet radius [arcsec] (0: R_eff / 25 of the frank profile)"),
-        "r_p_max": (0.0, "largest planet radius [arcsec] (0: R_eff, at most Rmax / 2.2)"),
-        "inc_sigma": (5.0, "width of the Gaussian prior on the inclination [deg], centred on [geometry]"),
-        "PA_sigma": (5.0, "width of the Gaussian prior on the position angle [deg]"),
-        "dRA_sigma": (0.05, "width of the Gaussian prior on the RA offset [arcsec]"),
-        "dDec_sigma": (0.05, "width of the Gaussian prior on the Dec offset [arcsec]"),
-        "amplitude_max": (2.0, "spiral amplitude A uniform on [0, amplitude_max] (A = 1: the template as simulated; 0: fix A = 1)"),
-    },
+    "priors": config_options(PriorSettings),
     "compare": {
         "residuals": ("visibilities", "'visibilities': CLEAN image of the residual visibilities (data - frank model); 'difference': CLEAN image of the data minus that of the frank model at the same baselines (carries CLEAN artefacts)"),
         "weighting": ("briggs", "tclean weighting: 'natural', 'briggs' or 'uniform'"),
@@ -119,12 +123,27 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "plots": (True, "write heatmap PNGs"),
     },
 }
+<<<<<<< HEAD
 """section -> option -> ``(default, description)`` of every configuration option; the ``[grid]`` and
 ``[scan]`` options (but ``scheduler``) come from :class:`~spiralbayes.inference.scan.settings.ScanSettings`,
 the ``[alternatives]``, ``[sample]`` and ``[limits]`` options from
 :class:`~spiralbayes.inference.detection.settings.AlternativesSettings`,
 :class:`~spiralbayes.inference.posterior.settings.SamplingSettings` and
 :class:`~spiralbayes.inference.limits.settings.LimitSettings`."""
+=======
+"""section -> option -> ``(default, description)`` of every configuration option; the options of the
+sections in :data:`SECTION_SETTINGS` come from the fields of their settings dataclasses."""
+
+SECTION_SETTINGS: dict[str, type] = {
+    "frank": FrankSettings,
+    "alternatives": AlternativesSettings,
+    "sample": SamplingSettings,
+    "priors": PriorSettings,
+    "limits": LimitSettings,
+}
+"""section -> the settings dataclass its options make; :func:`merge_config` builds each one, so that the
+dataclass's own checks run when the file is read, before any data."""
+>>>>>>> i30b2
 
 
 BUILT_IN_BANKS = ("default", "variants", "compromise")
@@ -148,14 +167,11 @@ def _non_negative(v):
     return None if math.isfinite(v) and v >= 0 else "must be a finite number >= 0"
 
 
-def _at_least(low):
-    return lambda v: None if math.isfinite(v) and v >= low else f"must be a finite number >= {low:g}"
-
-
 def _int_at_least(low):
     return lambda v: None if v >= low else f"must be an integer >= {low}"
 
 
+<<<<<<< HEAD
 def _zero_or_at_least(low):
     return lambda v: None if v == 0 or v >= low else f"must be 0 (automatic) or an integer >= {low}"
 
@@ -163,16 +179,15 @@ def _zero_or_at_least(low):
 def _scan_check(key):
     # ScanSettings' own rule, so that TOML and Python accept the same values; 0 spells "automatic"
     return lambda v: field_error(key, None if key in ("r_p_min", "r_p_max") and v == 0 else v)
+=======
+def _even_positive(v):
+    return None if v >= 2 and v % 2 == 0 else "must be a positive, even integer (the paper uses 90: 4 deg steps)"
+>>>>>>> i30b2
 
 
-def _plain_name(v):
-    from ._provenance import check_output_name
-
-    try:
-        check_output_name(v, "name")
-    except ValueError:
-        return "must be a plain name (no '/', '\\', '..' or leading '.'): outputs stay inside [output] dir"
-    return None
+def _distance(v):
+    return None if math.isfinite(v) and 0 < v <= MAX_DISTANCE_PC else \
+        f"must be a positive distance in pc, at most {MAX_DISTANCE_PC:g} (e.g. {DEFAULT_DISTANCE_PC:g} for Taurus)"
 
 
 def _inclination(v):
@@ -217,12 +232,11 @@ _UV_UNITS = ("", "lambda", "klambda", "m", "λ", "kλ", "wavelengths", "wle", "k
 
 CHECKS: dict[str, dict[str, object]] = {
     "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative},
-    "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _positive},
-    "frank": {"N": _zero_or_at_least(2), "Rmax": _positive, "alpha": _at_least(1.0), "p0": _positive,
-              "weights_smooth": _non_negative},
+    "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _distance},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),
                   "h_p": _each(_number(_positive))},
+<<<<<<< HEAD
     "grid": {key: _scan_check(key) for key in GRID_FIELDS},
     "scan": {key: _scan_check(key) for key in ScanSettings.field_names() if key not in GRID_FIELDS},
     "alternatives": {"models": _each(_string(_choice(*ALTERNATIVE_MODELS))), "threshold": _finite,
@@ -234,20 +248,19 @@ CHECKS: dict[str, dict[str, object]] = {
                "mcmc_templates": _each(_string(lambda v: None))},
     "priors": {"r_p_min": _non_negative, "r_p_max": _non_negative, "inc_sigma": _positive, "PA_sigma": _positive,
                "dRA_sigma": _positive, "dDec_sigma": _positive},
+=======
+    "grid": {"r_p_min": _positive, "r_p_max": _positive, "n_r_p": _int_at_least(1), "n_phi_p": _even_positive},
+    "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive,
+             "quadrature": _choice("product", "midpoint"), "power_path": _choice("auto", "polar", "direct")},
+>>>>>>> i30b2
     "compare": {"residuals": _choice("visibilities", "difference"), "weighting": _choice("natural", "briggs", "uniform"),
                 "robust": _finite, "deconvolver": _choice("hogbom", "multiscale"), "niter": _int_at_least(0),
                 "threshold_sigma": _positive, "imsize": _int_at_least(0), "cell": _non_negative, "r_out": _non_negative},
-    "limits": {"cl": lambda v: None if 0.5 < v < 1 else "must be a confidence level in (0.5, 1), e.g. 0.95",
-               "method": _choice("all_phi", "marginal"), "hand": _choice("both", "R", "L"), "mstar": _positive,
-               "h_ref": _non_negative, "r_ref": _positive, "flaring": _finite, "resolution": _non_negative,
-               "resolution_factor": _non_negative,
-               "extent_fraction": lambda v: None if 0 < v <= 1 else "must be a fraction in (0, 1]",
-               "n_azimuths": _int_at_least(1), "inject_hand": _each(_string(_choice("R", "L"))),
-               "thresholds": _each(_number(_positive))},
     "output": {"dir": lambda v: None if v.strip() else "must name a directory"},
 }
-"""section -> option -> check of its (already type-coerced) value; options without one take any value
-of their type. Sections added to :data:`.SCHEMA` may add their checks here."""
+"""section -> option -> check of its (already type-coerced) value, for the sections without a settings
+dataclass (:data:`SECTION_SETTINGS` sections are checked by their dataclass); options without one take any
+value of their type. Sections added to :data:`.SCHEMA` may add their checks here."""
 
 
 def _check_values(config: dict) -> None:
@@ -263,11 +276,34 @@ def _check_values(config: dict) -> None:
     grid = config.get("grid", {})
     if grid.get("r_p_min") and grid.get("r_p_max") and grid["r_p_min"] >= grid["r_p_max"]:
         raise ConfigError(f"grid.r_p_min = {grid['r_p_min']!r} must be smaller than grid.r_p_max = "
+<<<<<<< HEAD
                           f"{grid['r_p_max']!r} [arcsec] (or 0: automatic)")
     priors = config.get("priors", {})
     if priors.get("r_p_min") and priors.get("r_p_max") and priors["r_p_min"] >= priors["r_p_max"]:
         raise ConfigError(f"priors.r_p_min = {priors['r_p_min']!r} must be smaller than priors.r_p_max = "
                           f"{priors['r_p_max']!r} [arcsec] (or 0 for the default)")
+=======
+                          f"{grid['r_p_max']!r} [arcsec]")
+
+
+def _check_settings(config: dict) -> None:
+    """Build each section's settings dataclass, so that its own checks run; its error names ``section.key``."""
+    for section, cls in SECTION_SETTINGS.items():
+        if section not in config:
+            continue
+        try:
+            from_config(cls, config[section])
+        except (ValueError, TypeError) as exc:
+            raise ConfigError(_settings_message(section, cls, str(exc))) from None
+
+
+def _settings_message(section: str, cls, message: str) -> str:
+    # the dataclasses' messages start with "<field> = <value>", which becomes "<section>.<field> = <value>"
+    match = re.match(r"(\w+) ", message)
+    if match and match.group(1) in {f.name for f in fields(cls)}:
+        return f"{section}.{message}"
+    return f"[{section}] {message}"
+>>>>>>> i30b2
 
 
 def default_config() -> dict:
@@ -286,6 +322,7 @@ def merge_config(user: dict, schema: dict = SCHEMA) -> dict:
             values = {_current_name(section, key, values): value for key, value in values.items()}
         config[section].update(merge_section(section, values, schema[section], defaults=False))
     _check_values(config)
+    _check_settings(config)
     return config
 
 

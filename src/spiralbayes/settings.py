@@ -17,13 +17,19 @@ keyword arguments still work as ``**overrides`` (:func:`with_overrides`)::
 from __future__ import annotations
 
 import dataclasses
+import math
+import numbers
 
-__all__ = ["DEFAULT_DISTANCE_PC", "DEFAULT_MSTAR_MSUN", "config_options", "from_config", "option", "with_overrides"]
+__all__ = ["DEFAULT_DISTANCE_PC", "DEFAULT_MSTAR_MSUN", "MAX_DISTANCE_PC", "config_options", "from_config", "is_finite_number",
+           "is_integer", "option", "with_overrides"]
 
 DEFAULT_DISTANCE_PC = 140.0
 """Distance [pc] assumed when none is given (the Taurus and Lupus star-forming regions are at ~140-160 pc)."""
 DEFAULT_MSTAR_MSUN = 0.8
 """Stellar mass [M_sun] assumed when none is given (the paper's fiducial star; M_th = (H/r)^3 M_*)."""
+MAX_DISTANCE_PC = 1.0e4
+"""Largest distance [pc] accepted from a user: no protoplanetary disc beyond the Galaxy's ~10 kpc is resolved
+(a larger value is a unit slip, e.g. metres or au for pc)."""
 
 _NO_TOML = object()
 
@@ -105,3 +111,13 @@ def with_overrides(settings, cls, overrides: dict, where: str):
         raise TypeError(f"{where}() got unknown keyword argument(s) {unknown}; the {cls.__name__} options are "
                         f"{names}")
     return dataclasses.replace(settings, **overrides)
+
+
+def is_integer(value) -> bool:
+    """Whether ``value`` is an integer (Python or NumPy; ``True``/``False`` are not), for ``__post_init__`` checks."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def is_finite_number(value) -> bool:
+    """Whether ``value`` is a finite real number (Python or NumPy; ``True``/``False`` are not)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)

@@ -23,7 +23,9 @@ Conventions
   plane when the image is sampled, as frank and galario do.
 """
 
-from .fit import GEOMETRY_FITTERS, fit_axisymmetric
+from .fit import fit_axisymmetric
 from .model import DEFAULT_HYPERPARAMETERS, AxisymmetricModel
+from .settings import FRANK_METHODS, GEOMETRY_FITTERS, FrankSettings
 
-__all__ = ["AxisymmetricModel", "DEFAULT_HYPERPARAMETERS", "GEOMETRY_FITTERS", "fit_axisymmetric"]
+__all__ = ["AxisymmetricModel", "DEFAULT_HYPERPARAMETERS", "FRANK_METHODS", "FrankSettings", "GEOMETRY_FITTERS",
+           "fit_axisymmetric"]

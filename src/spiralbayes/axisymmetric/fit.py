@@ -15,21 +15,15 @@ from .._threads import blas_threads as _limit_blas  # the parameter is called bl
 from ..exceptions import ConvergenceError, DataWarning, InputError
 from ..geometry import DiscGeometry
 from ..io.data_checks import MIN_SEARCH_VISIBILITIES
+from ..settings import with_overrides
 from ..units import ARCSEC
 from ..visibilities import Visibilities
-from .model import (
-    DEFAULT_HYPERPARAMETERS,
-    AxisymmetricModel,
-    _check_hyperparameters,
-    _frank_version,
-)
+from .model import DEFAULT_HYPERPARAMETERS, AxisymmetricModel, _frank_version
+from .settings import GEOMETRY_FITTERS, FrankSettings
 
 __all__ = ["GEOMETRY_FITTERS", "fit_axisymmetric"]
 
 log = logging.getLogger(__name__)
-
-GEOMETRY_FITTERS = ("gaussian", "nonparametric")
-"""frank's geometry fitters: a Gaussian fitted in uv space, or a Fourier–Bessel profile (N = 20)."""
 SPARSE_MARGIN = 1.25
 """For sparse data the default N covers the longest deprojected baseline with this margin."""
 
@@ -96,12 +90,8 @@ class _IterationProgress:
 
 
 def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
-                     N: int | None = None, Rmax: float = DEFAULT_HYPERPARAMETERS["Rmax"],
-                     alpha: float = DEFAULT_HYPERPARAMETERS["alpha"], p0: float = DEFAULT_HYPERPARAMETERS["p0"],
-                     weights_smooth: float = DEFAULT_HYPERPARAMETERS["weights_smooth"],
-                     nonnegative: bool = False, fit_geometry: str | None = None, method: str = "Normal",
-                     max_iter: int = 2000, tol: float = 1e-3, convergence_failure: str = "raise",
-                     progress: bool = True, blas_threads: int | None = 1) -> AxisymmetricModel:
+                     settings: FrankSettings | None = None, progress: bool = True,
+                     **overrides) -> AxisymmetricModel:
     """Fit an axisymmetric brightness profile to visibilities with frank.
 
     Parameters
@@ -109,40 +99,46 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     vis : Visibilities
         The data (standardised to the frank convention first).
     geometry : DiscGeometry, optional
-        Disc geometry. If given and ``fit_geometry`` is None it is held fixed; if given with
+        Disc geometry. If given and ``settings.fit_geometry`` is None it is held fixed; if given with
         ``fit_geometry`` it is the geometry fit's starting point.
-    N : int, optional
-        Number of collocation points (Fourier–Bessel terms). Default: the paper's 200, or for
-        sparse data (fewer visibilities than 200) the smallest N whose last collocation frequency
-        covers the longest deprojected baseline, times ``SPARSE_MARGIN`` (see Notes).
-    Rmax : float
-        Outer radius of the fit [arcsec]; the brightness is zero beyond it.
-    alpha, p0, weights_smooth : float
-        frank's power-spectrum prior: inverse-gamma order and scale [Jy^2], and the spectral
-        smoothness weight.
-    nonnegative : bool
-        Also compute frank's non-negative best fit (``I_nonneg``).
-    fit_geometry : {"gaussian", "nonparametric"}, optional
-        Fit ``(inc, PA, dRA, dDec)`` with frank's ``FitGeometryGaussian`` or
-        ``FitGeometryFourierBessel`` (N = 20, as frank's own pipeline) before the profile.
-        Default: "gaussian" when no ``geometry`` is given, else none. Measured on a synthetic
-        core + ring disc (1e4 random baselines, 4 noise seeds): the Gaussian fit's PA was off by
-        up to 1.4 deg (its profile does not match a ringed disc); the nonparametric fit, started
-        from the Gaussian one, by <= 0.65 deg, with offsets within 1.3 mas.
-    method : {"Normal", "LogNormal"}
-        frank's brightness model.
-    max_iter : int
-        Maximum number of power-spectrum iterations.
-    tol : float
-        frank's convergence tolerance: the iterations stop when no power-spectrum coefficient
-        changes by more than this fraction.
-    convergence_failure : {"raise", "warn", "ignore"}
-        What to do when frank has not converged after ``max_iter`` iterations.
+    settings : FrankSettings, optional
+        frank's hyperparameters and how to fit (default ``FrankSettings()``, the paper's values).
     progress : bool
         Show a tqdm counter of frank's iterations.
-    blas_threads : int, optional
-        BLAS threads during the fit (threadpoolctl); None leaves them alone.
-        One is fastest for N ~ 200 (see ``blas_threads``).
+    **overrides
+        Fields of :class:`~spiralbayes.axisymmetric.FrankSettings` replacing those of ``settings``
+        (e.g. ``N=100``):
+
+        N : int, optional
+            Number of collocation points (Fourier–Bessel terms). Default: the paper's 200, or for
+            sparse data (fewer visibilities than 200) the smallest N whose last collocation frequency
+            covers the longest deprojected baseline, times ``SPARSE_MARGIN`` (see Notes).
+        Rmax : float
+            Outer radius of the fit [arcsec]; the brightness is zero beyond it.
+        alpha, p0, weights_smooth : float
+            frank's power-spectrum prior: inverse-gamma order and scale [Jy^2], and the spectral
+            smoothness weight.
+        nonnegative : bool
+            Also compute frank's non-negative best fit (``I_nonneg``).
+        fit_geometry : {"gaussian", "nonparametric"}, optional
+            Fit ``(inc, PA, dRA, dDec)`` with frank's ``FitGeometryGaussian`` or
+            ``FitGeometryFourierBessel`` (N = 20, as frank's own pipeline) before the profile.
+            Default: "gaussian" when no ``geometry`` is given, else none. Measured on a synthetic
+            core + ring disc (1e4 random baselines, 4 noise seeds): the Gaussian fit's PA was off by
+            up to 1.4 deg (its profile does not match a ringed disc); the nonparametric fit, started
+            from the Gaussian one, by <= 0.65 deg, with offsets within 1.3 mas.
+        method : {"Normal", "LogNormal"}
+            frank's brightness model.
+        max_iter : int
+            Maximum number of power-spectrum iterations.
+        tol : float
+            frank's convergence tolerance: the iterations stop when no power-spectrum coefficient
+            changes by more than this fraction.
+        convergence_failure : {"raise", "warn", "ignore"}
+            What to do when frank has not converged after ``max_iter`` iterations.
+        blas_threads : int, optional
+            BLAS threads during the fit (threadpoolctl); None leaves them alone.
+            One is fastest for N ~ 200 (see ``blas_threads``).
 
     Returns
     -------
@@ -179,22 +175,16 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     """
     from frank.radial_fitters import FrankFitter
 
+    s = with_overrides(settings, FrankSettings, overrides, "fit_axisymmetric")
+    N, Rmax, alpha, p0, weights_smooth = s.N, s.Rmax, s.alpha, s.p0, s.weights_smooth
+    nonnegative, fit_geometry, method, max_iter, tol = s.nonnegative, s.fit_geometry, s.method, s.max_iter, s.tol
     if not isinstance(vis, Visibilities):
         raise TypeError(f"vis must be a spiralbayes Visibilities, got {type(vis).__name__}")
     check_enough_visibilities(vis)
-    _check_hyperparameters(DEFAULT_HYPERPARAMETERS["N"] if N is None else N, Rmax, alpha, p0, weights_smooth)
-    if method not in ("Normal", "LogNormal"):
-        raise InputError(f"method = {method!r}: frank's brightness models are 'Normal' and 'LogNormal'")
-    if convergence_failure not in ("raise", "warn", "ignore"):
-        raise InputError(f"convergence_failure = {convergence_failure!r} must be 'raise', 'warn' or 'ignore'")
     if geometry is not None and not isinstance(geometry, DiscGeometry):
         raise TypeError(f"geometry must be a DiscGeometry, got {type(geometry).__name__}")
     if geometry is None and fit_geometry is None:
         fit_geometry = "gaussian"
-    if not (isinstance(tol, (int, float)) and 0 < tol < 1):
-        raise InputError(f"tol = {tol!r}: frank's convergence tolerance must be a fraction in (0, 1), e.g. 1e-3")
-    if fit_geometry is not None and fit_geometry not in GEOMETRY_FITTERS:
-        raise InputError(f"fit_geometry = {fit_geometry!r} must be one of {GEOMETRY_FITTERS} or None")
     vis = vis.standardised()
 
     t0 = time.perf_counter()
@@ -213,7 +203,7 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     fitter = FrankFitter(Rmax, int(N), _to_frank_geometry(geometry), alpha=alpha, p_0=p0,
                          weights_smooth=weights_smooth, method=method, max_iter=max_iter, tol=tol,
                          store_iteration_diagnostics=True, verbose=False, convergence_failure="ignore")
-    with _IterationProgress(fitter, progress), _limit_blas(blas_threads), _frank_quiet():
+    with _IterationProgress(fitter, progress), _limit_blas(s.blas_threads), _frank_quiet():
         try:
             sol = fitter.fit(vis.u, vis.v, vis.V, vis.weights)
         except ValueError as exc:
@@ -224,10 +214,10 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
     converged = n_iter <= max_iter
     if not converged:
         msg = _no_convergence_message(vis, N, Rmax, max_iter, alpha)
-        if convergence_failure == "raise":
+        if s.convergence_failure == "raise":
             raise ConvergenceError(msg + "; fit_axisymmetric(..., max_iter=..., convergence_failure='warn') keeps "
                                    "the last iterate")
-        if convergence_failure == "warn":
+        if s.convergence_failure == "warn":
             log.warning(msg)
 
     I_err = None

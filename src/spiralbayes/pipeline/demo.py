@@ -10,6 +10,7 @@ from pathlib import Path
 from .._provenance import check_output_name
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..geometry import DiscGeometry
+from ..settings import DEFAULT_DISTANCE_PC
 from ..inference.detection.alternatives import fit_alternatives
 from ..inference.detection.planet_peak import detect_with_planet_peak
 from ..inference.scan.run import scan
@@ -25,7 +26,7 @@ __all__ = ["DemoResult", "run_axisym", "run_demo"]
 log = logging.getLogger(__name__)
 
 
-DEMO_DISTANCE = 140.0  # pc
+DEMO_DISTANCE = DEFAULT_DISTANCE_PC  # pc
 
 
 DEMO_PLANET_AU = 50.0

@@ -11,6 +11,7 @@ import numpy as np
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..config import describe_config
 from ..geometry import DiscGeometry
+from ..settings import DEFAULT_DISTANCE_PC
 from ..inference.scan.run import scan
 from ..simulate import DiscModel, simulate_observation
 from ..settings import DEFAULT_DISTANCE_PC

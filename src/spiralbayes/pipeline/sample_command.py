@@ -8,12 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from .._provenance import check_output_name, to_json
-from ..axisymmetric import AxisymmetricModel
 from ..config import describe_config
-from ..inference.posterior.priors import DEFAULT_WIDTHS, Priors
 from ..inference.posterior.results import PosteriorResult
 from ..inference.posterior.sampler import sample_posterior
-from ..inference.posterior.settings import SamplingSettings
+from ..inference.posterior.settings import PriorSettings, SamplingSettings
 from ..plotting.posterior import plot_corner, plot_hypotheses, plot_template_probabilities
 from ..settings import from_config
 from .reuse import reusable_axisymmetric, reusable_scan
@@ -23,16 +21,6 @@ from .outputs import _save_figure, _write_text
 __all__ = ["run_sample_config"]
 
 log = logging.getLogger(__name__)
-
-
-def _priors(config: dict, axisym: AxisymmetricModel) -> Priors:
-    p = config["priors"]
-    widths = {name: p[f"{name}_sigma"] for name in DEFAULT_WIDTHS}
-    r_p = None
-    if p["r_p_min"] or p["r_p_max"]:
-        default = Priors.default(axisym, widths=widths).r_p
-        r_p = (p["r_p_min"] or default[0], p["r_p_max"] or default[1])
-    return Priors.default(axisym, r_p=r_p, widths=widths, amplitude_max=p["amplitude_max"] or None)
 
 
 def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult:
@@ -52,6 +40,9 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     out_dir.mkdir(parents=True, exist_ok=True)
     s = config["sample"]
     run_name = check_output_name(s["run_name"], "sample.run_name")
+    # the settings are built (and checked) before any data are read
+    sampling = from_config(SamplingSettings, s, run_name=run_name)
+    prior_settings = from_config(PriorSettings, config["priors"])
     vis = load_data(config["data"], _geometry(config))
     scanned = out_dir / "axisymmetric.h5"
     if not config["frank"]["model"] and scanned.exists():
@@ -62,9 +53,9 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     scan_path = s["scan"] or (out_dir / "scan.h5" if (out_dir / "scan.h5").exists() else "")
     scan_result = reusable_scan(scan_path, vis, axisym) if scan_path else None
     _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))
-    sampling = from_config(SamplingSettings, s, run_name=run_name)
-    result = sample_posterior(vis, axisym, templates, scan=scan_result, priors=_priors(config, axisym),
-                              settings=sampling, chains_dir=out_dir / "chains", progress=progress)
+    result = sample_posterior(vis, axisym, templates, scan_result=scan_result,
+                              priors=prior_settings.priors(axisym), settings=sampling, chains_dir=out_dir / "chains",
+                              progress=progress)
     result.save(out_dir / f"{run_name}_posterior.h5")
     summary = {**result.to_dict(), "summary": _summary_with_units(result.percentiles())}
     _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))

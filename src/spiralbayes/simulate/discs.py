@@ -9,6 +9,7 @@ import numpy as np
 from ..exceptions import InputError
 from ..fourier import ImageSampler
 from ..geometry import DiscGeometry
+from ..settings import DEFAULT_DISTANCE_PC
 from ..templates.radiative import planck_nu
 from ..units import ARCSEC, JY
 
@@ -56,7 +57,7 @@ class DiscModel:
 
     r_in: float = 10.0
     r_out: float = 110.0
-    distance: float = 140.0
+    distance: float = DEFAULT_DISTANCE_PC
     sigma_index: float = 1.0
     temperature_index: float = 0.5
     r_ref: float = 50.0

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError, MissingFileError
+from ..settings import DEFAULT_MSTAR_MSUN
 from ..units import TWO_PI
 from .radiative import template_from_perturbation
 from .template import SpiralTemplate, validate_hand
@@ -217,7 +218,7 @@ def read_fargo3d(
     hand: str = "R",
     x_range: tuple[float, float] | None = (0.2, 2.2),
     wavelength: float = 0.87e-3,
-    mstar: float = 0.8,
+    mstar: float = DEFAULT_MSTAR_MSUN,
     r_p_au: float = 50.0,
     mu: float = 2.34,
     beta: float = float("nan"),

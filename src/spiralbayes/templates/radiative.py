@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import InputError
+from ..settings import DEFAULT_MSTAR_MSUN
 from ..units import AU, C_LIGHT, G_NEWTON, H_PLANCK, K_BOLTZMANN, M_HYDROGEN, M_SUN
 from .template import SpiralTemplate, check_tau0, template_name
 
@@ -48,7 +49,7 @@ def dlnB_dlnT(T, wavelength: float):
 
 
 def midplane_temperature(
-    x, *, r_p_au: float = 50.0, mstar: float = 0.8, h_p: float = 0.07, flaring: float = 0.25,
+    x, *, r_p_au: float = 50.0, mstar: float = DEFAULT_MSTAR_MSUN, h_p: float = 0.07, flaring: float = 0.25,
     mu: float = 2.34,
 ):
     """Passive-disc midplane temperature [K] at ``x = r/r_p``.
@@ -105,7 +106,7 @@ def template_from_perturbation(
     flaring: float = 0.25,
     sigma_slope: float = 1.0,
     wavelength: float = 0.87e-3,
-    mstar: float = 0.8,
+    mstar: float = DEFAULT_MSTAR_MSUN,
     r_p_au: float = 50.0,
     mu: float = 2.34,
     name: str | None = None,

@@ -88,6 +88,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InputError
+from ..settings import DEFAULT_MSTAR_MSUN
 from ..units import TWO_PI, wrap_angle
 from .burgers import solve_burgers
 from .template import check_mass_beta, validate_hand
@@ -178,7 +179,7 @@ class WakeSettings:
     sigma_slope: float = 1.0
     gamma: float = 1.4
     alpha: float = 1e-2
-    mstar: float = 0.8
+    mstar: float = DEFAULT_MSTAR_MSUN
     r_p_au: float = 50.0
     mu: float = 2.34
     wavelength: float = 0.87e-3

@@ -2,7 +2,8 @@
 
 * :mod:`.verdict` — :func:`detect` and its :class:`Verdict`;
 * :mod:`.alternatives` — maximum-likelihood fits of the non-spiral asymmetries, scored by ΔBIC;
-* :mod:`.settings` — their options, :class:`AlternativesSettings`;
+* :mod:`.settings` — the verdict's thresholds, :class:`DetectionSettings`, and the alternatives' options,
+  :class:`AlternativesSettings`;
 * :mod:`.starts` — their starting points, read off the residual dirty image;
 * :mod:`.follow_up` — refit frank at the fitted geometry, scan again, decide again.
 * :mod:`.planet_peak` — the spiral hypothesis as spiral + compact source at the planet, scored in test 3.
@@ -18,7 +19,7 @@ from .verdict import (
     mirror_index,
     one_sidedness,
 )
-from .settings import AlternativesSettings
+from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, AlternativesSettings, DetectionSettings
 from .starts import candidate_starts, linear_amplitudes
 from .alternatives import (
     ALTERNATIVES_KIND,
@@ -40,6 +41,9 @@ __all__ = [
     "AlternativeFit",
     "AlternativesResult",
     "AlternativesSettings",
+    "DELTA_BIC_THRESHOLD",
+    "DetectionSettings",
+    "MASS_BAND",
     "GeometryFollowUp",
     "Verdict",
     "best_handed_candidate",

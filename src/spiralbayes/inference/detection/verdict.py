@@ -41,6 +41,7 @@ template of the best one's hand whose best Δχ² near the best instance is with
 
 from __future__ import annotations
 
+import warnings
 from collections import deque
 from dataclasses import dataclass
 
@@ -49,20 +50,16 @@ import numpy as np
 from ...exceptions import InputError
 from ...io.argument_checks import check_scan_result
 from ...results import ResultMixin, fields_dict
-from .settings import AlternativesSettings
+from ...settings import with_overrides
+from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, AlternativesSettings, DetectionSettings
 from ...units import M_JUP, M_SUN
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "localisation", "mass_range",
            "mirror_index", "one_sidedness"]
 
-DELTA_BIC_THRESHOLD = 10.0
 ALTERNATIVE_THRESHOLD = AlternativesSettings.threshold
 """Test 3: the spiral's BIC must be lower than the best alternative's by more than this."""
 CANDIDATES_PER_TEMPLATE = 5
-MASS_BAND = 10.0
-"""Templates within this ΔBIC of the best (near its position) make the reported mass range."""
-DEFAULT_MSTAR = 0.8
-"""Stellar mass [M_sun] for Jupiter masses when none is given (the config's default, Stevenson et al. 2024)."""
 
 
 def mirror_index(result, template: int) -> int | None:
@@ -85,7 +82,7 @@ def _same(a, b) -> bool:
     return all(unknown) if any(unknown) else bool(a == b)
 
 
-def handedness_ratio(result, template: int, i_rp: int, i_phi: int, neighbourhood: int = 2,
+def handedness_ratio(result, template: int, i_rp: int, i_phi: int, neighbourhood: int = DetectionSettings.neighbourhood,
                      amplitude=None) -> float:
     """Mirror template's best Δχ² at radii near ``i_rp`` over this template's Δχ² at ``(i_rp, i_phi)``."""
     j = mirror_index(result, template)
@@ -158,8 +155,10 @@ def _local_maxima(values: np.ndarray, top: int) -> list[tuple[int, int]]:
     return [tuple(int(k) for k in idx[o]) for o in order]
 
 
-def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max_handedness_ratio: float = 0.5,
-                          max_localisation: float = 0.1, min_delta_bic: float = -np.inf) -> dict | None:
+def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = DetectionSettings.neighbourhood,
+                          max_handedness_ratio: float = DetectionSettings.max_handedness_ratio,
+                          max_localisation: float = DetectionSettings.max_localisation,
+                          min_delta_bic: float = -np.inf) -> dict | None:
     """The highest local Δχ² maximum of any template that passes test 2 on its own, or None.
 
     For each template with a mirror image, its ``CANDIDATES_PER_TEMPLATE`` highest local maxima
@@ -189,7 +188,7 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = 2, max
 
 
 def mass_range(result, amplitude=None, *, band: float = MASS_BAND, window: tuple = (2, 3),
-               mstar: float = DEFAULT_MSTAR) -> dict | None:
+               mstar: float = DetectionSettings.mstar) -> dict | None:
     """Planet masses of every template that explains the best instance nearly as well as the best one.
 
     A template belongs to the range when it has the best template's hand and its largest Δχ² within
@@ -393,11 +392,8 @@ def _check_same_data(result, alternatives) -> None:
             f"{result.chi2_AO:.6g}): fit them with the scan's visibilities and axisymmetric model")
 
 
-def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
-           max_handedness_ratio: float = 0.5, max_localisation: float = 0.1,
-           bic_threshold_value: float = DELTA_BIC_THRESHOLD,
-           alternative_threshold: float = ALTERNATIVE_THRESHOLD, mass_band: float = MASS_BAND,
-           mstar: float = DEFAULT_MSTAR) -> Verdict:
+def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | None = None, alternatives=None,
+           **overrides) -> Verdict:
     """Decide whether a scan detects a planet-driven spiral.
 
     Tests 1 and 2 are the paper's (module docstring). With ``alternatives`` (an
@@ -406,22 +402,31 @@ def detect(result, amplitude=None, *, alternatives=None, neighbourhood: int = 2,
 
     Parameters
     ----------
-    result : ScanResult
+    scan_result : ScanResult
+        The scan to judge (the keyword ``result=`` is accepted with a FutureWarning).
     amplitude : None or "free"
         The spiral amplitude convention of the scan's Δχ² (fixed A = 1, or a free amplitude with
         one more BIC parameter).
+    settings : DetectionSettings, optional
+        The thresholds of tests 1-3, the mass band and the stellar mass [M_sun] (default
+        ``DetectionSettings()``, the paper's tests).
     alternatives : AlternativesResult, optional
         Competing asymmetry models (:func:`spiralbayes.inference.detection.alternatives.fit_alternatives`).
-    neighbourhood, max_handedness_ratio, max_localisation, bic_threshold_value
-        Tests 1 and 2.
-    alternative_threshold : float
-        Test 3: smallest ``ΔBIC_spiral − ΔBIC_best alternative`` that prefers the spiral.
-    mass_band : float
-        ΔBIC band of the reported mass range (:func:`mass_range`).
-    mstar : float
-        Stellar mass [M_sun] for the mass range in M_Jup.
+    **overrides
+        Fields of :class:`DetectionSettings` replacing those of ``settings`` (e.g.
+        ``bic_threshold_value=15``, ``mstar=1.2``).
     """
-    check_scan_result(result)
+    if "result" in overrides:
+        if scan_result is not None:
+            raise TypeError("detect() got both scan_result and result: pass the ScanResult once, as scan_result")
+        warnings.warn("detect(result=...) is renamed detect(scan_result=...)", FutureWarning, stacklevel=2)
+        scan_result = overrides.pop("result")
+    s = with_overrides(settings, DetectionSettings, overrides, "detect")
+    check_scan_result(scan_result)
+    result = scan_result
+    neighbourhood, max_handedness_ratio, max_localisation = s.neighbourhood, s.max_handedness_ratio, s.max_localisation
+    bic_threshold_value, alternative_threshold = s.bic_threshold_value, s.alternative_threshold
+    mass_band, mstar = s.mass_band, s.mstar
     best = result.peak(amplitude=amplitude)
     t = best.template_index
     ratio = handedness_ratio(result, t, best.i_rp, best.i_phi, neighbourhood, amplitude)

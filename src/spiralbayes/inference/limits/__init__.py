@@ -11,14 +11,20 @@
 """
 
 from .families import Family, select_family, template_families
-from .settings import LimitSettings
+from .settings import (
+    HANDS,
+    LIMIT_METHODS,
+    TABLE3_THRESHOLDS,
+    CompletenessSettings,
+    ForecastSettings,
+    LimitSettings,
+)
 from .table3 import (
     build_table3,
     describe_family_limits,
     families_text,
     limits_table,
     markdown_table,
-    morphologies,
     price_text,
     table_markdown,
     write_table,
@@ -72,9 +78,14 @@ __all__ = [
     "combined_m_lim",
     "SINGLE_VARIANT",
     "CompletenessResult",
+    "CompletenessSettings",
+    "HANDS",
+    "LIMIT_METHODS",
+    "TABLE3_THRESHOLDS",
     "ExclusionLimits",
     "Family",
     "Forecast",
+    "ForecastSettings",
     "Injection",
     "InjectionEngine",
     "LimitSettings",
@@ -104,7 +115,6 @@ __all__ = [
     "injection_plan",
     "limits_table",
     "markdown_table",
-    "morphologies",
     "price_text",
     "runs",
     "select_family",

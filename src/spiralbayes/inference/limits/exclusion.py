@@ -58,7 +58,7 @@ from ...settings import with_overrides
 from ...units import mth_to_mjup
 from . import guards
 from .families import Family, select_family, template_families
-from .settings import LimitSettings
+from .settings import LIMIT_METHODS, LimitSettings
 from .table3 import describe_family_limits, runs
 
 __all__ = ["ExclusionLimits", "amplitude_upper_limit", "compute_limits", "data_resolution", "bright_extent",
@@ -68,7 +68,7 @@ LIMITS_KIND = "spiralbayes.ExclusionLimits"
 FLAG_UNRESOLVED = "unresolved"
 FLAG_EXTENT = "beyond_bright_extent"
 FLAG_NEAR_PLANET, FLAG_NEAR_ASYMMETRY = guards.FLAG_NEAR_PLANET, guards.FLAG_NEAR_ASYMMETRY
-METHODS = ("all_phi", "marginal")
+METHODS = LIMIT_METHODS
 
 log = logging.getLogger(__name__)
 

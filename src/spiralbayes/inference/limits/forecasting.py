@@ -41,6 +41,7 @@ from ..._provenance import json_safe
 from ...exceptions import DataWarning, InputError
 from ...results import ResultMixin, fields_dict
 from ...geometry import DiscGeometry
+from ...settings import with_overrides
 from ...simulate import DiscModel, Preset, get_preset
 from ...simulate.noise import sigma_for_sensitivity
 from ...templates.template import template_metadata
@@ -48,6 +49,7 @@ from ...visibilities import Visibilities
 from ..detection.verdict import DELTA_BIC_THRESHOLD
 from ..scan.engine import ScanContext, scan_template
 from ..scan.statistics import N_SPIRAL_PARAMETERS
+from .settings import ForecastSettings
 
 __all__ = ["Forecast", "compare_setups", "detectable_mass", "forecast", "format_minutes", "setup_for_time"]
 
@@ -193,9 +195,9 @@ class Forecast(ResultMixin):
                 f"E[dchi2] = {float(self.expected.mean()):.1f}, P = {self.probability():.2f})")
 
 
-def forecast(disc, template, r_p: float, setup="fiducial", *, geometry: DiscGeometry | None = None,
-             n_phi: int = 90, time_on_source: float | None = None, sensitivity: float | None = None,
-             distance: float | None = None, coverage=None, nthreads: int = 1) -> Forecast:
+def forecast(disc, template, r_p: float, setup="fiducial", *, settings: ForecastSettings | None = None,
+             geometry: DiscGeometry | None = None, distance: float | None = None, coverage=None,
+             **overrides) -> Forecast:
     """E[Δχ²], its spread and P(ΔBIC > 10) for a planet observed with a set-up.
 
     Parameters
@@ -208,18 +210,21 @@ def forecast(disc, template, r_p: float, setup="fiducial", *, geometry: DiscGeom
         Planet radius [arcsec].
     setup : str or Preset
         A Table 1 preset name or a :class:`~spiralbayes.simulate.Preset`.
+    settings : ForecastSettings, optional
+        ``n_phi`` (planet azimuths averaged over), ``time_on_source`` (total time on source [min]:
+        rebuilds the tracks for that time, noise ∝ t^-1/2 unless ``sensitivity`` [Jy/beam] is given)
+        and ``nthreads``; default ``ForecastSettings()``.
     geometry : DiscGeometry
         Default ``DiscGeometry(30, 60)`` (as :func:`~spiralbayes.simulate.simulate_observation`).
-    n_phi : int
-        Planet azimuths averaged over.
-    time_on_source : float, optional
-        Total time on source [min]: rebuilds the tracks for that time (noise ∝ t^-1/2 unless
-        ``sensitivity`` [Jy/beam] is given).
     distance : float, optional
         [pc], for text output in au (default the DiscModel's).
     coverage : UVCoverage, optional
         Reuse a coverage of the same set-up.
+    **overrides
+        Fields of :class:`ForecastSettings` replacing those of ``settings`` (e.g. ``n_phi=18``).
     """
+    s = with_overrides(settings, ForecastSettings, overrides, "forecast")
+    time_on_source, sensitivity, n_phi, nthreads = s.time_on_source, s.sensitivity, s.n_phi, s.nthreads
     preset = setup_for_time(setup, time_on_source, sensitivity)
     _check_overlap(_profile(disc, preset.wavelength), template, r_p)
     context = _setup_context(preset, r_p, geometry, n_phi, coverage, nthreads)
@@ -269,7 +274,8 @@ def _forecast(context: ScanContext, preset: Preset, disc, template, distance) ->
 
 
 def compare_setups(disc_for, templates, r_p: float, setups=("fiducial", "high_sensitivity"), *,
-                   geometry: DiscGeometry | None = None, n_phi: int = 90, nthreads: int = 1) -> list[dict]:
+                   geometry: DiscGeometry | None = None, n_phi: int = ForecastSettings.n_phi,
+                   nthreads: int = ForecastSettings.nthreads) -> list[dict]:
     """E[Δχ²] and P(ΔBIC > 10) of several templates under several set-ups (one row per template).
 
     ``disc_for(template)`` gives the disc for a template (e.g. a DiscModel whose optical depth at

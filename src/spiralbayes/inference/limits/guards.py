@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..detection.settings import DELTA_BIC_THRESHOLD
 from .robust import near_planet_mask
 
 __all__ = ["ASYMMETRY_THRESHOLD", "asymmetry_bands", "planet_radii"]
 
 FLAG_NEAR_PLANET = "near_planet"
 FLAG_NEAR_ASYMMETRY = "near_asymmetry"
-ASYMMETRY_THRESHOLD = 10.0
+ASYMMETRY_THRESHOLD = DELTA_BIC_THRESHOLD
 """ΔBIC against the axisymmetric disc above which a competing asymmetry model flags its radii."""
 
 

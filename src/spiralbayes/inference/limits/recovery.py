@@ -23,18 +23,20 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
 from ..._provenance import provenance_record
 from ...exceptions import InputError
 from ...results import ResultMixin
+from ...settings import with_overrides
 from ...units import wrap_angle
+from ..detection.settings import DetectionSettings
 from ..detection.verdict import detect
 from .families import Family, select_family, template_families
 from .injection import Injection, InjectionEngine, brute_force_injection
-from .settings import LimitSettings
+from .settings import CompletenessSettings
 from ..scan.run import ScanResult
 from ..scan.engine import ScanContext
 
@@ -149,8 +151,8 @@ CompletenessResult.LEGACY_READERS = {1: _read_format_1}
 
 
 # --------------------------------------------------------------------------------------------
-def injection_plan(scan_result, family=None, *, masses=None, radii=None, n_azimuths: int = 8,
-                   hands=("R",)) -> dict:
+def injection_plan(scan_result, family=None, *, masses=None, radii=None,
+                   n_azimuths: int = CompletenessSettings.n_azimuths, hands=CompletenessSettings.hands) -> dict:
     """The injection grid on the scan's grid: family, hands, masses, radius and azimuth indices.
 
     Raises
@@ -194,16 +196,29 @@ def _recovered(verdict, best, best_meta, meta_inj, i_r, phi, criteria) -> bool:
     return abs(best.i_rp - i_r) <= criteria["max_rp_steps"] and dphi <= criteria["max_phi_deg"]
 
 
-def _judge(result: ScanResult, meta_inj, i_r, phi, criteria, amplitude, detect_kwargs):
-    verdict = detect(result, amplitude, **detect_kwargs)
+def _judge(result: ScanResult, meta_inj, i_r, phi, criteria, amplitude, detection: DetectionSettings):
+    verdict = detect(result, amplitude, settings=detection)
     best = result.peak(amplitude=amplitude)
     recovered = _recovered(verdict, best, result.templates[best.template_index], meta_inj, i_r, phi, criteria)
     return verdict.detected, recovered, verdict.delta_bic
 
 
-def _criteria(amplitude, max_rp_steps, max_phi_deg, detect_kwargs) -> dict:
+def _criteria(amplitude, max_rp_steps, max_phi_deg, detection: DetectionSettings) -> dict:
+    # the detection thresholds that differ from the paper's are recorded beside the position tolerance
+    changed = {f.name: getattr(detection, f.name) for f in fields(DetectionSettings)
+               if getattr(detection, f.name) != f.default}
     return {"amplitude": amplitude or "fixed", "max_rp_steps": int(max_rp_steps), "max_phi_deg": float(max_phi_deg),
-            **{k: v for k, v in detect_kwargs.items()}}
+            **changed}
+
+
+def _settings(settings, overrides: dict, where: str) -> CompletenessSettings:
+    """``settings`` with ``overrides``; overrides naming :class:`DetectionSettings` fields go to its ``detection``."""
+    names = {f.name for f in fields(DetectionSettings)}
+    detect_kwargs = {k: overrides.pop(k) for k in list(overrides) if k in names}
+    s = with_overrides(settings, CompletenessSettings, overrides, where)
+    if detect_kwargs:
+        s = replace(s, detection=with_overrides(s.detection, DetectionSettings, detect_kwargs, where))
+    return s
 
 
 def _check_scan(templates, scan_result) -> None:
@@ -235,10 +250,9 @@ def injection_engine(vis, axisymmetric, templates, scan_result, *, geometry=None
     return InjectionEngine(context, templates, keep=keep, progress=progress)
 
 
-def completeness(vis, axisymmetric, templates, scan_result, *, family=None, masses=None, radii=None,
-                 n_azimuths: int = LimitSettings.n_azimuths, hands=LimitSettings.inject_hand, geometry=None, amplitude=None, max_rp_steps: int = 2,
-                 max_phi_deg: float = 30.0, chunk: int = 128, nthreads: int = 1, progress: bool = True,
-                 engine: InjectionEngine | None = None, **detect_kwargs) -> CompletenessResult:
+def completeness(vis, axisymmetric, templates, scan_result, *, settings: CompletenessSettings | None = None,
+                 family=None, masses=None, radii=None, geometry=None, amplitude=None, progress: bool = True,
+                 engine: InjectionEngine | None = None, **overrides) -> CompletenessResult:
     """Injection–recovery completeness of a scan, by the fast cross-term path.
 
     Parameters
@@ -246,25 +260,29 @@ def completeness(vis, axisymmetric, templates, scan_result, *, family=None, mass
     vis, axisymmetric, templates, scan_result
         The data, the axisymmetric model and the templates the scan was run with (same order),
         and its :class:`ScanResult`.
+    settings : CompletenessSettings, optional
+        Azimuths per radius (``n_azimuths``) and hands injected, the position tolerance of a recovery
+        (``max_rp_steps`` radius steps, ``max_phi_deg`` [deg]), the batch size and threads, and the
+        verdict's thresholds (``detection``, a :class:`DetectionSettings`); default
+        ``CompletenessSettings()``.
     family : dict, str, int or Family, optional
         The template family to inject (default: the scan's only family).
     masses, radii : sequence, optional
         Injected masses [M_th] (family members) and radii [arcsec] (scan grid points); default all.
-    n_azimuths : int
-        Azimuths per radius, evenly spaced on the scan's grid (default 8).
-    hands : sequence of str
-        Hands to inject (default right-handed only).
+    geometry : DiscGeometry, optional
+        Geometry of the injections (default: the scan's).
     amplitude : None or 'free'
         Amplitude mode of the detection (as :func:`.detect`).
-    max_rp_steps, max_phi_deg
-        Position tolerance of a recovery.
-    chunk : int
-        Injections per batch of the cross-term products.
+    progress : bool
+        Progress bars.
     engine : InjectionEngine, optional
         One built for this scan (see :func:`.injection_engine`), to share it between families.
-    **detect_kwargs
-        Thresholds passed to :func:`.detect`.
+    **overrides
+        Fields of :class:`CompletenessSettings` (e.g. ``n_azimuths=4``) or of its ``detection``
+        (e.g. ``bic_threshold_value=15``) replacing those of ``settings``.
     """
+    s = _settings(settings, overrides, "completeness")
+    n_azimuths, hands, chunk, nthreads = s.n_azimuths, s.hands, s.chunk, s.nthreads
     t0 = time.perf_counter()
     _check_scan(templates, scan_result)
     plan = injection_plan(scan_result, family, masses=masses, radii=radii, n_azimuths=n_azimuths, hands=hands)
@@ -277,7 +295,7 @@ def completeness(vis, axisymmetric, templates, scan_result, *, family=None, mass
     shape = (len(plan["hands"]), plan["masses"].size, plan["i_r"].size, plan["i_phi"].size)
     detected, recovered = np.zeros(shape, bool), np.zeros(shape, bool)
     delta_bic = np.zeros(shape)
-    criteria = _criteria(amplitude, max_rp_steps, max_phi_deg, detect_kwargs)
+    criteria = _criteria(amplitude, s.max_rp_steps, s.max_phi_deg, s.detection)
     cells = list(_cells(plan))
     from tqdm.auto import tqdm
 
@@ -293,7 +311,7 @@ def completeness(vis, axisymmetric, templates, scan_result, *, family=None, mass
                                       scan_result.n_data, scan_result.geometry, scan_result.distance)
                 meta = scan_result.templates[fam.index(mass, hand)]
                 detected[where], recovered[where], delta_bic[where] = _judge(
-                    injected, meta, i_r, scan_result.phi_p[i_phi], criteria, amplitude, detect_kwargs)
+                    injected, meta, i_r, scan_result.phi_p[i_phi], criteria, amplitude, s.detection)
             bar.update(len(part))
     wall = time.perf_counter() - t0
     prov = provenance_record(method="fast", wall_time_s=wall, engine_time_s=t_engine, n_injections=len(cells),
@@ -303,15 +321,17 @@ def completeness(vis, axisymmetric, templates, scan_result, *, family=None, mass
                               scan_result.distance, prov)
 
 
-def completeness_brute_force(vis, axisymmetric, templates, scan_result, *, family=None, masses=None, radii=None,
-                             n_azimuths: int = 8, hands=("R",), geometry=None, amplitude=None,
-                             max_rp_steps: int = 2, max_phi_deg: float = 30.0, refit=None, progress: bool = False,
-                             nthreads: int = 1, **detect_kwargs) -> CompletenessResult:
+def completeness_brute_force(vis, axisymmetric, templates, scan_result, *, settings: CompletenessSettings | None = None,
+                             family=None, masses=None, radii=None, geometry=None, amplitude=None, refit=None,
+                             progress: bool = False, **overrides) -> CompletenessResult:
     """The reference: plant each planet into the visibilities and scan the new dataset from scratch.
 
-    ``refit``: optional ``callable(vis) -> axisymmetric model`` run on every injected dataset (e.g. a
-    frank refit); by default the scan's axisymmetric model is kept, as in the fast path.
+    The arguments are :func:`completeness`'s; ``refit``: optional ``callable(vis) -> axisymmetric
+    model`` run on every injected dataset (e.g. a frank refit); by default the scan's axisymmetric
+    model is kept, as in the fast path.
     """
+    s = _settings(settings, overrides, "completeness_brute_force")
+    n_azimuths, hands, nthreads = s.n_azimuths, s.hands, s.nthreads
     t0 = time.perf_counter()
     _check_scan(templates, scan_result)
     plan = injection_plan(scan_result, family, masses=masses, radii=radii, n_azimuths=n_azimuths, hands=hands)
@@ -320,7 +340,7 @@ def completeness_brute_force(vis, axisymmetric, templates, scan_result, *, famil
     shape = (len(plan["hands"]), plan["masses"].size, plan["i_r"].size, plan["i_phi"].size)
     detected, recovered = np.zeros(shape, bool), np.zeros(shape, bool)
     delta_bic = np.zeros(shape)
-    criteria = _criteria(amplitude, max_rp_steps, max_phi_deg, detect_kwargs)
+    criteria = _criteria(amplitude, s.max_rp_steps, s.max_phi_deg, s.detection)
     cells = list(_cells(plan))
     for where, hand, mass, i_r, i_phi in cells:
         injection = Injection(templates[fam.index(mass, hand)], float(scan_result.r_p[i_r]),
@@ -331,7 +351,7 @@ def completeness_brute_force(vis, axisymmetric, templates, scan_result, *, famil
                                        cell_factor=scan_result.provenance.get("cell_factor", 20.0))
         meta = scan_result.templates[fam.index(mass, hand)]
         detected[where], recovered[where], delta_bic[where] = _judge(
-            result, meta, i_r, scan_result.phi_p[i_phi], criteria, amplitude, detect_kwargs)
+            result, meta, i_r, scan_result.phi_p[i_phi], criteria, amplitude, s.detection)
     prov = provenance_record(method="brute_force", refit=refit is not None, wall_time_s=time.perf_counter() - t0,
                              n_injections=len(cells))
     return CompletenessResult(fam, plan["hands"], plan["masses"], scan_result.r_p[plan["i_r"]],

@@ -19,26 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["build_table3", "describe_family_limits", "families_text", "limits_table", "markdown_table", "morphologies",
-           "price_text", "table_markdown", "write_table"]
+__all__ = ["build_table3", "describe_family_limits", "families_text", "limits_table", "markdown_table", "price_text",
+           "table_markdown", "write_table"]
 
+from .robust import family_morphology, morphologies, overall_price
 from .wording import THRESHOLDS, _family_list, _span, format_range, format_ranges, guard_sentences, runs
-
-
-def morphologies(limits, families=None) -> list[str]:
-    """The morphology variants a set of families covers (a family without one is the compromise wake)."""
-    named = getattr(limits, "morphologies", None) if families is None else None
-    named = named() if callable(named) else named
-    if named:
-        return list(named)
-    from .robust import SINGLE_VARIANT
-
-    out = []
-    for fam in _family_list(limits, families):
-        variant = str(fam.key.get("variant") or SINGLE_VARIANT)
-        if variant not in out:
-            out.append(variant)
-    return out
 
 
 def families_text(limits) -> str:
@@ -57,16 +42,14 @@ def families_text(limits) -> str:
 
 
 def price_text(limits) -> str:
-    """The price of robustness, ``M_lim(robust) / M_lim(compromise)``, over every variant group and radius:
-    ``"1.2-3.4"``; ``"1"`` for a single morphology; ``"undefined"`` where no variant sets a limit."""
-    from .robust import price_of_robustness, variant_groups
-
-    groups = [g for g in variant_groups(limits.families) if len(g["members"]) > 1]
-    if not groups:
+    """The price of robustness, ``M_lim(robust) / M_lim(compromise)``, over the radii with both limits:
+    ``"1.2-3.4"``; ``"1"`` for a single morphology; ``"undefined"`` where they never both have one."""
+    if len(morphologies(limits)) < 2:
         return "1"
-    price = np.concatenate([np.ravel(price_of_robustness(limits, g)) for g in groups])
+    price = overall_price(limits)
     ok = np.isfinite(price)
     return _span(np.min(price[ok]), np.max(price[ok])) if ok.any() else "undefined"
+
 
 
 def limits_table(limits, completeness=None, *, name: str = "disc", thresholds=THRESHOLDS) -> list[dict]:
@@ -124,7 +107,8 @@ def build_table3(limits, completeness=None, *, name: str = "disc", thresholds=TH
     sets = ([(families_text(limits), None)] if len(fams) > 1 else []) + [(fam.label, fam) for fam in fams]
     rows = []
     for label, fam in sets:
-        row = {"disc": name, "families": label, "morphologies": ", ".join(morphologies(limits, fam)),
+        row = {"disc": name, "families": label, "morphologies": ", ".join(
+                   morphologies(limits) if fam is None else [family_morphology(limits, fam)]),
                "price_of_robustness": price_text(limits) if fam is None or len(fams) == 1 else ""}
         for mass in thresholds:
             row[f"excluded_ge{mass:g}Mth"] = format_ranges(limits, limits.excluded_ranges(fam, mass), mass, fam)

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .settings import TABLE3_THRESHOLDS
+
 __all__ = ["THRESHOLDS", "format_range", "format_ranges", "guard_sentences", "runs"]
 
-THRESHOLDS = (3.0, 1.0)
-"""Table 3's mass thresholds [M_th]: the paper's >= 3 and >= 1 M_th."""
+THRESHOLDS = TABLE3_THRESHOLDS
+"""Table 3's mass thresholds [M_th] (:data:`~.settings.TABLE3_THRESHOLDS`)."""
 
 
 def _family_list(limits, families) -> list:

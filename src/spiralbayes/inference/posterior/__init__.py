@@ -5,7 +5,8 @@
 * :mod:`.conditional` — the likelihood at a fixed profile, the reference (:class:`SpiralLikelihood`);
 * :mod:`.interpolation`, :mod:`.perturbation` — the fast perturbation tables;
 * :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
-* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings`; :mod:`.moves` — the wrapped DE move;
+* :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings` and
+  :class:`PriorSettings`; :mod:`.moves` — the wrapped DE move;
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files (an emcee backend) and the chain loop;
 * :mod:`.diagnostics` — convergence; :mod:`.stopping` — when a chain may stop (every parameter, or
   the geometry and the evidence when the planet is not preferred);
@@ -31,7 +32,7 @@ from .chain_runner import WalkerPool, initial_walkers, make_pool, run_chain, str
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .optimise import find_map, fit_null_geometry
 from .stopping import MAX_LN_B_ERROR, StoppingRule, template_evidence
-from .settings import SamplingSettings
+from .settings import CONVERGENCE_POLICIES, PriorSettings, SamplingSettings
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
@@ -40,6 +41,7 @@ __all__ = [
     "ChainBackend",
     "ChainState",
     "ChainStore",
+    "CONVERGENCE_POLICIES",
     "DEFAULT_AMPLITUDE_MAX",
     "DEFAULT_WIDTHS",
     "FastPerturbation",
@@ -55,6 +57,7 @@ __all__ = [
     "PARAMETER_NAMES",
     "PerturbationTable",
     "PosteriorResult",
+    "PriorSettings",
     "Priors",
     "ProfileMarginal",
     "SAMPLE_NAMES",

@@ -31,6 +31,7 @@ import numpy as np
 from ..._provenance import json_safe
 from ...exceptions import InputError
 from ...results import ResultMixin
+from ...settings import DEFAULT_MSTAR_MSUN
 from ...units import M_JUP, M_SUN, wrap_angle
 from .diagnostics import chain_inference_data
 from .priors import GEOMETRY_NAMES, Priors
@@ -39,8 +40,6 @@ INCONCLUSIVE_LN_B = 1.0
 """``|ln B(planet : none)|`` below this is "inconclusive" (Jeffreys scale: B < e either way)."""
 MASS_LEVEL = 0.95
 """Credibility of the reported mass range."""
-DEFAULT_MSTAR = 0.8
-"""Stellar mass [M_sun] for Jupiter masses when none is given (the config's default)."""
 
 __all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
 
@@ -351,7 +350,7 @@ class PosteriorResult(ResultMixin):
             text += f" ({j[0] if j[0] == j[1] else '-'.join(j)} M_Jup for M_* = {m['mstar']:g} M_sun)"
         return text + f" ({100 * m['level']:g} % credible, over morphology variants and H/r)"
 
-    def mass_range(self, level: float = MASS_LEVEL, mstar: float = DEFAULT_MSTAR) -> dict | None:
+    def mass_range(self, level: float = MASS_LEVEL, mstar: float = DEFAULT_MSTAR_MSUN) -> dict | None:
         """Credible range of the planet mass given a planet, over all templates.
 
         In M_th: the smallest set of masses whose marginal probability (:meth:`marginals`) reaches

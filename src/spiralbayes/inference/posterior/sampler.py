@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import logging
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -300,7 +301,7 @@ def _final_state(store, run, samples):
 
 
 # ---------------------------------------------------------------------------------------------
-def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors | None = None,
+def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: Priors | None = None,
                      settings: SamplingSettings | None = None, chains_dir="chains", progress: bool = True,
                      **overrides) -> PosteriorResult:
     """Sample the posterior of every template, the no-planet hypothesis, and combine them.
@@ -314,9 +315,9 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
         the default priors. A fit at a wrong geometry is fine: the profile is refitted at every
         sampled geometry inside the likelihood.
     templates : SpiralTemplate, TemplateBank or sequence
-    scan : ScanResult, optional
+    scan_result : ScanResult, optional
         Starts each template's optimiser from its best grid instances, and prunes templates
-        (``prune_delta_lnL``).
+        (``prune_delta_lnL``). The keyword ``scan=`` is accepted with a FutureWarning.
     priors : Priors, optional
         Default :meth:`.Priors.default` (``axisymmetric``), including the amplitude prior.
     settings : SamplingSettings, optional
@@ -337,6 +338,13 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
     PosteriorResult
         ``p_planet``, ``ln_bayes_factor``, ``verdict``, per-template runs and the ``null`` run.
     """
+    if "scan" in overrides:
+        if scan_result is not None:
+            raise TypeError("sample_posterior() got both scan_result and scan: pass the ScanResult once, as "
+                            "scan_result")
+        warnings.warn("sample_posterior(scan=...) is renamed sample_posterior(scan_result=...)", FutureWarning,
+                      stacklevel=2)
+        scan_result = overrides.pop("scan")
     s = with_overrides(settings, SamplingSettings, overrides, "sample_posterior")
     run_name, n_walkers, seed, evidence_draws = s.run_name, s.n_walkers, s.seed, s.evidence_draws
     pool, moves, likelihood_kwargs = s.pool, s.moves, s.likelihood_kwargs
@@ -352,7 +360,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
     prior_t = prior_t / prior_t.sum()
     chain_path = Path(chains_dir) / f"{check_output_name(run_name, 'run_name')}.h5"
     chain_path.parent.mkdir(parents=True, exist_ok=True)
-    selected = _select_mcmc(names, scan, s.mcmc_templates, s.prune_delta_lnL)
+    selected = _select_mcmc(names, scan_result, s.mcmc_templates, s.prune_delta_lnL)
     likelihood_kwargs = dict(likelihood_kwargs or {})
     profile_prior = ProfilePrior.from_model(axisymmetric)
     common = {"data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights), "n_data": int(vis.n),
@@ -373,9 +381,9 @@ def sample_posterior(vis, axisymmetric, templates, *, scan=None, priors: Priors 
             mode = "mcmc" if template.name in selected else "laplace"
             steps = "tables, optimum, chain" if mode == "mcmc" else "tables, optimum, Laplace evidence"
             overall.start(f"template {template.name} ({steps})")
-            r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan, template.name)
-            run, likelihood = _sample_one(vis, base, null, template, priors, scan=scan, chain_path=chain_path, mode=mode,
-                                          r_range=r_range, partners=partners, settings=run_settings)
+            r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, template.name)
+            run, likelihood = _sample_one(vis, base, null, template, priors, scan=scan_result, chain_path=chain_path,
+                                          mode=mode, r_range=r_range, partners=partners, settings=run_settings)
             if mode == "mcmc":  # its mirror shares the table (rebuilt on demand if read back from the file)
                 partners[_mirror_name(template)] = (likelihood.perturbation if likelihood is not None else
                                                     _deferred_table(base, template, r_range, null, likelihood_kwargs))

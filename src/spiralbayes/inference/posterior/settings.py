@@ -1,14 +1,20 @@
-"""How the posterior is sampled: :class:`SamplingSettings`, the ``[sample]`` section of the configuration."""
+"""How the posterior is sampled: :class:`SamplingSettings` and :class:`PriorSettings`, the ``[sample]`` and
+``[priors]`` sections of the configuration."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..._provenance import check_output_name
 from ...exceptions import InputError
-from ...settings import option
-from .priors import N_DIM
+from ...settings import is_finite_number, is_integer, option
+from .likelihood import DEFAULT_AMPLITUDE_MAX
+from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 
-__all__ = ["SamplingSettings"]
+__all__ = ["CONVERGENCE_POLICIES", "PriorSettings", "SamplingSettings"]
+
+CONVERGENCE_POLICIES = ("raise", "warn", "ignore")
+"""What a run does with a chain shorter than 50 autocorrelation times."""
 
 
 @dataclass(frozen=True)
@@ -50,13 +56,86 @@ class SamplingSettings:
                                              "the profile grid's tolerance/order", config=False)
 
     def __post_init__(self):
-        if self.convergence not in ("warn", "raise", "ignore"):
-            raise InputError(f"convergence = {self.convergence!r}: use 'warn', 'raise' or 'ignore'")
-        if self.n_walkers < 2 * N_DIM:
-            raise InputError(f"n_walkers = {self.n_walkers}: emcee needs at least 2 x {N_DIM} = {2 * N_DIM} walkers")
-        if self.n_steps is not None and self.n_steps < 1:
-            raise InputError(f"n_steps = {self.n_steps} must be a positive number of steps")
+        try:
+            check_output_name(self.run_name, "run_name")
+        except ValueError:
+            raise InputError(f"run_name = {self.run_name!r} must be a plain name (no '/', '\\', '..' or leading "
+                             "'.'): the chains stay inside their folder") from None
+        if self.convergence not in CONVERGENCE_POLICIES:
+            raise InputError(f"convergence = {self.convergence!r} must be one of "
+                             f"{', '.join(map(repr, CONVERGENCE_POLICIES))}")
+        if not is_integer(self.n_walkers) or self.n_walkers < 2 * N_DIM:
+            raise InputError(f"n_walkers = {self.n_walkers!r}: emcee needs at least 2 x {N_DIM} = {2 * N_DIM} "
+                             "walkers")
+        if self.n_steps is not None and (not is_integer(self.n_steps) or self.n_steps < 1):
+            raise InputError(f"n_steps = {self.n_steps!r} must be a positive number of steps")
+        for name in ("max_steps", "check_every", "evidence_draws"):
+            if not is_integer(getattr(self, name)) or getattr(self, name) < 1:
+                raise InputError(f"{name} = {getattr(self, name)!r} must be an integer >= 1")
+        if self.processes is not None and (not is_integer(self.processes) or self.processes < 1):
+            raise InputError(f"processes = {self.processes!r} must be an integer >= 1")
+        if not is_integer(self.seed) or self.seed < 0:
+            raise InputError(f"seed = {self.seed!r} must be an integer >= 0")
+        if not is_finite_number(self.min_ess) or self.min_ess < 0:
+            raise InputError(f"min_ess = {self.min_ess!r} must be a finite number >= 0 (0: no ESS requirement)")
+        if not is_finite_number(self.prune_delta_lnL) or self.prune_delta_lnL <= 0:
+            raise InputError(f"prune_delta_lnL = {self.prune_delta_lnL!r} must be a positive, finite number")
+        if self.mcmc_templates is not None and (isinstance(self.mcmc_templates, str)
+                                                or not all(isinstance(n, str) for n in self.mcmc_templates)):
+            raise InputError(f"mcmc_templates = {self.mcmc_templates!r} must be a list of template names")
         if not 0.0 < float(self.planet_prior) < 1.0:
             raise InputError(f"planet_prior = {self.planet_prior!r} must lie strictly between 0 and 1")
         if int(self.flush_every) < 1:
             raise InputError(f"flush_every = {self.flush_every!r} must be a positive number of steps")
+
+
+@dataclass(frozen=True)
+class PriorSettings:
+    """The user's choices of the priors (TOML section ``[priors]``); :meth:`priors` makes the
+    :class:`~spiralbayes.inference.posterior.Priors` of a fitted disc from them.
+
+    The geometry priors are Gaussians centred on the disc's geometry with these widths; ``None``
+    radii mean the disc's extent (written ``0`` in the TOML file).
+    """
+
+    r_p_min: float | None = option(None, "smallest planet radius [arcsec] (0: R_eff / 25 of the frank profile)",
+                                   toml=0.0)
+    r_p_max: float | None = option(None, "largest planet radius [arcsec] (0: R_eff, at most Rmax / 2.2)", toml=0.0)
+    inc_sigma: float = option(DEFAULT_WIDTHS["inc"], "width of the Gaussian prior on the inclination [deg], "
+                                                     "centred on [geometry]")
+    PA_sigma: float = option(DEFAULT_WIDTHS["PA"], "width of the Gaussian prior on the position angle [deg]")
+    dRA_sigma: float = option(DEFAULT_WIDTHS["dRA"], "width of the Gaussian prior on the RA offset [arcsec]")
+    dDec_sigma: float = option(DEFAULT_WIDTHS["dDec"], "width of the Gaussian prior on the Dec offset [arcsec]")
+    amplitude_max: float = option(DEFAULT_AMPLITUDE_MAX, "spiral amplitude A uniform on [0, amplitude_max] (A = 1: "
+                                                         "the template as simulated; 0: fix A = 1)")
+
+    def __post_init__(self):
+        for name in ("r_p_min", "r_p_max"):
+            value = getattr(self, name)
+            if value is not None and (not is_finite_number(value) or value <= 0):
+                raise InputError(f"{name} = {value!r} must be a positive radius [arcsec] (or 0: the disc's extent)")
+        if self.r_p_min is not None and self.r_p_max is not None and self.r_p_min >= self.r_p_max:
+            raise InputError(f"r_p_min = {self.r_p_min!r} must be smaller than r_p_max = {self.r_p_max!r} [arcsec] "
+                             "(or 0 for the default)")
+        for name in GEOMETRY_NAMES:
+            value = getattr(self, f"{name}_sigma")
+            if not is_finite_number(value) or value <= 0:
+                unit = "deg" if name in ("inc", "PA") else "arcsec"
+                raise InputError(f"{name}_sigma = {value!r} must be a positive width [{unit}]")
+        if not is_finite_number(self.amplitude_max) or self.amplitude_max < 0:
+            raise InputError(f"amplitude_max = {self.amplitude_max!r} must be a finite number >= 0 (0: fix A = 1)")
+
+    @property
+    def widths(self) -> dict:
+        """``{"inc": deg, "PA": deg, "dRA": arcsec, "dDec": arcsec}``: the geometry priors' sigmas."""
+        return {name: float(getattr(self, f"{name}_sigma")) for name in GEOMETRY_NAMES}
+
+    def priors(self, axisymmetric, *, geometry=None) -> Priors:
+        """The :class:`Priors` of ``axisymmetric`` (its extent for unset radii, its geometry as the centre
+        unless ``geometry`` is given)."""
+        r_p = None
+        if self.r_p_min is not None or self.r_p_max is not None:
+            default = Priors.default(axisymmetric, geometry=geometry, widths=self.widths).r_p
+            r_p = (self.r_p_min or default[0], self.r_p_max or default[1])
+        return Priors.default(axisymmetric, geometry=geometry, r_p=r_p, widths=self.widths,
+                              amplitude_max=self.amplitude_max or None)

@@ -29,7 +29,9 @@ import numpy as np
 
 from ...axisymmetric import fit_axisymmetric
 from ...geometry import DiscGeometry
+from ...settings import DEFAULT_DISTANCE_PC
 from ...units import TWO_PI, wrap_angle
+from ..posterior.likelihood import DEFAULT_AMPLITUDE_MAX
 from ..posterior.priors import Priors
 from ..posterior.results import SAMPLE_NAMES, wrap_phi
 from ..posterior.sampler import sample_posterior
@@ -47,9 +49,9 @@ class CalibrationSetup:
     nominal: tuple = (30.0, 60.0, 0.0, 0.0)
     widths: dict = field(default_factory=lambda: {"inc": 1.5, "PA": 1.5, "dRA": 0.005, "dDec": 0.005})
     r_p: tuple = (0.1, 0.5)
-    amplitude_max: float = 2.0
+    amplitude_max: float = DEFAULT_AMPLITUDE_MAX
     template: tuple = (1.0, 3.0, 10.0, "R")
-    distance: float = 140.0
+    distance: float = DEFAULT_DISTANCE_PC
     frank: dict = field(default_factory=lambda: {"N": 200, "Rmax": 1.2})
     sampler: dict = field(default_factory=lambda: {"n_walkers": 24, "n_steps": 600, "evidence_draws": 800})
 

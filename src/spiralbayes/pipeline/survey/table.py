@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ..._provenance import atomic_path
-from ...inference.limits.table3 import families_text, format_ranges, morphologies, price_text
+from ...inference.limits.robust import morphologies
+from ...inference.limits.table3 import families_text, format_ranges, price_text
 from ...inference.limits.table3 import write_table as write_ecsv_and_markdown
 from ..outputs import save_figure
 
