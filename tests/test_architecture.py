@@ -341,16 +341,12 @@ def test_docstrings_hold_no_change_history():
 
 
 # --- one settings pattern, each default written once ------------------------------------------------
-STAGE_FUNCTIONS = ["fit_axisymmetric", "detect", "fit_alternatives", "compute_limits", "completeness",
-                   "sample_posterior", "forecast"]
+STAGE_FUNCTIONS = ["fit_axisymmetric", "scan", "detect", "fit_alternatives", "rescan_at_fitted_geometry",
+                   "compute_limits", "completeness", "sample_posterior", "forecast"]
 """Public stage functions (``spiralbayes.<name>``) that take ``settings=`` plus the few arguments a notebook changes."""
-STAGE_FUNCTIONS_PENDING = ["scan", "rescan_at_fitted_geometry"]
-"""Stage functions still taking loose keywords: move each to :data:`STAGE_FUNCTIONS` once it takes ``settings=``."""
 
 
-@pytest.mark.parametrize("name", STAGE_FUNCTIONS + [
-    pytest.param(n, marks=pytest.mark.xfail(reason="takes loose keywords (not yet settings=)", strict=False))
-    for n in STAGE_FUNCTIONS_PENDING])
+@pytest.mark.parametrize("name", STAGE_FUNCTIONS)
 def test_every_stage_function_takes_settings(name):
     import inspect
 
@@ -434,7 +430,6 @@ def test_the_literal_rule_can_fail(tmp_path):
         {"X_DISTANCE": "140.0", "mstar": "0.8", "thresholds": "(3.0, 1.0)", "distance": "-1"}
 
 
-@pytest.mark.xfail(reason="the scan grid's defaults move into ScanSettings (scan stage)", strict=False)
 def test_scan_grid_defaults_are_written_once():
     found = literal_defaults(r"n_r_p|n_phi_p|r_p_min|r_p_max")
     assert not found, "scan grid literals outside the settings modules:\n" + "\n".join(found)

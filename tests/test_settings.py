@@ -90,7 +90,7 @@ def test_detect_takes_settings_and_the_old_keywords():
     assert detect(result, settings=strict, bic_threshold_value=0.0).test1_passed  # the keyword wins
     with pytest.warns(FutureWarning, match="scan_result"):
         assert detect(result=result).delta_bic == default.delta_bic
-    with pytest.raises(InputError, match="scan_result must be the ScanResult"):
+    with pytest.raises(InputError, match="is not a scan result: pass the ScanResult returned by sb.scan"):
         detect(None)
     with pytest.raises(TypeError, match=r"unknown keyword argument\(s\) \['threshold'\]"):
         detect(result, threshold=3)

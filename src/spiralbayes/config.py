@@ -21,11 +21,8 @@ from __future__ import annotations
 
 import copy
 import math
-<<<<<<< HEAD
-import warnings
-=======
 import re
->>>>>>> i30b2
+import warnings
 from dataclasses import fields
 from pathlib import Path
 
@@ -35,29 +32,16 @@ from .axisymmetric.settings import FrankSettings
 from .exceptions import ConfigError, MissingFileError
 from .inference.detection.settings import AlternativesSettings
 from .inference.limits.settings import LimitSettings
-<<<<<<< HEAD
-from .inference.posterior.settings import SamplingSettings
-from .inference.scan.settings import GRID_FIELDS, ScanSettings, field_error
-from .settings import config_options
-
-__all__ = ["CHECKS", "PATH_KEYS", "RENAMED", "SCHEMA", "default_config", "describe_config", "geometry_given",
-           "load_config", "merge_config", "merge_section", "read_toml", "resolve_paths"]
-
-# section -> key -> (default, description). The [grid], [scan], [alternatives], [sample] and [limits]
-# options are the fields of their settings dataclasses (spiralbayes.settings); [frank] takes its defaults
-# from frank's hyperparameters: each default is written once, where the code uses it.
-=======
 from .inference.posterior.settings import PriorSettings, SamplingSettings
-from .inference.scan.engine import ScanSettings
-from .settings import DEFAULT_DISTANCE_PC, MAX_DISTANCE_PC, config_options, from_config
+from .inference.scan.settings import GRID_FIELDS, ScanSettings, field_error
+from .settings import DEFAULT_DISTANCE_PC, MAX_DISTANCE_PC, MIN_DISTANCE_PC, config_options, from_config
 
-__all__ = ["CHECKS", "PATH_KEYS", "SCHEMA", "SECTION_SETTINGS", "default_config", "describe_config", "geometry_given",
-           "load_config", "merge_config"]
+__all__ = ["CHECKS", "PATH_KEYS", "RENAMED", "SCHEMA", "SECTION_SETTINGS", "default_config", "describe_config",
+           "geometry_given", "load_config", "merge_config", "merge_section", "read_toml", "resolve_paths"]
 
-# section -> key -> (default, description). The [frank], [alternatives], [sample], [priors] and [limits]
-# options are the fields of their settings dataclasses (spiralbayes.settings); [scan] takes its defaults
-# from ScanSettings: each default is written once, where the code uses it.
->>>>>>> i30b2
+# section -> key -> (default, description). The [frank], [grid], [scan], [alternatives], [sample], [priors]
+# and [limits] options are the fields of their settings dataclasses: each default is written once, where
+# the code uses it.
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     "data": {
         "path": ("", "visibility file: uvtable .txt/.npz, spiralbayes .h5, or a Measurement Set directory"),
@@ -123,16 +107,9 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "plots": (True, "write heatmap PNGs"),
     },
 }
-<<<<<<< HEAD
-"""section -> option -> ``(default, description)`` of every configuration option; the ``[grid]`` and
-``[scan]`` options (but ``scheduler``) come from :class:`~spiralbayes.inference.scan.settings.ScanSettings`,
-the ``[alternatives]``, ``[sample]`` and ``[limits]`` options from
-:class:`~spiralbayes.inference.detection.settings.AlternativesSettings`,
-:class:`~spiralbayes.inference.posterior.settings.SamplingSettings` and
-:class:`~spiralbayes.inference.limits.settings.LimitSettings`."""
-=======
 """section -> option -> ``(default, description)`` of every configuration option; the options of the
-sections in :data:`SECTION_SETTINGS` come from the fields of their settings dataclasses."""
+sections in :data:`SECTION_SETTINGS` come from the fields of their settings dataclasses, the ``[grid]``
+and ``[scan]`` options (but ``scheduler``) from :class:`~spiralbayes.inference.scan.settings.ScanSettings`."""
 
 SECTION_SETTINGS: dict[str, type] = {
     "frank": FrankSettings,
@@ -143,7 +120,6 @@ SECTION_SETTINGS: dict[str, type] = {
 }
 """section -> the settings dataclass its options make; :func:`merge_config` builds each one, so that the
 dataclass's own checks run when the file is read, before any data."""
->>>>>>> i30b2
 
 
 BUILT_IN_BANKS = ("default", "variants", "compromise")
@@ -171,23 +147,14 @@ def _int_at_least(low):
     return lambda v: None if v >= low else f"must be an integer >= {low}"
 
 
-<<<<<<< HEAD
-def _zero_or_at_least(low):
-    return lambda v: None if v == 0 or v >= low else f"must be 0 (automatic) or an integer >= {low}"
-
-
 def _scan_check(key):
     # ScanSettings' own rule, so that TOML and Python accept the same values; 0 spells "automatic"
     return lambda v: field_error(key, None if key in ("r_p_min", "r_p_max") and v == 0 else v)
-=======
-def _even_positive(v):
-    return None if v >= 2 and v % 2 == 0 else "must be a positive, even integer (the paper uses 90: 4 deg steps)"
->>>>>>> i30b2
 
 
 def _distance(v):
-    return None if math.isfinite(v) and 0 < v <= MAX_DISTANCE_PC else \
-        f"must be a positive distance in pc, at most {MAX_DISTANCE_PC:g} (e.g. {DEFAULT_DISTANCE_PC:g} for Taurus)"
+    return None if math.isfinite(v) and MIN_DISTANCE_PC <= v <= MAX_DISTANCE_PC else \
+        f"must be a distance in pc between {MIN_DISTANCE_PC:g} and {MAX_DISTANCE_PC:g} (e.g. {DEFAULT_DISTANCE_PC:g} for Taurus)"
 
 
 def _inclination(v):
@@ -236,23 +203,8 @@ CHECKS: dict[str, dict[str, object]] = {
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),
                   "h_p": _each(_number(_positive))},
-<<<<<<< HEAD
     "grid": {key: _scan_check(key) for key in GRID_FIELDS},
     "scan": {key: _scan_check(key) for key in ScanSettings.field_names() if key not in GRID_FIELDS},
-    "alternatives": {"models": _each(_string(_choice(*ALTERNATIVE_MODELS))), "threshold": _finite,
-                     "n_starts": _int_at_least(1)},
-    "sample": {"run_name": _plain_name, "n_walkers": _int_at_least(2), "n_steps": _int_at_least(0), "max_steps": _int_at_least(1),
-               "check_every": _int_at_least(1), "convergence": _choice("raise", "warn", "ignore"),
-               "min_ess": _positive, "processes": _int_at_least(1), "seed": _int_at_least(0),
-               "prune_delta_lnL": _positive, "evidence_draws": _int_at_least(1),
-               "mcmc_templates": _each(_string(lambda v: None))},
-    "priors": {"r_p_min": _non_negative, "r_p_max": _non_negative, "inc_sigma": _positive, "PA_sigma": _positive,
-               "dRA_sigma": _positive, "dDec_sigma": _positive},
-=======
-    "grid": {"r_p_min": _positive, "r_p_max": _positive, "n_r_p": _int_at_least(1), "n_phi_p": _even_positive},
-    "scan": {"amplitude": _choice("fixed", "free"), "nthreads": _int_at_least(1), "cell_factor": _positive,
-             "quadrature": _choice("product", "midpoint"), "power_path": _choice("auto", "polar", "direct")},
->>>>>>> i30b2
     "compare": {"residuals": _choice("visibilities", "difference"), "weighting": _choice("natural", "briggs", "uniform"),
                 "robust": _finite, "deconvolver": _choice("hogbom", "multiscale"), "niter": _int_at_least(0),
                 "threshold_sigma": _positive, "imsize": _int_at_least(0), "cell": _non_negative, "r_out": _non_negative},
@@ -276,14 +228,7 @@ def _check_values(config: dict) -> None:
     grid = config.get("grid", {})
     if grid.get("r_p_min") and grid.get("r_p_max") and grid["r_p_min"] >= grid["r_p_max"]:
         raise ConfigError(f"grid.r_p_min = {grid['r_p_min']!r} must be smaller than grid.r_p_max = "
-<<<<<<< HEAD
                           f"{grid['r_p_max']!r} [arcsec] (or 0: automatic)")
-    priors = config.get("priors", {})
-    if priors.get("r_p_min") and priors.get("r_p_max") and priors["r_p_min"] >= priors["r_p_max"]:
-        raise ConfigError(f"priors.r_p_min = {priors['r_p_min']!r} must be smaller than priors.r_p_max = "
-                          f"{priors['r_p_max']!r} [arcsec] (or 0 for the default)")
-=======
-                          f"{grid['r_p_max']!r} [arcsec]")
 
 
 def _check_settings(config: dict) -> None:
@@ -303,7 +248,6 @@ def _settings_message(section: str, cls, message: str) -> str:
     if match and match.group(1) in {f.name for f in fields(cls)}:
         return f"{section}.{message}"
     return f"[{section}] {message}"
->>>>>>> i30b2
 
 
 def default_config() -> dict:

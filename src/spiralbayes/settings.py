@@ -20,13 +20,15 @@ import dataclasses
 import math
 import numbers
 
-__all__ = ["DEFAULT_DISTANCE_PC", "DEFAULT_MSTAR_MSUN", "MAX_DISTANCE_PC", "config_options", "from_config", "is_finite_number",
+__all__ = ["DEFAULT_DISTANCE_PC", "DEFAULT_MSTAR_MSUN", "MAX_DISTANCE_PC", "MIN_DISTANCE_PC", "config_options", "from_config", "is_finite_number",
            "is_integer", "option", "with_overrides"]
 
 DEFAULT_DISTANCE_PC = 140.0
 """Distance [pc] assumed when none is given (the Taurus and Lupus star-forming regions are at ~140-160 pc)."""
 DEFAULT_MSTAR_MSUN = 0.8
 """Stellar mass [M_sun] assumed when none is given (the paper's fiducial star; M_th = (H/r)^3 M_*)."""
+MIN_DISTANCE_PC = 1.0
+"""Smallest distance [pc] accepted from a user (no disc is nearer than ~50 pc; below 1 pc is a unit slip)."""
 MAX_DISTANCE_PC = 1.0e4
 """Largest distance [pc] accepted from a user: no protoplanetary disc beyond the Galaxy's ~10 kpc is resolved
 (a larger value is a unit slip, e.g. metres or au for pc)."""

@@ -223,7 +223,7 @@ class ScanContext:
         return {**self.__dict__, "_dirty_cache": {}, "_plan_cache": {}, "_spectrum_cache": {}}
 
     @classmethod
-    def build(cls, vis, axisymmetric, geometry: DiscGeometry, r_p, n_phi_p: int = 90,
+    def build(cls, vis, axisymmetric, geometry: DiscGeometry, r_p, n_phi_p: int = ScanSettings.n_phi_p,
               cell_factor: float = DEFAULT_CELL_FACTOR, x_max: float = 2.2, nthreads: int = 1, *,
               rule: str | None = None, power_path: str | None = None,
               settings: EngineSettings | ScanSettings | None = None) -> "ScanContext":

@@ -28,6 +28,7 @@ from ...templates.template import template_metadata
 from ..limits.exclusion import compute_limits
 from ..scan.run import ScanResult
 from ..scan.engine import ScanContext, cross_template, scan_template, with_residual
+from ..scan.settings import ScanSettings
 
 __all__ = ["PlantedExclusion", "planted_exclusion_rate"]
 
@@ -99,7 +100,7 @@ class PlantedExclusion(ResultMixin):
 
 def planted_exclusion_rate(vis, axisymmetric, family_templates, planted, r_p: float, phi_p: float,
                            true_mass: float, *, n_realisations: int = 50, cl: float = 0.95, method: str = "all_phi",
-                           hand: str = "both", n_phi_p: int = 90, geometry=None, seed: int = 0,
+                           hand: str = "both", n_phi_p: int = ScanSettings.n_phi_p, geometry=None, seed: int = 0,
                            amplitude: float = 1.0, robust: bool = False) -> PlantedExclusion:
     """Plant ``planted`` at ``(r_p, phi_p)`` into noise realisations and count wrong exclusions.
 

@@ -35,6 +35,7 @@ from ..._provenance import content_hash
 from ...cluster import check_scheduler
 from ...config import SCHEMA, merge_config, merge_section, read_toml, resolve_paths
 from ...exceptions import ConfigError, InputError
+from ...settings import MAX_DISTANCE_PC, MIN_DISTANCE_PC
 from ...templates.variants import DEFAULT_VARIANTS, VARIANTS
 
 __all__ = ["BANK_SCHEMA", "DISC_KEYS", "DISTANCE_RANGE_PC", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey",
@@ -72,7 +73,7 @@ BANK_SCHEMA: dict[str, tuple[object, str]] = {
 DISC_KEYS = ("name", "path", "distance", "inc", "PA", "dRA", "dDec", "fit_geometry", "simulate")
 SIMULATE_KEYS = {"preset": "taurus", "flux": 0.1, "r_eff": 0.4, "seed": 0}
 
-DISTANCE_RANGE_PC = (1.0, 10000.0)
+DISTANCE_RANGE_PC = (MIN_DISTANCE_PC, MAX_DISTANCE_PC)
 """Distances [pc] a survey disc may have (1 pc to 10 kpc): a value outside is a typo or another unit
 (au, m), and would put the planet grid and the masses at absurd radii."""
 
