@@ -309,7 +309,7 @@ def _with_func(parser, command, func):
     return parser
 
 
-@pytest.mark.parametrize("argv,expected", [(["--scheduler", "serial"], None), ([], None),
+@pytest.mark.parametrize("argv,expected", [(["--scheduler", "serial"], "serial"), ([], None),
                                            (["--scheduler", "local"], "local"), (["--dask", "local"], "local")])
 def test_demo_hands_its_scheduler_to_the_scan(argv, expected, monkeypatch, tmp_path):
     import spiralbayes.pipeline as pipeline
@@ -325,5 +325,5 @@ def test_demo_hands_its_scheduler_to_the_scan(argv, expected, monkeypatch, tmp_p
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         assert main(["-q", "demo", "--out", str(tmp_path / "demo"), *argv]) == 2
-    assert seen["dask"] == expected
+    assert seen["scheduler"] == expected
     assert any(issubclass(w.category, FutureWarning) for w in caught) is ("--dask" in argv)

@@ -1,6 +1,6 @@
 """The README's notebook lines and ``spiralbayes scan`` give the same grid, templates and verdict on the same data.
 
-Both paths take every scan default (no grid is stated anywhere: the data-driven grid of
+Both paths take every scan and test-3 default (no grid is stated anywhere: the data-driven grid of
 :class:`spiralbayes.ScanSettings`); they share one frank fit, made in the notebook and named by the
 configuration's ``[frank] model``. The data: 3000 random baselines of a Gaussian disc with a
 planted 1 M_th wake from the default bank.
@@ -49,7 +49,8 @@ def test_notebook_and_command_line_give_the_same_grid_templates_and_verdict(data
     disc = sb.fit_axisymmetric(vis, GEOMETRY, progress=False)
     templates = sb.default_bank().select(**SELECTION)
     result = sb.scan(vis, disc, templates, progress=False)
-    verdict = sb.detect(result)
+    alternatives = sb.fit_alternatives(vis, disc, progress=False)  # test 3
+    verdict = sb.detect(result, alternatives=alternatives, vis=vis, axisymmetric=disc, templates=templates)
     # the command line, on the same data and frank fit, with no grid or scan option given
     model = disc.save(tmp_path / "disc.h5")
     config = tmp_path / "run.toml"
@@ -64,7 +65,7 @@ model = "{model}"
 [templates]
 {chr(10).join(f"{key} = [{value}]" for key, value in SELECTION.items())}
 [alternatives]
-fit = false
+refit_geometry = false
 [output]
 dir = "{tmp_path / 'out'}"
 plots = false
@@ -84,6 +85,7 @@ plots = false
     assert cli.provenance["scan_settings"] == result.provenance["scan_settings"]
 
     assert verdict.detected and cli_verdict["detected"]  # a planted planet: the comparison is not of two nulls
+    assert verdict.test3_passed is True and cli_verdict["best_alternative"] == verdict.best_alternative
     best = result.best
     assert abs(best.r_p - R_P) <= 0.05 and best.template.endswith("_R")
     assert (cli_verdict["template"], cli_verdict["r_p"], cli_verdict["phi_p_deg"]) == \

@@ -12,7 +12,7 @@ from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..geometry import DiscGeometry
 from ..settings import DEFAULT_DISTANCE_PC
 from ..inference.detection.alternatives import fit_alternatives
-from ..inference.detection.planet_peak import detect_with_planet_peak
+from ..inference.detection.verdict import detect_with_planet_peak
 from ..inference.scan.run import scan
 from ..plotting.axisymmetric import plot_binned_visibilities, plot_profile
 from ..simulate import DiscModel, simulate_observation

@@ -12,7 +12,7 @@ from ..exceptions import InputError
 from ..inference.detection.alternatives import fit_alternatives
 from ..inference.detection.settings import AlternativesSettings
 from ..inference.detection.follow_up import GeometryFollowUp, rescan_at_fitted_geometry
-from ..inference.detection.planet_peak import detect_with_planet_peak
+from ..inference.detection.verdict import detect_with_planet_peak
 from ..inference.detection.verdict import DELTA_BIC_THRESHOLD
 from ..inference.scan.run import ScanResult, scan
 from ..inference.scan.settings import ScanSettings

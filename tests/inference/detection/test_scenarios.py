@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from spiralbayes.inference.detection.alternatives import fit_alternatives
-from spiralbayes.inference.detection.planet_peak import detect_with_planet_peak
+from spiralbayes.inference.detection.verdict import detect_with_planet_peak
 from spiralbayes.inference.detection.verdict import detect
 from spiralbayes.inference.detection.follow_up import rescan_at_fitted_geometry
 from spiralbayes.inference.scan.run import scan

@@ -123,7 +123,7 @@ def test_table3_names_the_family_and_ranges(tmp_path):
     table = build_table3(limits, name="synthetic")
     assert table.colnames == ["disc", "families", "morphologies", "price_of_robustness", "excluded_ge3Mth",
                               "excluded_ge1Mth"]
-    assert table["excluded_ge3Mth"][0].startswith("28-56 au (") and table["morphologies"][0] == "compromise"
+    assert table["excluded_ge3Mth"][0].startswith("28-56 au (") and table["morphologies"][0] == "unlabelled"
     ecsv, md = write_table(table, tmp_path / "table3")
     from astropy.table import Table
 

@@ -52,4 +52,4 @@ def test_a_single_family_is_its_own_robust_row():
     single = compute_limits(multi_family_scan(h_ps=(0.07,)))
     table = build_table3(single)
     assert len(table) == 1 and table[0]["families"] == families_text(single) == single.families[0].label
-    assert table[0]["morphologies"] == "compromise" and table[0]["price_of_robustness"] == "1"
+    assert table[0]["morphologies"] == "unlabelled" and table[0]["price_of_robustness"] == "1"  # no variant, not wake_

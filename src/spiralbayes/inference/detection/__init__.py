@@ -13,6 +13,7 @@ from .verdict import (
     Verdict,
     best_handed_candidate,
     detect,
+    detect_with_planet_peak,
     handedness_ratio,
     localisation,
     mass_range,
@@ -30,9 +31,15 @@ from .alternatives import (
 )
 from .follow_up import GeometryFollowUp, frank_settings, rescan_at_fitted_geometry
 
-from .planet_peak import COMPACT_ALTERNATIVES, apply_planet_peak, detect_with_planet_peak, spiral_with_planet_peak
+from .planet_peak import (
+    COMPACT_ALTERNATIVES,
+    apply_planet_peak,
+    rescore_with_planet_peak,
+    spiral_with_planet_peak,
+)
 
 __all__ = [
+    "rescore_with_planet_peak",
     "spiral_with_planet_peak",
     "apply_planet_peak",
     "detect_with_planet_peak",

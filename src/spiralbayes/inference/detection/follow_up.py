@@ -20,7 +20,7 @@ from ...axisymmetric import fit_axisymmetric
 from ...axisymmetric.model import DEFAULT_HYPERPARAMETERS
 from ...geometry import DiscGeometry
 from .alternatives import AlternativesResult, fit_alternatives
-from .planet_peak import detect_with_planet_peak
+from .verdict import detect_with_planet_peak
 from .verdict import Verdict
 from ...settings import with_overrides
 from ..scan.run import ScanResult, scan

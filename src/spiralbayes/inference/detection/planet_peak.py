@@ -13,7 +13,7 @@ peak is nearly a point source and adds nothing for extended impostors (arcs, lop
 patterns, eccentric rings, geometry errors); it is only compared with the **arc** alternative
 (the only compact one); every other alternative still faces the bare spiral's ΔBIC. Tests 1 and 2
 are unchanged. The verdict says which spiral score test 3 used (``Verdict.test3_spiral_model``).
-:func:`detect_with_planet_peak` is :func:`~.verdict.detect` with this rescoring, as the pipeline runs it.
+:func:`~.verdict.detect` applies it when given the scanned data (``vis``, ``axisymmetric``, ``templates``), as the pipeline runs it.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import numpy as np
 from ...units import ARCSEC
 from ..scan.statistics import bic_threshold, chi2
 
-__all__ = ["COMPACT_ALTERNATIVES", "apply_planet_peak", "detect_with_planet_peak", "spiral_with_planet_peak"]
+__all__ = ["COMPACT_ALTERNATIVES", "apply_planet_peak", "rescore_with_planet_peak", "spiral_with_planet_peak"]
 
 COMPACT_ALTERNATIVES = ("arc",)
 """Alternatives that a compact source at the planet can mimic (scored against spiral + peak)."""
@@ -125,17 +125,10 @@ def apply_planet_peak(verdict, alternatives, peak: dict):
                                planet_peak=peak)
 
 
-def detect_with_planet_peak(result, vis, axisymmetric, templates, geometry=None, amplitude=None, *,
-                            alternatives=None, **detect_kwargs):
-    """:func:`~.verdict.detect`, then test 3 rescored with the planet's compact peak (:func:`apply_planet_peak`).
-
-    The peak is fitted only when there are alternatives and test 1 passes (otherwise test 3 cannot
-    change the verdict). ``geometry`` defaults to the axisymmetric model's; ``detect_kwargs`` go to
-    :func:`~.verdict.detect`.
-    """
-    from .verdict import detect
-
-    verdict = detect(result, amplitude, alternatives=alternatives, **detect_kwargs)
+def rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry=None, *, alternatives):
+    """``verdict`` with test 3 rescored with the planet's compact peak (:func:`apply_planet_peak`); the
+    peak is fitted only when there are alternatives and test 1 passes (otherwise test 3 cannot change
+    the verdict). ``geometry`` defaults to the axisymmetric model's."""
     if alternatives is None or not verdict.test1_passed:
         return verdict
     geometry = geometry if geometry is not None else axisymmetric.geometry

@@ -52,10 +52,11 @@ from ...io.argument_checks import check_scan_result
 from ...results import ResultMixin, fields_dict
 from ...settings import with_overrides
 from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, AlternativesSettings, DetectionSettings
+from .planet_peak import rescore_with_planet_peak
 from ...units import M_JUP, M_SUN
 
-__all__ = ["Verdict", "best_handed_candidate", "detect", "handedness_ratio", "localisation", "mass_range",
-           "mirror_index", "one_sidedness"]
+__all__ = ["Verdict", "best_handed_candidate", "detect", "detect_with_planet_peak", "handedness_ratio", "localisation",
+           "mass_range", "mirror_index", "one_sidedness"]
 
 ALTERNATIVE_THRESHOLD = AlternativesSettings.threshold
 """Test 3: the spiral's BIC must be lower than the best alternative's by more than this."""
@@ -393,7 +394,7 @@ def _check_same_data(result, alternatives) -> None:
 
 
 def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | None = None, alternatives=None,
-           **overrides) -> Verdict:
+           vis=None, axisymmetric=None, templates=None, **overrides) -> Verdict:
     """Decide whether a scan detects a planet-driven spiral.
 
     Tests 1 and 2 are the paper's (module docstring). With ``alternatives`` (an
@@ -412,6 +413,10 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
         ``DetectionSettings()``, the paper's tests).
     alternatives : AlternativesResult, optional
         Competing asymmetry models (:func:`spiralbayes.inference.detection.alternatives.fit_alternatives`).
+    vis, axisymmetric, templates : Visibilities, AxisymmetricModel, sequence of SpiralTemplate, optional
+        The scanned data, model and templates (in the scan's order). Given with ``alternatives``, test 3
+        scores the spiral with the planet's own compact peak against the arc alternative
+        (:mod:`.planet_peak`), as ``spiralbayes scan`` does; without them test 3 compares the bare spiral.
     **overrides
         Fields of :class:`DetectionSettings` replacing those of ``settings`` (e.g.
         ``bic_threshold_value=15``, ``mstar=1.2``).
@@ -452,8 +457,28 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
                                                    max_localisation=max_localisation,
                                                    min_delta_bic=bic_threshold_value)
     detected = test1 and test2 and extra.get("test3_passed") is not False
-    return Verdict(
+    verdict = Verdict(
         detected=bool(detected), delta_bic=best.delta_bic, test1_passed=test1,
         handedness_ratio=ratio, localisation=loc, test2_passed=test2, template=best.template,
         r_p=best.r_p, phi_p_deg=float(np.degrees(best.phi_p)), delta_chi2=best.delta_chi2,
         threshold_6lnN=best.delta_chi2 - best.delta_bic, distance=result.distance, **extra)
+    data = {"vis": vis, "axisymmetric": axisymmetric, "templates": templates}
+    missing = [k for k, v in data.items() if v is None]
+    if len(missing) == 3 or alternatives is None:
+        return verdict
+    if missing:
+        raise InputError(f"detect: give vis, axisymmetric and templates together (missing {', '.join(missing)}) "
+                         "so that test 3 can fit the planet's compact peak, or none of them")
+    return rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, alternatives=alternatives)
+
+
+def detect_with_planet_peak(result, vis, axisymmetric, templates, geometry=None, amplitude=None, *,
+                            alternatives=None, **detect_kwargs) -> Verdict:
+    """:func:`detect`, then test 3 rescored with the planet's compact peak at ``geometry``
+    (:func:`~.planet_peak.rescore_with_planet_peak`; default: the axisymmetric model's geometry).
+
+    The peak is fitted only when there are alternatives and test 1 passes (otherwise test 3 cannot
+    change the verdict); ``detect_kwargs`` go to :func:`detect`.
+    """
+    verdict = detect(result, amplitude, alternatives=alternatives, **detect_kwargs)
+    return rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry, alternatives=alternatives)

@@ -73,7 +73,7 @@ def default_rp_grid(r_max: float, n: int = ScanSettings.n_r_p, r_min: float | No
     """Planet radii [arcsec]: ``n`` values from ``r_min`` (default ``r_max / n``) to ``r_max``.
 
     The paper used 25 radii between 0.02 and 0.5 arcsec for discs of about 0.8 arcsec radius
-    (:func:`.settings.grid_radii`, which this is).
+    (:func:`spiralbayes.inference.scan.settings.grid_radii`, which this is).
     """
     return grid_radii(r_min, r_max, n)
 

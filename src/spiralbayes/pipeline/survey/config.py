@@ -18,7 +18,8 @@ Each disc becomes one merged single-disc configuration (checked exactly like a `
 by :func:`spiralbayes.config.merge_config`) whose ``[output] dir`` is ``OUTPUT/discs/<name>``, so
 every disc's folder is what ``spiralbayes scan`` and ``limits`` would have written for it. A disc's
 name needs a letter or digit (``"."`` or ``".."`` would name the output folder itself) and its
-distance must lie in :data:`DISTANCE_RANGE_PC`. The file is read, its values coerced and its
+distance, as every configuration's, must lie between
+:data:`~spiralbayes.settings.MIN_DISTANCE_PC` and :data:`~spiralbayes.settings.MAX_DISTANCE_PC`. The file is read, its values coerced and its
 paths resolved (relative to the survey file) by the single-disc loader's functions
 (:func:`~spiralbayes.config.read_toml`, :func:`~spiralbayes.config.merge_section`,
 :func:`~spiralbayes.config.resolve_paths`).
@@ -35,10 +36,9 @@ from ..._provenance import content_hash
 from ...cluster import check_scheduler
 from ...config import SCHEMA, merge_config, merge_section, read_toml, resolve_paths
 from ...exceptions import ConfigError, InputError
-from ...settings import MAX_DISTANCE_PC, MIN_DISTANCE_PC
 from ...templates.variants import DEFAULT_VARIANTS, VARIANTS
 
-__all__ = ["BANK_SCHEMA", "DISC_KEYS", "DISTANCE_RANGE_PC", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey",
+__all__ = ["BANK_SCHEMA", "DISC_KEYS", "SURVEY_SCHEMA", "DiscJob", "SurveySpec", "load_survey",
            "parse_survey", "slugify"]
 
 SURVEY_SCHEMA: dict[str, tuple[object, str]] = {
@@ -72,10 +72,6 @@ BANK_SCHEMA: dict[str, tuple[object, str]] = {
 
 DISC_KEYS = ("name", "path", "distance", "inc", "PA", "dRA", "dDec", "fit_geometry", "simulate")
 SIMULATE_KEYS = {"preset": "taurus", "flux": 0.1, "r_eff": 0.4, "seed": 0}
-
-DISTANCE_RANGE_PC = (MIN_DISTANCE_PC, MAX_DISTANCE_PC)
-"""Distances [pc] a survey disc may have (1 pc to 10 kpc): a value outside is a typo or another unit
-(au, m), and would put the planet grid and the masses at absurd radii."""
 
 _SURVEY_CHECKS = {
     "n_workers": lambda v: None if v >= 0 else "must be 0 (one per core) or a positive integer",
@@ -136,14 +132,6 @@ def slugify(name: str) -> str:
     return slug
 
 
-def _check_distance(config: dict, label: str) -> None:
-    distance = config["geometry"]["distance"]
-    low, high = DISTANCE_RANGE_PC
-    if not (math.isfinite(distance) and low <= distance <= high):
-        raise ConfigError(f"{label}: distance = {distance!r} pc is outside {low:g}-{high:g} pc: give the distance "
-                          "in parsec (e.g. distance = 140.0)")
-
-
 def _deep_merge(base: dict, over: dict) -> dict:
     out = copy.deepcopy(base)
     for section, values in over.items():
@@ -182,7 +170,6 @@ def _disc_job(entry: dict, shared: dict, out_dir: Path, root: Path, index: int) 
         config = merge_config(user)
     except ConfigError as exc:
         raise ConfigError(f"{label}: {exc}") from None
-    _check_distance(config, label)
     simulate = entry.get("simulate")
     if simulate is not None:
         simulate = merge_section(f"{label}.simulate", simulate, {k: (v, "") for k, v in SIMULATE_KEYS.items()})

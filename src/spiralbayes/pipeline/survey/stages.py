@@ -20,7 +20,7 @@ import json
 import logging
 import shutil
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -87,6 +87,7 @@ class ScanSetup:
     finished: bool
     key: str
     since: dict | None = None
+    units: list = field(default_factory=list)  # the scan's work units (building-block groups or one template)
 
 
 def _replaced(job, stage: str, names: list[str]) -> None:
@@ -183,6 +184,7 @@ def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     """The scan's context and partly filled result (resumed from the checkpoint and saved chunks)."""
     from ...inference.scan.run import ScanResult, empty_result, resume_from_checkpoint, warn_beyond_rmax, resume_key
     from ...inference.scan.accuracy import check_terms
+    from ...inference.scan.building_blocks import building_block_groups, check_pairs, describe_blocks, work_units
     from ...inference.scan.engine import ScanContext
     from ..scan_command import scan_settings
 
@@ -199,7 +201,10 @@ def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     context = ScanContext.build(prep.vis, axisym, axisym.geometry, r_p, n_phi_p, x_max=x_max, nthreads=s["nthreads"],
                                 settings=settings)
     result = empty_result(context, templates, prep.vis, job.config["geometry"]["distance"])
-    result.provenance["resume_key"] = rkey = resume_key(prep.vis, axisym, templates, context)
+    # the same work units as sb.scan, so that the survey's numbers are the single-disc scan's, bit for bit
+    grouped = settings.building_blocks and settings.quadrature == "product"
+    groups, plain = building_block_groups(templates) if grouped else ([], None)
+    result.provenance["resume_key"] = rkey = resume_key(prep.vis, axisym, templates, context, describe_blocks(groups))
     checkpoint = out / "scan_checkpoint.h5"
     if s["checkpoint"] and checkpoint.exists():
         try:
@@ -215,9 +220,11 @@ def stage_scan_setup(job, prep: Prepared, axisym, templates) -> ScanSetup:
     todo = [i for i in range(len(templates)) if not result.completed[i]]
     if todo and settings.quadrature == "product":
         context.algorithm_error = check_terms(context, templates[0])
+        if groups:
+            check_pairs(context, groups[0])
         result.provenance["power_check"] = context.algorithm_error
     _replaced(job, "scan", replaced)
-    return ScanSetup(context, result, todo, False, part_key, since)
+    return ScanSetup(context, result, todo, False, part_key, since, work_units(templates, todo, groups, plain))
 
 
 def _part_path(out: Path, index: int) -> Path:
@@ -247,22 +254,27 @@ def _store_terms(result, index: int, terms) -> None:
 
 @_staged("scan")
 def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
-    """The terms of templates ``indices`` still to do; each saved to ``survey_parts/`` when computed."""
+    """The terms of the work units whose first template is one of ``indices`` (a building-block group
+    runs whole, in the chunk of its first member); each template's saved to ``survey_parts/``."""
     from ..._provenance import atomic_path
-    from ...inference.scan.engine import scan_template
+    from ...inference.scan.building_blocks import unit_rows
+    from ...inference.scan.run import run_unit
 
     out = {}
-    for i in indices:
-        if setup.finished or i not in setup.todo:
+    if setup.finished:
+        return out
+    chunk = set(indices)
+    for unit in setup.units:
+        if min(unit_rows(unit)) not in chunk:
             continue
-        terms = scan_template(setup.context, templates[i])
-        path = _part_path(job.out_dir, i)
-        with atomic_path(path) as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez(fh, key=setup.key, cross=terms[0], power=terms[1],
-                         cross_error=np.asarray(getattr(terms, "cross_error", np.nan)),
-                         power_error=np.asarray(getattr(terms, "power_error", np.nan)))
-        out[i] = terms
+        for i, terms in run_unit(setup.context, unit).items():
+            path = _part_path(job.out_dir, i)
+            with atomic_path(path) as tmp:
+                with open(tmp, "wb") as fh:
+                    np.savez(fh, key=setup.key, cross=terms[0], power=terms[1],
+                             cross_error=np.asarray(getattr(terms, "cross_error", np.nan)),
+                             power_error=np.asarray(getattr(terms, "power_error", np.nan)))
+            out[i] = terms
     return out
 
 
@@ -290,7 +302,7 @@ def stage_detect(job, prep: Prepared, axisym, templates, setup: ScanSetup, alts,
     if setup.finished:
         return json.loads((job.out_dir / "verdict.json").read_text())
     from ...inference.detection.follow_up import rescan_at_fitted_geometry
-    from ...inference.detection.planet_peak import detect_with_planet_peak
+    from ...inference.detection.verdict import detect_with_planet_peak
     from ...inference.scan.accuracy import warn_if_inaccurate
     from ..outputs import write_scan_outputs
     from ..scan_command import scan_settings
