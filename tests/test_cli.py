@@ -327,3 +327,22 @@ def test_demo_hands_its_scheduler_to_the_scan(argv, expected, monkeypatch, tmp_p
         assert main(["-q", "demo", "--out", str(tmp_path / "demo"), *argv]) == 2
     assert seen["scheduler"] == expected
     assert any(issubclass(w.category, FutureWarning) for w in caught) is ("--dask" in argv)
+
+
+@pytest.mark.parametrize("failed,status", [([], 0), (["Damaged"], 1)])
+def test_survey_with_failed_discs_exits_non_zero_after_writing_its_table(failed, status, monkeypatch, tmp_path,
+                                                                        capsys):
+    import spiralbayes.pipeline.survey as survey
+    from spiralbayes.pipeline.survey.run import SurveyRun
+
+    table = tmp_path / "survey_table.md"
+    table.write_text("| disc | status |\n|---|---|\n| A | ok |\n")
+    rows = [{"disc": "A", "status": "ok"}] + [{"disc": name, "status": "failed"} for name in failed]
+    run = SurveyRun(None, rows, [tmp_path / "survey_table.ecsv", table], "serial")
+    monkeypatch.setattr(survey, "run_survey", lambda *args, **kwargs: run)
+    config = tmp_path / "s.toml"
+    config.write_text("")
+    assert main(["-q", "survey", str(config)]) == status
+    out, err = capsys.readouterr()
+    assert "| A | ok |" in out and str(table) in out  # the table is printed and listed either way
+    assert ("Damaged" in err) == bool(failed)

@@ -218,11 +218,12 @@ def _cmd_survey(args) -> int:
         run = run_survey(args.survey, scheduler=args.scheduler, n_workers=args.workers, progress=not args.quiet)
     else:
         raise InputError("survey needs a SURVEY file or --demo (see examples/taurus_survey.toml)")
-    print(open(run.files[1]).read(), end="")
-    if run.failed:
-        print(f"{len(run.failed)} disc(s) failed: {', '.join(run.failed)} (their error is in the table)")
+    print(Path(run.files[1]).read_text(), end="")
     print("wrote:\n  " + "\n  ".join(str(f) for f in run.files))
-    return 0
+    if run.failed:  # after the table is written: the exit status tells a batch script that discs failed
+        print(f"{len(run.failed)} disc(s) failed: {', '.join(run.failed)} (their error is in the table)",
+              file=sys.stderr)
+    return run.exit_code
 
 
 def _cmd_forecast(args) -> int:
