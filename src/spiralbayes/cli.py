@@ -315,25 +315,21 @@ def _inclination(text: str) -> float:
     return value
 
 
-def _count(text: str) -> int:
-    """A whole number >= 1 (worker counts)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{text} must be >= 1")
-    return value
+def _whole_number(minimum: int, meaning: str = ""):
+    """An argparse type: a whole number >= ``minimum`` (``meaning`` says what it is in the message)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{text} must be >= {minimum}{meaning}")
+        return value
+    return parse
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{text} must be >= 0 (a random seed)")
-    return value
+_count = _whole_number(1)  # worker counts
+_seed = _whole_number(0, " (a random seed)")
 
 
 def _probability(text: str) -> float:
