@@ -75,6 +75,8 @@ class Visibilities:
         Time of each visibility [s] (any fixed origin: MJD seconds in a Measurement Set, seconds
         from the start in a simulation); only with ``antenna1`` and ``antenna2``.
 
+    Notes
+    -----
     Rows keep their antennas and times through :meth:`subset`, :meth:`standardised`,
     :meth:`with_V`, :meth:`with_weights` and the dropping of zero weights. The data hash used
     for provenance covers u, v, V and the weights only.

@@ -1,8 +1,9 @@
 """Residual antenna-based gain errors measured from the residuals of an axisymmetric fit.
 
-Gain errors multiply a visibility of antennas ``(p, q)`` by ``g_p conj(g_q)``; an axisymmetric
-model ``M`` fitted to the data leaves the ratio ``r = V_obs / M = a_p a_q exp(i (phi_p - phi_q))``
-plus noise. Where the visibilities record their antennas and times, the phases and the log
+Gain errors multiply a visibility row of ``antenna1 = q``, ``antenna2 = p`` (baseline
+``position[p] - position[q]``, CASA's ``ANTENNA1 = p``) by ``g_p conj(g_q)``
+(:mod:`spiralbayes.simulate.gains`); an axisymmetric model ``M`` fitted to the data leaves the
+ratio ``r = V_obs / M = a_p a_q exp(i (phi_p - phi_q))`` plus noise. Where the visibilities record their antennas and times, the phases and the log
 amplitudes of ``r`` are solved per solution interval by weighted linear least squares:
 
 * phase: ``arg r_pq = phi_p - phi_q`` (antenna 0 of each interval as the reference), iterated
@@ -202,7 +203,7 @@ def _solve_gains(vis: Visibilities, M: np.ndarray, interval_s, min_snr: float):
         n_ant = ants.size
         if n_ant < 3:
             continue
-        p, q = idx[: rows.size], idx[rows.size:]
+        q, p = idx[: rows.size], idx[rows.size:]  # p = antenna2 carries g, q = antenna1 conj(g)
         phi, cov_phi = _solve_phase(ratio[rows], wt[rows], p, q, n_ant)
         if phi is None:
             continue

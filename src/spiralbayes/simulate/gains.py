@@ -1,9 +1,13 @@
 """Residual antenna-based gain errors: smooth random complex gains per antenna.
 
 Real ALMA data keep, after calibration, per-antenna phase errors of a few to tens of degrees
-that wander over minutes, and amplitude errors of a few per cent. A visibility of antennas
-``(p, q)`` is then ``V'_pq = g_p conj(g_q) V_pq`` (``p = antenna1``, ``q = antenna2``), with
-``g = a exp(i phi)``.
+that wander over minutes, and amplitude errors of a few per cent. In CASA's convention a
+visibility of ``ANTENNA1 = p``, ``ANTENNA2 = q`` (baseline ``uvw(p) - uvw(q)``) becomes
+``V'_pq = g_p conj(g_q) V_pq``, with ``g = a exp(i phi)``. A row of
+:class:`~spiralbayes.visibilities.Visibilities` has the opposite baseline,
+``position[antenna2] - position[antenna1]`` (:mod:`spiralbayes.layout`), so it is the CASA row
+``p = antenna2``, ``q = antenna1`` and is corrupted as ``g[antenna2] conj(g[antenna1]) V``; written
+with :func:`spiralbayes.io.write_ms`, the corrupted data obey CASA's equation.
 
 Each antenna's phase ``phi(t)`` and fractional amplitude error ``a(t) - 1`` is a stationary
 Gaussian Ornstein-Uhlenbeck process: zero mean, the stated rms, and the autocorrelation
@@ -63,7 +67,7 @@ class GainErrors:
                 raise InputError(f"{name} must be a positive time [s], got {value!r}")
 
     def gains(self, antenna1, antenna2, time) -> tuple[np.ndarray, np.ndarray]:
-        """Complex gains ``(g_p, g_q)`` of the two antennas of every row.
+        """Complex gains ``(g[antenna1], g[antenna2])`` of the two antennas of every row.
 
         Parameters
         ----------
@@ -82,9 +86,9 @@ class GainErrors:
         return g[row_time, a1], g[row_time, a2]
 
     def corrupt(self, V, antenna1, antenna2, time) -> np.ndarray:
-        """``g_p conj(g_q) V`` for every row [Jy]."""
-        gp, gq = self.gains(antenna1, antenna2, time)
-        return np.asarray(V, dtype=complex) * gp * np.conj(gq)
+        """``g[antenna2] conj(g[antenna1]) V`` for every row [Jy] (see the module docstring)."""
+        g1, g2 = self.gains(antenna1, antenna2, time)
+        return np.asarray(V, dtype=complex) * g2 * np.conj(g1)
 
     def to_dict(self) -> dict:
         return asdict(self)
