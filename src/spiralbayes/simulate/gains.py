@@ -30,6 +30,9 @@ from ..exceptions import InputError
 
 __all__ = ["GainErrors", "antenna_gain_series"]
 
+_GAIN_STREAM = 0x6A17
+"""Second word of the gains' seed: the noise of the same integer seed is a different stream."""
+
 
 @dataclass(frozen=True)
 class GainErrors:
@@ -47,7 +50,8 @@ class GainErrors:
     amp_coherence_s : float, optional
         Coherence time of the amplitudes [s]; default ``coherence_s``.
     seed : int
-        Seed of ``np.random.default_rng``: the same seed gives the same gains.
+        The same seed gives the same gains; their random stream differs from that of
+        thermal noise drawn with the same integer seed (:func:`.observe`).
     """
 
     phase_rms_deg: float = 10.0
@@ -97,7 +101,7 @@ class GainErrors:
 def antenna_gain_series(errors: GainErrors, times, n_antennas: int) -> np.ndarray:
     """Complex gains ``(n_times, n_antennas)`` at the sorted distinct ``times`` [s]."""
     times = np.asarray(times, dtype=float)
-    rng = np.random.default_rng(errors.seed)
+    rng = np.random.default_rng((errors.seed, _GAIN_STREAM))
     # both processes are always drawn, so the phases of a seed do not depend on amp_rms
     phase = _ou_series(rng, times, n_antennas, np.radians(errors.phase_rms_deg), errors.coherence_s)
     amp_tau = errors.coherence_s if errors.amp_coherence_s is None else errors.amp_coherence_s
