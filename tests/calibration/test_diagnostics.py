@@ -87,3 +87,29 @@ def test_bad_input_names_the_option(fiducial):
         diagnose_calibration(vis, model, interval_s=-1.0)
     with pytest.raises(InputError, match="min_snr"):
         diagnose_calibration(vis, model, min_snr=1e6)
+
+
+def _frank_diagnostic(cov, phase_rms: float):
+    from spiralbayes.axisymmetric.fit import fit_axisymmetric
+    from spiralbayes.geometry import DiscGeometry
+
+    gains = GainErrors(phase_rms, 0.03 if phase_rms else 0.0, coherence_s=300.0, seed=1)
+    vis = simulate_observation(coverage=cov, gains=gains)
+    return diagnose_calibration(vis, fit_axisymmetric(vis, DiscGeometry(30.0, 60.0)))
+
+
+def test_recovers_the_phase_rms_from_the_residuals_of_a_frank_fit(fiducial):
+    """The real use: the model is frank's fit to the corrupted data itself (~8 s)."""
+    diag = _frank_diagnostic(fiducial[0], 10.0)
+    assert diag.phase_rms_deg == pytest.approx(10.0, rel=0.3)
+    assert "self-calibrate" in diag.warning
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("phase_rms", [0.0, 3.0, 30.0])
+def test_frank_residuals_at_other_levels(fiducial, phase_rms):
+    diag = _frank_diagnostic(fiducial[0], phase_rms)
+    if phase_rms == 0.0:
+        assert diag.phase_rms_deg < 2.0 and diag.warning is None
+    else:
+        assert diag.phase_rms_deg == pytest.approx(phase_rms, rel=0.3)
