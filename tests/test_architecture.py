@@ -31,7 +31,7 @@ LAYERS = {
     "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "results": 0, "_casa": 0,
     "_threads": 0, "settings": 0, "_compat": 0, "cluster": 0,
     "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
-    "axisymmetric": 2, "templates": 2, "model": 2, "alternatives": 2, "quadrature": 2,
+    "axisymmetric": 2, "templates": 2, "model": 2, "alternatives": 2, "quadrature": 2, "calibration": 2,
     "simulate": 3,
     "inference": 4,
     "plotting": 5, "image_plane": 5,

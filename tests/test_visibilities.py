@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spiralbayes.exceptions import InputError
 from spiralbayes.geometry import ARCSEC, DiscGeometry
 from spiralbayes.io import (
     read_uvtable,
@@ -94,6 +95,50 @@ def test_container_helpers():
     assert "n=64" in repr(vis)
     assert vis.subset(slice(0, 10)).n == 10
     np.testing.assert_allclose(vis.sigma, 1 / np.sqrt(vis.weights))
+
+
+def _with_antennas(n=64, **kw) -> Visibilities:
+    rng = np.random.default_rng(7)
+    return _random_vis(n, antenna1=rng.integers(0, 6, n), antenna2=rng.integers(6, 12, n),
+                       time=np.repeat(np.arange(n // 8) * 60.0, 8), **kw)
+
+
+def test_antennas_and_times_follow_every_row_operation():
+    vis = _with_antennas(conjugated=True)
+    rows = np.array([5, 2, 40, 33])
+    sub = vis.subset(rows)
+    for name in ("antenna1", "antenna2", "time"):
+        np.testing.assert_array_equal(getattr(sub, name), getattr(vis, name)[rows])
+    for copy in (vis.standardised(), vis.with_V(vis.V * 2), vis.with_weights(vis.weights * 3, "x3")):
+        np.testing.assert_array_equal(copy.antenna1, vis.antenna1)
+        np.testing.assert_array_equal(copy.time, vis.time)
+    # flagged (zero-weight) rows are dropped with their antennas and times
+    weights = vis.weights.copy()
+    weights[[0, 9]] = 0.0
+    kept = Visibilities(vis.u, vis.v, vis.V, weights, antenna1=vis.antenna1, antenna2=vis.antenna2, time=vis.time)
+    np.testing.assert_array_equal(kept.antenna2, np.delete(vis.antenna2, [0, 9]))
+    np.testing.assert_array_equal(kept.time, np.delete(vis.time, [0, 9]))
+    assert vis.has_antennas and not _random_vis().has_antennas
+
+
+def test_data_hash_ignores_antennas():
+    from spiralbayes._provenance import data_hash
+
+    plain, with_rows = _random_vis(), _with_antennas()
+    assert data_hash(plain.u, plain.v, plain.V, plain.weights) == data_hash(with_rows.u, with_rows.v, with_rows.V,
+                                                                         with_rows.weights)
+
+
+@pytest.mark.parametrize("kw, word", [
+    ({"antenna1": np.zeros(64, int)}, "antenna1 and antenna2 together"),
+    ({"time": np.zeros(64)}, "time needs antenna1"),
+    ({"antenna1": np.zeros(63, int), "antenna2": np.ones(63, int)}, "antenna1 has 63 entries"),
+    ({"antenna1": -np.ones(64, int), "antenna2": np.ones(64, int)}, ">= 0"),
+    ({"antenna1": np.zeros(64, int), "antenna2": np.ones(64, int), "time": np.full(64, np.nan)}, "time has NaN"),
+])
+def test_bad_antennas_rejected(kw, word):
+    with pytest.raises(InputError, match=word):
+        _random_vis(**kw)
 
 
 def test_as209_binned_profile_falls_with_baseline():

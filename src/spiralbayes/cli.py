@@ -97,10 +97,26 @@ def _cmd_simulate(args) -> int:
     disc = DiscModel(distance=args.distance)
     r_p = None if args.planet_au is None else args.planet_au / args.distance
     vis = simulate_observation(args.preset, disc, DiscGeometry(args.inc, args.pa, args.dra, args.ddec),
-                               perturbation, r_p=r_p, phi_p=_radians(args.planet_phi), seed=args.seed)
+                               perturbation, r_p=r_p, phi_p=_radians(args.planet_phi), seed=args.seed,
+                               gains=_gain_errors(args))
     path = save_visibilities(vis, args.out)
     print(f"wrote {vis.n} visibilities of preset {args.preset!r} to {path}")
     return 0
+
+
+def _gain_errors(args):
+    """GainErrors from --phase-rms/--amp-rms/--gain-coherence, or None when neither rms is given."""
+    if args.phase_rms is None and args.amp_rms is None:
+        if args.gain_coherence is not None:
+            raise InputError("--gain-coherence needs --phase-rms DEG or --amp-rms FRAC (the gain errors to simulate)")
+        return None
+    from .simulate import GainErrors
+
+    given = {"phase_rms_deg": 0.0 if args.phase_rms is None else args.phase_rms,
+             "amp_rms": 0.0 if args.amp_rms is None else args.amp_rms, "seed": args.seed}
+    if args.gain_coherence is not None:
+        given["coherence_s"] = args.gain_coherence
+    return GainErrors(**given)
 
 
 def _radians(deg):
@@ -307,6 +323,14 @@ def _non_negative(text: str) -> float:
     return value
 
 
+def _amp_fraction(text: str) -> float:
+    """A fractional amplitude error in [0, 0.3) (0.05 = 5 %)."""
+    value = _number(text)
+    if not 0 <= value < 0.3:
+        raise argparse.ArgumentTypeError(f"{text} is not a fraction in [0, 0.3), e.g. 0.05 for 5 %")
+    return value
+
+
 def _inclination(text: str) -> float:
     value = _number(text)
     if not 0 <= value < 90:
@@ -373,6 +397,7 @@ SCHEDULER_HELP = ("Dask engine of the template scan: 'serial', 'local' (a LocalC
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
     from .settings import DEFAULT_DISTANCE_PC
+    from .simulate.gains import GainErrors
 
     parser = _Parser(prog="spiralbayes", description=DESCRIPTION, common_flags=False)
     _common_flags(parser, False)
@@ -394,7 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True,
                    help="output file (.txt/.npz uvtable, .h5, or .ms); an existing one is kept unless --overwrite")
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
-    p.add_argument("--seed", type=_seed, default=0, help="random seed of the noise")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed of the noise and of any gain errors")
     p.add_argument("--distance", type=_positive, default=DEFAULT_DISTANCE_PC, help="distance [pc]")
     _geometry_args(p)
     p.add_argument("--planet-mass", type=_positive, default=None,
@@ -404,6 +429,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hand", default="R", choices=["R", "L"], help="handedness of the planted spiral")
     p.add_argument("--planet-au", type=_positive, default=50.0, help="planet radius [au]")
     p.add_argument("--planet-phi", type=_finite, default=0.0, help="planet azimuth [deg]")
+    p.add_argument("--phase-rms", type=_non_negative, default=None, metavar="DEG",
+                   help="rms of residual antenna-based phase errors [deg] (none: no gain errors)")
+    p.add_argument("--amp-rms", type=_amp_fraction, default=None, metavar="FRAC",
+                   help="rms of residual antenna-based fractional amplitude errors, e.g. 0.05 (none: no gain errors)")
+    p.add_argument("--gain-coherence", type=_positive, default=None, metavar="S",
+                   help=f"coherence time of the gain errors [s] (none: {GainErrors.coherence_s:g} s)")
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser("axisym", help="fit the axisymmetric profile with frank and plot it")

@@ -67,6 +67,19 @@ class Visibilities:
     layout : ObservationLayout, optional
         Antennas, hour angles and w of every row, when known (simulated data); used by
         :func:`spiralbayes.io.write_ms` to write a Measurement Set with real antennas and times.
+    antenna1, antenna2 : ndarray of int, shape (N,), optional
+        The two antennas of each visibility, when the input records them (simulations, HDF5
+        files written by spiralbayes, Measurement Sets); needed to diagnose or solve for
+        antenna-based gain errors. Given together or not at all.
+    time : ndarray, shape (N,), optional
+        Time of each visibility [s] (any fixed origin: MJD seconds in a Measurement Set, seconds
+        from the start in a simulation); only with ``antenna1`` and ``antenna2``.
+
+    Notes
+    -----
+    Rows keep their antennas and times through :meth:`subset`, :meth:`standardised`,
+    :meth:`with_V`, :meth:`with_weights` and the dropping of zero weights. The data hash used
+    for provenance covers u, v, V and the weights only.
     """
 
     u: np.ndarray
@@ -77,6 +90,9 @@ class Visibilities:
     conjugated: bool = False
     provenance: dict = field(default_factory=dict)
     layout: ObservationLayout | None = None
+    antenna1: np.ndarray | None = None
+    antenna2: np.ndarray | None = None
+    time: np.ndarray | None = None
 
     def __post_init__(self):
         self.u = _real_array(self.u, "u")
@@ -87,6 +103,7 @@ class Visibilities:
         self._check_values()
         if self.layout is not None and self.layout.n != self.u.size:
             raise InputError(f"layout has {self.layout.n} rows for {self.u.size} visibilities")
+        self._check_antennas()
         self._drop_zero_weights()
         if self.wavelength is not None:
             self.wavelength = float(self.wavelength)
@@ -116,6 +133,37 @@ class Visibilities:
                 "weights are 1/sigma^2 [Jy^-2] and must be >= 0"
             )
 
+    def _check_antennas(self):
+        if (self.antenna1 is None) != (self.antenna2 is None):
+            raise InputError("give antenna1 and antenna2 together (the two antennas of each visibility), or neither")
+        if self.antenna1 is None:
+            if self.time is not None:
+                raise InputError("time needs antenna1 and antenna2: give all three or drop time")
+            return
+        self.antenna1 = np.asarray(self.antenna1, dtype=np.int64).ravel()
+        self.antenna2 = np.asarray(self.antenna2, dtype=np.int64).ravel()
+        if self.time is not None:
+            self.time = _real_array(self.time, "time")
+        for name in ("antenna1", "antenna2", "time"):
+            arr = getattr(self, name)
+            if arr is not None and arr.size != self.u.size:
+                raise InputError(f"{name} has {arr.size} entries for {self.u.size} visibilities")
+        if self.time is not None and not np.isfinite(self.time).all():
+            raise InputError("time has NaN/inf values; give a finite time [s] for every visibility")
+        if (self.antenna1 < 0).any() or (self.antenna2 < 0).any():
+            raise InputError("antenna1 and antenna2 must be antenna indices >= 0")
+
+    @property
+    def has_antennas(self) -> bool:
+        """True when every visibility records its two antennas."""
+        return self.antenna1 is not None
+
+    def _row_fields(self, index) -> dict:
+        """The per-row optional fields (layout, antennas, time) of the selected rows."""
+        pick = (lambda a: None if a is None else a[index])
+        return {"layout": None if self.layout is None else self.layout.subset(index),
+                "antenna1": pick(self.antenna1), "antenna2": pick(self.antenna2), "time": pick(self.time)}
+
     def _drop_zero_weights(self):
         keep = self.weights > 0
         n_drop = int((~keep).sum())
@@ -124,8 +172,8 @@ class Visibilities:
         if n_drop:
             log.info("dropped %d visibilities with zero weight (flagged data)", n_drop)
             self.u, self.v, self.V, self.weights = (a[keep] for a in (self.u, self.v, self.V, self.weights))
-            if self.layout is not None:
-                self.layout = self.layout.subset(keep)
+            for name, value in self._row_fields(keep).items():
+                setattr(self, name, value)
             self.provenance = {**self.provenance, "dropped_zero_weight": n_drop}
 
     # ------------------------------------------------------------------------------
@@ -156,9 +204,8 @@ class Visibilities:
 
     def subset(self, index) -> "Visibilities":
         """A copy with only the selected rows (boolean mask or indices)."""
-        layout = None if self.layout is None else self.layout.subset(index)
         return replace(self, u=self.u[index], v=self.v[index], V=self.V[index], weights=self.weights[index],
-                       layout=layout)
+                       **self._row_fields(index))
 
     def with_weights(self, weights, note: str) -> "Visibilities":
         """A copy with new weights; ``note`` is recorded in the provenance."""

@@ -81,3 +81,19 @@ def test_hdf5_newer_format_version(tmp_path):
         fh.attrs["format_version"] = FORMAT_VERSION + 1
     with pytest.raises(ValueError, match=r"new\.h5: format_version .* upgrade spiralbayes"):
         read_hdf5(path)
+
+
+def test_hdf5_keeps_antennas_and_times_only_when_present(tmp_path):
+    rng = np.random.default_rng(1)
+    rows = {"antenna1": rng.integers(0, 5, 64), "antenna2": rng.integers(5, 10, 64),
+            "time": np.repeat(np.arange(8) * 30.0, 8)}
+    vis = _random_vis(wavelength=1.3e-3, **rows)
+    back = read_hdf5(write_hdf5(vis, tmp_path / "a.h5"))
+    _assert_same(vis, back)
+    for name, value in rows.items():
+        np.testing.assert_array_equal(getattr(back, name), value)
+    assert back.antenna1.dtype == np.int64
+    plain = read_hdf5(write_hdf5(_random_vis(wavelength=1.3e-3), tmp_path / "p.h5"))
+    assert plain.antenna1 is None and plain.time is None
+    with h5py.File(tmp_path / "p.h5") as fh:
+        assert sorted(fh.keys()) == ["V", "u", "v", "weights"]

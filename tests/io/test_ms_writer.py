@@ -141,3 +141,45 @@ def test_generic_layout_without_antennas(tmp_path):
     back = read_ms(path)
     np.testing.assert_allclose(back.u, vis.u, rtol=1e-12)  # no flip without a layout
     np.testing.assert_allclose(back.V, vis.V, rtol=1e-6, atol=1e-7)
+
+
+def test_antennas_and_times_read_back_in_the_package_convention(written, observed):
+    """read_ms gives antenna1 = ANTENNA2, antenna2 = ANTENNA1: the baseline stays position[a2] - position[a1]."""
+    vis = observed[1]
+    back = read_ms(written)
+    lay = vis.layout
+    pos = lay.positions
+    uvw = baseline_uvw(pos[back.antenna2] - pos[back.antenna1], lay.hour_angle, -25.0) / 0.87e-3
+    np.testing.assert_allclose(uvw[:, 0], back.u, rtol=1e-9, atol=1e-3)
+    np.testing.assert_allclose(uvw[:, 1], back.v, rtol=1e-9, atol=1e-3)
+    # TIME [MJD s] differs from the simulation's time [s from the start] by one offset
+    offset = back.time - vis.time
+    assert np.ptp(offset) < 1e-3 and offset[0] > 4e9
+
+
+def test_gain_errors_written_obey_casas_measurement_equation(tmp_path):
+    """A point source at the phase centre corrupted in the package reads back as g_ANT1 conj(g_ANT2)."""
+    from spiralbayes.simulate import GainErrors
+
+    cov = uv_coverage("C-4", -25.0, (-0.02, 0.02), 30.0, 0.87e-3)
+    gains = GainErrors(20.0, 0.05, coherence_s=60.0, seed=3)
+    vis = observe(np.ones(cov.n), cov, sigma=1.0, add_noise=False, gains=gains)
+    path = write_ms(vis, tmp_path / "g.ms")
+    ant1, ant2 = _col(path, "ANTENNA1"), _col(path, "ANTENNA2")
+    data = _col(path, "DATA")[:, 0, 0]
+    g_a1, g_a2 = gains.gains(ant1, ant2, vis.time)  # same rows, same times
+    np.testing.assert_allclose(data, g_a1 * np.conj(g_a2), rtol=1e-6, atol=1e-6)
+
+
+def test_recorded_antennas_and_times_survive_a_second_write(written, tmp_path):
+    """An MS read back (antennas and times, no positions) is written again with the same rows."""
+    first = read_ms(written)
+    again = read_ms(write_ms(first, tmp_path / "again.ms"))
+    for name in ("antenna1", "antenna2"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(first, name))
+    np.testing.assert_allclose(again.u, first.u, rtol=1e-14, atol=1e-9)  # metres and back: rounding only
+    np.testing.assert_allclose(again.v, first.v, rtol=1e-14, atol=1e-9)
+    np.testing.assert_allclose(again.time, first.time, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(again.V, first.V, rtol=1e-6, atol=1e-8)
+    # one time stamp per integration, as CASA needs
+    assert np.unique(_col(tmp_path / "again.ms", "TIME")).size == np.unique(first.time).size

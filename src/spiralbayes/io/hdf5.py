@@ -21,16 +21,21 @@ log = logging.getLogger(__name__)
 
 _H5_TYPE = "spiralbayes.Visibilities"
 _H5_DATASETS = ("u", "v", "V", "weights")
+_H5_ROW_DATASETS = ("antenna1", "antenna2", "time")  # optional: written only when the data carry them
 
 
 def visibilities_to_hdf5_group(vis: Visibilities, group) -> None:
     """Store ``vis`` in an open ``h5py.Group`` (datasets u, v, V, weights; metadata as attributes).
 
+    Datasets ``antenna1``, ``antenna2`` (int) and ``time`` [s] are added when ``vis`` has them.
     Attributes: ``spiralbayes_type``, ``format_version``, ``wavelength`` [m] (NaN when
     unknown), ``conjugated``, ``provenance`` (JSON), ``units``.
     """
     for name in _H5_DATASETS:
         checked_dataset(group, name, getattr(vis, name))  # checksummed: corruption fails to read
+    for name in _H5_ROW_DATASETS:
+        if getattr(vis, name) is not None:
+            checked_dataset(group, name, getattr(vis, name))
     group.attrs["spiralbayes_type"] = _H5_TYPE
     group.attrs["format_version"] = FORMAT_VERSION
     group.attrs["wavelength"] = np.nan if vis.wavelength is None else vis.wavelength
@@ -52,10 +57,11 @@ def visibilities_from_hdf5_group(group, source: str = "") -> Visibilities:
                          f"({FORMAT_VERSION}); upgrade spiralbayes")
     wle = float(group.attrs.get("wavelength", np.nan))
     prov = _loads_provenance(_as_str(group.attrs.get("provenance", "{}")))
+    rows = {name: group[name][()] for name in _H5_ROW_DATASETS if name in group}
     return Visibilities(
         u=group["u"][()], v=group["v"][()], V=group["V"][()], weights=group["weights"][()],
         wavelength=wle if np.isfinite(wle) else None, conjugated=bool(group.attrs.get("conjugated", False)),
-        provenance=prov if isinstance(prov, dict) else {"written_provenance": prov},
+        provenance=prov if isinstance(prov, dict) else {"written_provenance": prov}, **rows,
     )
 
 
@@ -99,6 +105,8 @@ def read_hdf5(path, *, group: str = "/") -> Visibilities:
 
 def write_hdf5(vis: Visibilities, path) -> Path:
     """Write ``vis`` to an HDF5 file (datasets u, v [lambda], V [Jy], weights [Jy^-2]).
+
+    With antennas recorded, also ``antenna1``, ``antenna2`` and ``time`` [s].
 
     Root attributes: ``wavelength`` [m] (NaN if unknown), ``conjugated``, ``provenance``
     (JSON string), ``format_version`` (``spiralbayes._provenance.FORMAT_VERSION``).

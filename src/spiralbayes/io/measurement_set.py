@@ -6,6 +6,12 @@ of Stokes I with u, v in wavelengths **per channel** (``CHAN_FREQ`` of each spec
 found through ``DATA_DESCRIPTION``). :func:`write_ms` (:mod:`.ms_writer`) writes an MS that
 CASA's tasks accept (one spectral window, one channel, XX = YY = V).
 
+Each visibility keeps the antennas and ``TIME`` [MJD seconds] of its row, so that antenna-based
+gain errors can be diagnosed (:mod:`spiralbayes.calibration`). CASA's ``UVW`` is
+``uvw(ANTENNA1) - uvw(ANTENNA2)`` whereas a :class:`~spiralbayes.visibilities.Visibilities` row's
+baseline is ``position[antenna2] - position[antenna1]`` (:mod:`spiralbayes.layout`), so
+``Visibilities.antenna1 = ANTENNA2`` and ``Visibilities.antenna2 = ANTENNA1``.
+
 Measurement Set data are in the convention of frank and galario (``conjugated=False``):
 ``V = sum I exp(+2 pi i (u l + v m))`` with u, v = ``UVW[0:2] / lambda`` as stored.
 
@@ -52,6 +58,7 @@ _PAIRS = ((9, 12), (5, 8))  # (XX, YY), (RR, LL)
 _SINGLE = (1, 9, 12, 5, 8)  # usable alone as an estimate of I
 _PROVENANCE_KEYWORD = "SPIRALBAYES_PROVENANCE"
 _REQUIRED = ("UVW", "FLAG", "DATA_DESC_ID")
+_ROW_COLUMNS = ("ANTENNA1", "ANTENNA2", "TIME")
 
 
 def _tables():
@@ -252,7 +259,12 @@ def _read_rows(path: Path, sub, column: str, weight_col: str, freq: np.ndarray, 
     u = uvw[:, 0, None, None] * freq[None, :, None] / C_LIGHT
     v = uvw[:, 1, None, None] * freq[None, :, None] / C_LIGHT
     u, v = (np.broadcast_to(x, V.shape) for x in (u, v))
-    return {"u": u[ok], "v": v[ok], "V": V[ok], "weights": w[ok], "n_flagged": int((~ok).sum())}
+    rows = {}
+    if all(c in sub.colnames() for c in _ROW_COLUMNS):
+        # the package's antenna1 is CASA's ANTENNA2 (opposite baseline sign, see the module docstring)
+        for name, col in zip(("antenna2", "antenna1", "time"), _ROW_COLUMNS):
+            rows[name] = np.broadcast_to(sub.getcol(col)[:, None, None], V.shape)[ok]
+    return {"u": u[ok], "v": v[ok], "V": V[ok], "weights": w[ok], "n_flagged": int((~ok).sum()), **rows}
 
 
 def _combine_polarisations(path: Path, data, weight, flag, corr, average: bool):
@@ -299,6 +311,8 @@ def _assemble(path: Path, parts: list, column: str, weight_col: str, used_spw: l
               average: bool, stored_prov: dict | None) -> Visibilities:
     n_flagged = sum(p["n_flagged"] for p in parts)
     arrays = {k: np.concatenate([p[k] for p in parts]) if parts else np.zeros(0) for k in ("u", "v", "V", "weights")}
+    if parts and all("time" in p for p in parts):
+        arrays.update({k: np.concatenate([p[k] for p in parts]) for k in ("antenna1", "antenna2", "time")})
     if arrays["u"].size == 0:
         raise InputError(f"{path}: no unflagged data in the selection ({n_flagged} flagged points); "
                          "check spw/field or the flags")

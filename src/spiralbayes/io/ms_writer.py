@@ -25,6 +25,12 @@ Two layouts
   ``TIME`` and ``FIELD`` to 7e-6 of the baseline and w to 1.2e-4 (CASA's w axis points at the
   aberrated direction, 20" away). CASA's UVW axes are J2000; for dates decades away the
   of-date frame is rotated by ~0.1 deg, which no imaging task notices.
+* **Recorded antennas without positions** (``vis.antenna1``, ``antenna2``, ``time`` without a
+  layout, e.g. read from a Measurement Set or a spiralbayes HDF5 file): each row keeps its
+  antennas (``ANTENNA1 = antenna2``, ``ANTENNA2 = antenna1``, so that ``UVW`` as written is
+  ``uvw(ANTENNA1) - uvw(ANTENNA2)``) and its time (MJD seconds as read, or seconds after the
+  transit on ``date`` for times below 1e9 s); UVW and DATA are written as they are and the
+  antennas are pseudo-antennas, as below.
 * **Unknown** (data read from a uvtable, ...): consecutive blocks of ``rows_per_time`` rows
   share a time stamp (30 s apart) and are given the baselines of a pseudo-array in turn.
   UVW and DATA are written as they are. CASA images such a set exactly as the real one, but
@@ -168,6 +174,22 @@ def _known_rows(vis: Visibilities, phase_centre, date: str) -> dict:
     }
 
 
+def _recorded_rows(vis: Visibilities, phase_centre, date: str, rows_per_time: int) -> dict:
+    rows = _generic_rows(vis, phase_centre, date, rows_per_time)
+    n_ant = int(max(vis.antenna1.max(), vis.antenna2.max())) + 1
+    angle = 2 * np.pi * np.arange(n_ant) / n_ant
+    enu = np.column_stack([100.0 * np.cos(angle), 100.0 * np.sin(angle), np.zeros(n_ant)])
+    rows.update(antenna1=vis.antenna2, antenna2=vis.antenna1, itrf=enu_to_itrf(enu, -23.0234),
+                names=[f"P{k:02d}" for k in range(n_ant)],
+                layout="recorded antennas and times, pseudo-antenna positions (UVW not from ANTENNA)")
+    if vis.time is not None:
+        # MJD seconds of real data are ~5e9; smaller times count from the transit on ``date``
+        t0 = 0.0 if vis.time.min() > 1e9 else transit_time(rows["direction"][0], date)
+        steps = np.diff(np.unique(vis.time))
+        rows.update(time=t0 + vis.time, interval=float(np.median(steps)) if steps.size else 30.0)
+    return rows
+
+
 def _generic_rows(vis: Visibilities, phase_centre, date: str, rows_per_time: int) -> dict:
     if rows_per_time < 1:
         raise InputError(f"rows_per_time must be >= 1, got {rows_per_time}")
@@ -212,7 +234,7 @@ def write_ms(vis: Visibilities, path, *, field_name: str = "spiralbayes", phase_
     ----------
     vis : Visibilities
         Must have a known ``wavelength``. With ``vis.layout`` the real antennas and times are
-        written; otherwise a generic layout.
+        written; with recorded antennas only, those antennas and times; otherwise a generic layout.
     path : str or Path
         Target directory (conventionally ending in ``.ms``).
     field_name : str
@@ -236,8 +258,12 @@ def write_ms(vis: Visibilities, path, *, field_name: str = "spiralbayes", phase_
         raise InputError("write_ms needs the observing wavelength to convert u, v to metres: "
                          "set it with dataclasses.replace(vis, wavelength=<metres>)")
     std = vis.standardised()
-    rows = (_known_rows(std, phase_centre, date) if std.layout is not None
-            else _generic_rows(std, phase_centre, date, int(rows_per_time)))
+    if std.layout is not None:
+        rows = _known_rows(std, phase_centre, date)
+    elif std.has_antennas:
+        rows = _recorded_rows(std, phase_centre, date, int(rows_per_time))
+    else:
+        rows = _generic_rows(std, phase_centre, date, int(rows_per_time))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))

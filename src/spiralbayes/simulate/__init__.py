@@ -17,8 +17,9 @@ Three independent pieces, joined by :func:`simulate_observation`:
    divided by the wavelength. Hour angles advance at the sidereal rate (1.0027379 sidereal s
    per s) and each integration is sampled at its mid-point (no time smearing). Integrations with
    the source below ``min_elevation`` are dropped. **Shadowing of one antenna by another is
-   ignored**, as are flagging, calibration errors, bandwidth smearing and the primary beam
-   (the discs are ~1.6" across, the 12-m primary beam ~18" FWHM at 0.87 mm).
+   ignored**, as are flagging, bandwidth smearing and the primary beam
+   (the discs are ~1.6" across, the 12-m primary beam ~18" FWHM at 0.87 mm). Residual
+   antenna-based gain errors are optional (``gains=GainErrors(...)``, :mod:`.gains`).
 
 2. **Thermal noise** (:func:`observe`) — independent Gaussian noise of standard deviation
    ``sigma`` on each of Re V and Im V, weights ``1 / sigma^2``. With natural weighting and the
@@ -80,6 +81,7 @@ from .discs import (
     planck,
     render_disc_image,
 )
+from .gains import GainErrors, antenna_gain_series
 from .noise import (
     Radiometer,
     fit_beam,
@@ -101,10 +103,12 @@ __all__ = [
     "ALMA_LATITUDE",
     "DiscModel",
     "ExactAxisymmetric",
+    "GainErrors",
     "PRESETS",
     "Preset",
     "Radiometer",
     "UVCoverage",
+    "antenna_gain_series",
     "available_configurations",
     "baseline_uvw",
     "disc_visibilities",

@@ -185,6 +185,16 @@ class UVCoverage:
                                  self.antenna_positions, self.antenna_names, self.integration_time,
                                  self.declination, ALMA_LATITUDE)
 
+    def times(self) -> np.ndarray:
+        """Time of every row [s] from the middle of the first integration.
+
+        Configuration ``k`` is observed ``k`` sidereal days after configuration 0 (as
+        :func:`spiralbayes.io.write_ms` writes them), so equal hour angles of different
+        configurations are different times.
+        """
+        t = (self.configuration * 24.0 + self.hour_angle) * 3600.0 / SIDEREAL_RATE
+        return t - t.min()
+
     def describe(self) -> dict:
         """Plain-type summary for provenance records."""
         return {

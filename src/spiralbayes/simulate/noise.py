@@ -11,6 +11,7 @@ from ..fourier import dirty_image, psf
 from ..units import ARCSEC, JY, K_BOLTZMANN
 from ..visibilities import Visibilities
 from .coverage import UVCoverage
+from .gains import GainErrors
 
 __all__ = ["Radiometer", "fit_beam", "image_noise", "measure_image_noise", "observe", "sigma_for_sensitivity"]
 
@@ -61,7 +62,8 @@ def image_noise(weights) -> float:
 
 def observe(model, coverage: UVCoverage, sensitivity: float | None = None, *,
             sigma: float | None = None, radiometer: Radiometer | None = None,
-            add_noise: bool = True, seed=0, provenance: dict | None = None) -> Visibilities:
+            add_noise: bool = True, seed=0, provenance: dict | None = None,
+            gains: GainErrors | None = None) -> Visibilities:
     """Model visibilities at the coverage's baselines plus thermal noise.
 
     Parameters
@@ -77,12 +79,17 @@ def observe(model, coverage: UVCoverage, sensitivity: float | None = None, *,
         False gives the noise-free model with the weights of the noisy one.
     seed : int or numpy Generator
         Seed of ``np.random.default_rng``: the same seed gives the same noise.
+    gains : GainErrors, optional
+        Antenna-based gain errors: the model visibilities become ``g_p conj(g_q) V`` before
+        the noise is added (the noise and its seed are unchanged). Needs a coverage that knows
+        its antennas (:func:`.uv_coverage` does).
 
     Returns
     -------
     Visibilities
-        With ``weights = 1 / sigma^2``, the wavelength set and the provenance recording the
-        coverage, the noise and the seed.
+        With ``weights = 1 / sigma^2``, the wavelength set, the antennas and times of every row
+        (when the coverage knows them) and the provenance recording the coverage, the noise,
+        the gain errors and the seed.
     """
     given = [x is not None for x in (sensitivity, sigma, radiometer)]
     if sum(given) != 1:
@@ -109,6 +116,13 @@ def observe(model, coverage: UVCoverage, sensitivity: float | None = None, *,
         V = np.asarray(model, dtype=complex)
     if V.shape != (n,):
         raise InputError(f"model visibilities have shape {V.shape}, the coverage has {n} baselines")
+    rows = {} if coverage.antenna1 is None else {
+        "antenna1": coverage.antenna1, "antenna2": coverage.antenna2, "time": coverage.times()}
+    if gains is not None:
+        if not rows:
+            raise InputError("gains= needs a uv coverage that records its antennas (from uv_coverage); "
+                             "this one has none: drop gains= or rebuild the coverage")
+        V = gains.corrupt(V, rows["antenna1"], rows["antenna2"], rows["time"])
     if add_noise:
         rng = np.random.default_rng(seed)
         V = V + sig * (rng.standard_normal(n) + 1j * rng.standard_normal(n))
@@ -117,10 +131,11 @@ def observe(model, coverage: UVCoverage, sensitivity: float | None = None, *,
         "coverage": coverage.describe(),
         "noise": {**noise_note, "added": bool(add_noise)},
         "seed": seed if isinstance(seed, (int, np.integer, type(None))) else repr(seed),
+        **({} if gains is None else {"gain_errors": gains.to_dict()}),
         **(provenance or {}),
     }
     return Visibilities(coverage.u, coverage.v, V, np.full(n, sig**-2), wavelength=coverage.wavelength,
-                        provenance=prov, layout=coverage.layout())
+                        provenance=prov, layout=coverage.layout(), **rows)
 
 
 def fit_beam(u, v, weights=None, *, pixel_size: float | None = None, n: int = 128):

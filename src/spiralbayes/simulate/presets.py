@@ -11,6 +11,7 @@ from ..geometry import DiscGeometry
 from ..visibilities import Visibilities
 from .coverage import SIDEREAL_RATE, UVCoverage, uv_coverage
 from .discs import DiscModel, _describe_perturbation, disc_visibilities
+from .gains import GainErrors
 from .noise import Radiometer, fit_beam, measure_image_noise, observe
 
 __all__ = ["PRESETS", "Preset", "get_preset", "preset_coverage", "preset_table", "simulate_observation"]
@@ -144,7 +145,7 @@ def simulate_observation(preset="fiducial", disc: DiscModel | None = None,
                          sensitivity: float | None = None, add_noise: bool = True,
                          coverage: UVCoverage | None = None, method: str = "hankel",
                          pixel_size: float = 0.004, supersample: int = 3, backend: str = "package",
-                         casa_options: dict | None = None) -> Visibilities:
+                         casa_options: dict | None = None, gains: GainErrors | None = None) -> Visibilities:
     """A synthetic observation of a model disc with one of the paper's set-ups.
 
     Parameters
@@ -175,6 +176,9 @@ def simulate_observation(preset="fiducial", disc: DiscModel | None = None,
     casa_options : dict, optional
         Keyword arguments of :func:`spiralbayes.simulate.casa.simulate_casa` (``thermalnoise``,
         ``pwv``, ``workdir``).
+    gains : GainErrors, optional
+        Antenna-based gain errors applied to the model visibilities before the thermal noise
+        (:func:`.observe`); package backend only.
     """
     p = get_preset(preset)
     disc = DiscModel() if disc is None else disc
@@ -182,6 +186,8 @@ def simulate_observation(preset="fiducial", disc: DiscModel | None = None,
     if backend not in ("package", "casa"):
         raise InputError(f"backend must be 'package' or 'casa', got {backend!r}")
     if backend == "casa":
+        if gains is not None:
+            raise InputError("gains= is applied by the package backend only: drop gains= or use backend='package'")
         if sensitivity is not None or coverage is not None:
             raise InputError("backend='casa' sets the noise and the uv coverage as CASA does: "
                              "drop sensitivity= and coverage=")
@@ -208,7 +214,7 @@ def simulate_observation(preset="fiducial", disc: DiscModel | None = None,
         "supersample": supersample,
     }
     return observe(V, cov, sensitivity=p.sensitivity if sensitivity is None else sensitivity,
-                   add_noise=add_noise, seed=seed,
+                   add_noise=add_noise, seed=seed, gains=gains,
                    provenance={"preset": p.to_dict(), "model": model})
 
 
