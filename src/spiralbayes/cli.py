@@ -183,7 +183,7 @@ def _cmd_compare(args) -> int:
         log.error("%s", exc)
         return 2
     print(result.verdict.summary())
-    print(open(result.files[-2]).read(), end="")
+    print(Path(result.files[-2]).read_text(), end="")
     print("wrote:\n  " + "\n  ".join(str(f) for f in result.files))
     return 0
 
@@ -218,7 +218,7 @@ def _cmd_survey(args) -> int:
         run = run_survey(args.survey, scheduler=args.scheduler, n_workers=args.workers, progress=not args.quiet)
     else:
         raise InputError("survey needs a SURVEY file or --demo (see examples/taurus_survey.toml)")
-    print(open(run.files[1]).read(), end="")
+    print(Path(run.files[1]).read_text(), end="")
     if run.failed:
         print(f"{len(run.failed)} disc(s) failed: {', '.join(run.failed)} (their error is in the table)")
     print("wrote:\n  " + "\n  ".join(str(f) for f in run.files))
@@ -262,7 +262,8 @@ def _geometry_args(p, required: bool = False):
     p.add_argument("--inc", type=_inclination, default=None if required else 30.0,
                    help="inclination [deg], in [0, 90)" + (" (required unless --fit-geometry)" if required else ""))
     p.add_argument("--pa", type=_finite, default=None if required else 60.0,
-                   help="position angle, east of north [deg]" + (" (required unless --fit-geometry)" if required else ""))
+                   help="position angle, east of north [deg]"
+                   + (" (required unless --fit-geometry)" if required else ""))
     p.add_argument("--dra", type=_finite, default=0.0, help="RA offset of the disc centre [arcsec]")
     p.add_argument("--ddec", type=_finite, default=0.0, help="Dec offset of the disc centre [arcsec]")
 
