@@ -110,7 +110,8 @@ def backends() -> None:
     qc = np.hypot(casa_clean.u, casa_clean.v)
     for lo, hi in ((0, 5e5), (5e5, 1e6), (1e6, 2e6), (2e6, 5e6)):
         s = (qc >= lo) & (qc < hi)
-        print(f"     {lo / 1e6:3.1f}-{hi / 1e6:3.1f} Mlambda: RMS diff {np.sqrt(np.mean(np.abs(diff[s]) ** 2)) * 1e3:.3f} mJy, "
+        print(f"     {lo / 1e6:3.1f}-{hi / 1e6:3.1f} Mlambda: RMS diff "
+              f"{np.sqrt(np.mean(np.abs(diff[s]) ** 2)) * 1e3:.3f} mJy, "
               f"RMS |V| {np.sqrt(np.mean(np.abs(model[s]) ** 2)) * 1e3:8.2f} mJy, median Re(V_casa / V_package) "
               f"{np.median((casa_clean.V[s] / model[s]).real):.4f}")
     s_casa, s_pkg = 1 / np.sqrt(casa_clean.weights.mean()), 1 / np.sqrt(package.weights.mean())

@@ -31,12 +31,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_scan import GEOMETRY, N_PHI, R_P, observation  # noqa: E402
+from bench_scan import GEOMETRY, N_PHI, R_P, observation
 
-from spiralbayes.inference.limits.recovery import completeness, completeness_brute_force  # noqa: E402
-from spiralbayes.inference.limits.exclusion import compute_limits  # noqa: E402
-from spiralbayes.inference.scan.run import scan  # noqa: E402
-from spiralbayes.templates import compromise_bank  # noqa: E402
+from spiralbayes.inference.limits.recovery import completeness, completeness_brute_force
+from spiralbayes.inference.limits.exclusion import compute_limits
+from spiralbayes.inference.scan.run import scan
+from spiralbayes.templates import compromise_bank
 
 
 class Clock:
@@ -50,7 +50,7 @@ class Clock:
         self.wall, self.cpu = time.perf_counter() - self.w0, time.process_time() - self.c0
 
 
-def ratio(a: "Clock", b: "Clock") -> str:
+def ratio(a: Clock, b: Clock) -> str:
     return f"{a.wall / b.wall:.3g} x wall, {a.cpu / b.cpu:.3g} x CPU"
 
 

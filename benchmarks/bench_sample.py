@@ -169,8 +169,8 @@ def bench_default_build(args) -> dict:
         d = fp.describe()
         print(f"  {label}: r_p {r_range[0]:.3f}-{r_range[1]:.3f} arcsec, {d['n_rp_nodes']} nodes "
               f"({1e3 * d['rp_step_arcsec']:.2f} mas) x {d['grid_N']}^2, {d['table_bytes'] / 2 ** 20:.0f} MB, "
-              f"{fp.n_node_builds} node grids built: {wall:.1f} s wall, {cpu:.1f} s CPU; mirror template {mirror:.2f} s "
-              f"(load average {os.getloadavg()[0]:.1f})")
+              f"{fp.n_node_builds} node grids built: {wall:.1f} s wall, {cpu:.1f} s CPU; mirror template {mirror:.2f} "
+              f"s (load average {os.getloadavg()[0]:.1f})")
         out[label] = {"r_range": r_range, "wall_s": wall, "cpu_s": cpu, "mirror_s": mirror, **d}
     return out
 
@@ -189,8 +189,8 @@ def bench_converge(args) -> dict:
     wall = time.perf_counter() - t0
     run = result.runs[0]
     d = run.diagnostics
-    print(f"\nfiducial posterior (frank fitted 3 deg off), {template.name}: {d['n_steps']} steps x {d['n_walkers']} walkers, "
-          f"{args.processes} processes: wall {wall / 60:.1f} min; converged = {d['converged']} "
+    print(f"\nfiducial posterior (frank fitted 3 deg off), {template.name}: {d['n_steps']} steps x {d['n_walkers']} "
+          f"walkers, {args.processes} processes: wall {wall / 60:.1f} min; converged = {d['converged']} "
           f"(load average {os.getloadavg()[0]:.1f})")
     print("  tau: " + ", ".join(f"{k} {v:.1f}" for k, v in d["tau"].items()))
     print("  ESS: " + ", ".join(f"{k} {v:.0f}" for k, v in d["ess"].items()))
@@ -276,7 +276,8 @@ def bench_bank(args) -> dict:
         scan_s = time.perf_counter() - t0
         t0 = time.perf_counter()
         result = sample_posterior(vis, model, templates, scan_result=found,
-                                  priors=Priors.default(model, r_p=(0.15, 0.6)), run_name=f"bench_bank_{len(templates)}",
+                                  priors=Priors.default(model, r_p=(0.15, 0.6)),
+                                  run_name=f"bench_bank_{len(templates)}",
                                   chains_dir=out / "chains", n_walkers=args.walkers, max_steps=args.max_steps,
                                   check_every=args.check_every, processes=args.processes, convergence="ignore",
                                   progress=False, seed=args.seed)

@@ -48,7 +48,8 @@ def report(records, setup, wall_s=None) -> None:
     print("P(planet | data) with a planet (A: P): " + ", ".join(f"{a:.2f}: {p:.3g}" for a, p in pairs))
     times = [r["time_s"] for r in records]
     if times:
-        print(f"time per dataset: median {np.median(times) / 60:.1f} min (frank {np.median([r['time_fit_s'] for r in records]):.0f} s), "
+        print(f"time per dataset: median {np.median(times) / 60:.1f} min (frank "
+              f"{np.median([r['time_fit_s'] for r in records]):.0f} s), "
               f"largest tau {np.median([r['tau_max'] for r in records if r['tau_max']]):.1f} (median), "
               f"load average {os.getloadavg()[0]:.1f}")
     if wall_s is not None:
@@ -65,7 +66,8 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--evidence-draws", type=int, default=800)
     parser.add_argument("--processes", type=int, default=1)
-    parser.add_argument("--frank-n", type=int, default=200, help="frank's N (100 already reaches 8.6 Mlambda at Rmax = 1.2\")")
+    parser.add_argument("--frank-n", type=int, default=200, help="frank's N (100 already reaches 8.6 Mlambda at Rmax "
+                                                                 "= 1.2\")")
     parser.add_argument("--seed", type=int, default=2024)
     parser.add_argument("--report", action="store_true", help="only print the table of the records so far")
     args = parser.parse_args(argv)

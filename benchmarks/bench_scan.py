@@ -243,11 +243,11 @@ def report(name: str, r: dict, n_inst_per_template: int = R_P.size * N_PHI) -> N
                 print(f"[bank] {label}: {n_t} templates in {r[key]:.1f} s, {1e6 * r[key] / n_inst:.0f} us per "
                       f"instance, naive would take {naive * n_inst / 60:.0f} min: x{naive * n_inst / r[key]:.0f}")
         if "variants_s" in r:
-            print(f"[bank] default bank: {r['templates_variants']} templates in {r['variants_s']:.1f} s (target <= 60 s) "
-                  f"(grouping {r['variants_blocks_s']:.1f} s), {r['variants_s'] / r['serial_3hp_s']:.3f} x the "
+            print(f"[bank] default bank: {r['templates_variants']} templates in {r['variants_s']:.1f} s (target <= 60 "
+                  f"s) (grouping {r['variants_blocks_s']:.1f} s), {r['variants_s'] / r['serial_3hp_s']:.3f} x the "
                   f"{r['templates_3hp']}-template scan of the same run; largest error estimate "
-                  f"{r['variants_max_error_estimate']:.2e}, over the tolerance at {r['variants_violations']} instances; "
-                  f"CPU time (all threads) {r['variants_cpu_s']:.1f} s vs {r['serial_3hp_cpu_s']:.1f} s: "
+                  f"{r['variants_max_error_estimate']:.2e}, over the tolerance at {r['variants_violations']} "
+                  f"instances; CPU time (all threads) {r['variants_cpu_s']:.1f} s vs {r['serial_3hp_cpu_s']:.1f} s: "
                   f"{r['variants_cpu_s'] / r['serial_3hp_cpu_s']:.3f}; load average {r['load_before']:.1f} before the "
                   f"case, {r['load_after_variants']:.1f} after the variants")
         print(f"[bank] peak memory after the serial scan {r['peak_after_serial_MB']:.0f} MB; Dask workers "

@@ -48,7 +48,8 @@ def run_example(out: Path, scheduler: str, workers: int) -> dict:
     discs = run.timings["discs"]
     busy = sum(d["total_s"] for d in discs.values())
     n = 1 if scheduler == "serial" else (workers or len(os.sched_getaffinity(0)))
-    return {"engine": run.engine, "load_after": _load(), "wall_s": wall, "engine_start_s": run.timings["engine_start_s"],
+    return {"engine": run.engine, "load_after": _load(), "wall_s": wall,
+            "engine_start_s": run.timings["engine_start_s"],
             "graph_s": run.timings["graph_s"], "task_s": busy, "overhead_s": run.timings["graph_s"] - busy / n,
             "per_disc_s": {k: round(v["total_s"], 2) for k, v in discs.items()},
             "stages_s": {k: {s: round(t, 2) for s, t in v["stages_s"].items()} for k, v in discs.items()},

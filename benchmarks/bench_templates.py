@@ -3,7 +3,8 @@
 Usage::
 
     python benchmarks/bench_templates.py [--n-x 320] [--n-phi 720] [--table]
-    python benchmarks/bench_templates.py --fidelity [--maps-only] [--setups inclined|face-on|both] [--source fargo3dlib ...]
+    python benchmarks/bench_templates.py --fidelity [--maps-only] [--setups inclined|face-on|both] \
+        [--source fargo3dlib ...]
 
 Timing: builds the compromise bank (the paper's 64-template grid for H/r = 0.05, 0.07, 0.10: 192
 templates) into a temporary cache directory (the user's cache is untouched), then loads it back.
@@ -64,10 +65,7 @@ def fidelity(args) -> None:
     for label, options in (("BEFORE (generator version 1 settings)", F.VERSION1), ("AFTER (calibrated)", {})):
         t0 = time.perf_counter()
         cases = [c for c in F.reference_cases() if not args.source or c.source in args.source]
-        if args.maps_only:
-            rows = F.map_table(cases, **options)
-        else:
-            rows = F.fidelity_table(cases, setups=setups, **options)
+        rows = F.map_table(cases, **options) if args.maps_only else F.fidelity_table(cases, setups=setups, **options)
         log.info("\n%s  [%.0f s]\n%s", label, time.perf_counter() - t0, F.format_table(rows, scan=not args.maps_only))
 
 

@@ -13,8 +13,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import spiralbayes as sb  # noqa: E402
-from spiralbayes.plotting.axisymmetric import plot_binned_visibilities, plot_profile  # noqa: E402
+import spiralbayes as sb
+from spiralbayes.plotting.axisymmetric import plot_binned_visibilities, plot_profile
 
 
 def main(out_dir="example-output"):

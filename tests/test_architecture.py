@@ -4,7 +4,8 @@ Every ``import`` of a spiralbayes module is read from the source (top level and 
 relative and absolute), so a lazy import cannot hide a circle. Layers, lowest first — a module may
 import its own layer and the ones below it, never one above:
 
-0. base: ``exceptions``, ``units``, ``settings``, ``_compat``, ``_version``, ``_provenance``, ``_hdf5``, ``results``, ``_casa``, ``_threads``
+0. base: ``exceptions``, ``units``, ``settings``, ``_compat``, ``_version``, ``_provenance``, ``_hdf5``, ``results``,
+   ``_casa``, ``_threads``
 1. data: ``geometry``, ``layout``, ``visibilities``, ``fourier``, ``io``
 2. models: ``axisymmetric``, ``templates``, ``quadrature``, ``model``
 3. synthetic data: ``simulate``
@@ -236,12 +237,14 @@ def test_subpackages_re_export_their_modules_public_names():
             expected |= set(module.__all__)
             # a re-exported function must not hide a submodule of the same name
             assert getattr(package, path.stem) is module, f"spiralbayes.inference.{name}.{path.stem} is not the module"
-        assert set(package.__all__) == expected, f"inference/{name}/__init__ re-exports {set(package.__all__) ^ expected} wrongly"
+        assert set(package.__all__) == expected, \
+            f"inference/{name}/__init__ re-exports {set(package.__all__) ^ expected} wrongly"
         for public in package.__all__:
             assert getattr(package, public) is not None
     inference = importlib.import_module("spiralbayes.inference")
     for name in ("scan", "detection", "limits", "posterior"):
-        assert isinstance(getattr(inference, name), types.ModuleType), f"spiralbayes.inference.{name} is not the subpackage"
+        assert isinstance(getattr(inference, name), types.ModuleType), \
+            f"spiralbayes.inference.{name} is not the subpackage"
         for public in getattr(inference, name).__all__:
             if public != "scan":
                 assert getattr(inference, public) is getattr(getattr(inference, name), public), public
@@ -318,11 +321,12 @@ def test_threads_are_limited_by_the_one_helper():
     found = []
     for name, path in modules().items():
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "threadpoolctl":
+            if (isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "threadpoolctl"
+                    or isinstance(node, ast.Import)
+                    and any(a.name.split(".")[0] == "threadpoolctl" for a in node.names)):
                 found.append(name)
-            elif isinstance(node, ast.Import) and any(a.name.split(".")[0] == "threadpoolctl" for a in node.names):
-                found.append(name)
-    assert set(found) <= {"spiralbayes._threads"}, f"threadpoolctl imported outside spiralbayes._threads: {sorted(set(found))}"
+    assert set(found) <= {"spiralbayes._threads"}, \
+        f"threadpoolctl imported outside spiralbayes._threads: {sorted(set(found))}"
     assert found, "spiralbayes._threads no longer imports threadpoolctl"
 
 

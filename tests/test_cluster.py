@@ -50,9 +50,8 @@ def test_serial_yields_no_client_and_empty_means_the_default():
 def test_unknown_engine_names_the_option(bad):
     with pytest.raises(InputError, match=rf"\[scan\] scheduler = '{bad}' is not a Dask engine: use 'serial', 'local'"):
         check_scheduler(bad, "[scan] scheduler")
-    with pytest.raises(InputError, match="is not a Dask engine"):
-        with open_scheduler(bad):
-            pass
+    with pytest.raises(InputError, match="is not a Dask engine"), open_scheduler(bad):
+        pass
 
 
 def test_local_cluster_workers_end_with_the_block():
@@ -153,8 +152,8 @@ def test_a_dask_engine_without_distributed_says_what_to_install(monkeypatch):
         return real_import(name, *args, **kw)
 
     monkeypatch.setattr(builtins, "__import__", no_distributed)
-    with pytest.raises(MissingDependencyError, match=r"scheduler = 'local' needs dask.distributed: pip install"):
-        with open_scheduler("local"):
-            pass
+    with pytest.raises(MissingDependencyError, match=r"scheduler = 'local' needs dask.distributed: pip install"), \
+            open_scheduler("local"):
+        pass
     with open_scheduler("serial") as client:  # serial needs no Dask
         assert client is None

@@ -24,7 +24,8 @@ def test_paper_defaults():
     assert (cfg["frank"]["N"], cfg["frank"]["Rmax"], cfg["frank"]["alpha"]) == (0, 1.2, 1.05)  # 0: automatic
     assert (cfg["frank"]["p0"], cfg["frank"]["weights_smooth"]) == (1e-15, 0.1)
     # 0 bounds: the data-driven grid of ScanSettings (25 radii up to 0.6 R_eff), the one sb.scan uses
-    assert (cfg["grid"]["r_p_min"], cfg["grid"]["r_p_max"], cfg["grid"]["n_r_p"], cfg["grid"]["n_phi_p"]) == (0, 0, 25, 90)
+    grid = cfg["grid"]
+    assert (grid["r_p_min"], grid["r_p_max"], grid["n_r_p"], grid["n_phi_p"]) == (0, 0, 25, 90)
     assert all(desc for section in SCHEMA.values() for _, desc in section.values())
 
 
@@ -73,7 +74,8 @@ def test_every_default_passes_its_value_check():
 def test_bad_alternatives_options_are_refused(user, match):
     with pytest.raises(ValueError, match=match):
         merge_config(user)
-    assert merge_config({"alternatives": {"models": ["geometry", "arc"], "n_starts": 3}})["alternatives"]["n_starts"] == 3
+    merged = merge_config({"alternatives": {"models": ["geometry", "arc"], "n_starts": 3}})
+    assert merged["alternatives"]["n_starts"] == 3
 
 
 def test_without_tomllib_the_config_is_read_with_tomli(tmp_path):
@@ -84,7 +86,8 @@ def test_without_tomllib_the_config_is_read_with_tomli(tmp_path):
     config = tmp_path / "run.toml"
     config.write_text("[grid]\nn_phi_p = 46\n")
     code = ("import sys, tomllib, types\n"
-            "tomli = types.ModuleType('tomli'); tomli.loads = tomllib.loads; tomli.TOMLDecodeError = tomllib.TOMLDecodeError\n"
+            "tomli = types.ModuleType('tomli'); tomli.loads = tomllib.loads; tomli.TOMLDecodeError = "
+            "tomllib.TOMLDecodeError\n"
             "sys.modules['tomli'] = tomli; sys.modules['tomllib'] = None\n"
             "from spiralbayes.config import load_config, tomllib as used\n"
             f"assert used is tomli, used\nprint(load_config({str(config)!r})['grid']['n_phi_p'])\n")

@@ -30,7 +30,7 @@ from spiralbayes.inference.scan import ScanResult
 from spiralbayes.io import load_visibilities
 from spiralbayes.io.data_checks import MIN_SEARCH_VISIBILITIES
 
-from .test_faults import GEOMETRY, GRID, _config, setup  # noqa: F401  (the module's fixture)
+from .test_faults import GEOMETRY, GRID, _config, setup
 
 
 def _hashes(*roots) -> dict:
@@ -88,7 +88,9 @@ def test_no_writer_overwrites_a_result_of_another_kind(setup, tmp_path):
     from spiralbayes.inference.posterior.chains import ChainStore
 
     scan_file = setup.result.save(tmp_path / "scan.h5")
-    with Unchanged(tmp_path), pytest.raises(InputError, match=r"holds another kind of result \(spiralbayes.ScanResult\), refusing to overwrite it with a spiralbayes.PosteriorRun"):
+    with Unchanged(tmp_path), pytest.raises(InputError, match=r"holds another kind of result "
+                                                              r"\(spiralbayes.ScanResult\), refusing to overwrite it "
+                                                              r"with a spiralbayes.PosteriorRun"):
         ChainStore(scan_file, "t").read()
     with Unchanged(tmp_path), pytest.raises(InputError, match="holds another kind of result"):
         setup.model.save(scan_file)

@@ -21,7 +21,7 @@ import pytest
 from spiralbayes.exceptions import DataWarning, InputError
 from spiralbayes.io import load_visibilities, save_visibilities
 
-from .test_faults import GEOMETRY, GRID, _config, setup  # noqa: F401  (the module's fixture)
+from .test_faults import GEOMETRY, GRID, _config, setup
 from .test_faults_hostile import Unchanged, _inputs
 
 

@@ -37,7 +37,8 @@ def test_killed_sample_run_resumes_to_the_uninterrupted_result(tmp_path):
     chains = tmp_path / "killed" / "job.h5"
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1",
            "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
-    proc = subprocess.Popen([sys.executable, "-m", "tests._support.faults_sampling_job", str(chains.parent)], cwd=ROOT, env=env,
+    proc = subprocess.Popen([sys.executable, "-m", "tests._support.faults_sampling_job", str(chains.parent)],
+                            cwd=ROOT, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 900

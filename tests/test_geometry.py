@@ -16,7 +16,8 @@ def uvV():
     return u, v, V
 
 
-@pytest.mark.parametrize("inc,PA,dRA,dDec", [(34.97, 85.76, -1.9e-3, 2.5e-3), (60.0, -30.0, 0.1, -0.2), (0.0, 0.0, 0.0, 0.0)])
+@pytest.mark.parametrize("inc,PA,dRA,dDec",
+                         [(34.97, 85.76, -1.9e-3, 2.5e-3), (60.0, -30.0, 0.1, -0.2), (0.0, 0.0, 0.0, 0.0)])
 def test_matches_frank(uvV, inc, PA, dRA, dDec):
     u, v, V = uvV
     ours = DiscGeometry(inc, PA, dRA, dDec)

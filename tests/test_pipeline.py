@@ -7,9 +7,9 @@ import pytest
 
 matplotlib.use("Agg")
 from spiralbayes.axisymmetric import DEFAULT_HYPERPARAMETERS, AxisymmetricModel
-from spiralbayes.geometry import ARCSEC, DiscGeometry  # noqa: E402
+from spiralbayes.geometry import ARCSEC, DiscGeometry
 from spiralbayes.pipeline import run_axisym
-from spiralbayes.visibilities import Visibilities  # noqa: E402
+from spiralbayes.visibilities import Visibilities
 
 
 @pytest.mark.slow

@@ -45,7 +45,8 @@ def test_from_config_maps_values_and_sentinels():
     assert (s.resolution, s.h_ref, s.inject_hand, s.cl) == (0.1, None, ("R", "L"), 0.9)
     s = from_config(SamplingSettings, {"n_steps": 300, "processes": 1, "mcmc_templates": ["a"], "run_name": "x"})
     assert (s.n_steps, s.processes, s.mcmc_templates, s.run_name) == (300, None, ("a",), "x")
-    assert from_config(AlternativesSettings, {"models": [], "fit": True}, nthreads=3) == AlternativesSettings(nthreads=3)
+    built = from_config(AlternativesSettings, {"models": [], "fit": True}, nthreads=3)
+    assert built == AlternativesSettings(nthreads=3)
 
 
 def test_overrides_replace_fields_and_unknown_keys_are_named():
@@ -103,9 +104,10 @@ def test_stellar_mass_and_thresholds_have_one_default():
     from spiralbayes.inference.limits.table3 import THRESHOLDS
     from spiralbayes.inference.posterior import PosteriorResult
 
-    mstar_defaults = {inspect.signature(f).parameters["mstar"].default for f in (mass_range, PosteriorResult.mass_range)}
+    mstar_defaults = {inspect.signature(f).parameters["mstar"].default
+                      for f in (mass_range, PosteriorResult.mass_range)}
     assert {DetectionSettings().mstar, LimitSettings().mstar, *mstar_defaults} == {DEFAULT_MSTAR_MSUN}
-    assert THRESHOLDS == LimitSettings().thresholds
+    assert LimitSettings().thresholds == THRESHOLDS
     assert CompletenessSettings().detection.alternative_threshold == AlternativesSettings().threshold
     assert (LimitSettings().n_azimuths, LimitSettings().inject_hand) == (CompletenessSettings().n_azimuths,
                                                                          CompletenessSettings().hands)

@@ -346,7 +346,8 @@ def test_failed_discs_give_a_nonzero_exit_after_the_table(cluster_run, survey_di
 
     assert cluster_run.failed == ["Damaged"] and cluster_run.exit_code == 1
     assert (survey_dir / "out" / "survey_table.ecsv").exists()
-    with pytest.raises(SurveyFailedError, match=r"^1 of 4 discs failed \(Damaged\): their errors are in .*survey_table"):
+    with pytest.raises(SurveyFailedError,
+                       match=r"^1 of 4 discs failed \(Damaged\): their errors are in .*survey_table"):
         cluster_run.check()
 
 

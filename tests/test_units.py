@@ -92,11 +92,11 @@ def test_constants_are_the_published_values():
     assert units.G_NEWTON == 6.67430e-11
     assert units.AU == 1.495978707e11
     assert units.JY == 1e-26
-    assert units.ARCSEC == pytest.approx(np.pi / 648000, rel=1e-15)
+    assert pytest.approx(np.pi / 648000, rel=1e-15) == units.ARCSEC
     # IAU 2015 B3 nominal GM values [m^3 s^-2] divided by CODATA 2018 G
-    assert units.M_SUN == pytest.approx(1.3271244e20 / 6.67430e-11, rel=1e-15)
-    assert units.M_JUP == pytest.approx(1.2668653e17 / 6.67430e-11, rel=1e-15)
-    assert units.M_EARTH == pytest.approx(3.986004e14 / 6.67430e-11, rel=1e-15)
+    assert pytest.approx(1.3271244e20 / 6.67430e-11, rel=1e-15) == units.M_SUN
+    assert pytest.approx(1.2668653e17 / 6.67430e-11, rel=1e-15) == units.M_JUP
+    assert pytest.approx(3.986004e14 / 6.67430e-11, rel=1e-15) == units.M_EARTH
 
 
 def test_astropy_mass_units_are_accepted():

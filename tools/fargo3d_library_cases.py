@@ -141,9 +141,9 @@ def n_outputs(case: Case) -> int:
 
 def planet_text(case: Case) -> str:
     """FARGO3D planet file: one planet at r = 1 on a fixed circular orbit."""
-    return ("# spiralbayes library (issue 21): M_p = {mu:g} M_th, M_th = h_p^3 M_*, h_p = {h:g}\n"
+    return (f"# spiralbayes library (issue 21): M_p = {case.mu:g} M_th, M_th = h_p^3 M_*, h_p = {case.h_p:g}\n"
             "# Name  Distance  Mass  Accretion  FeelsDisk  FeelsOthers\n"
-            "Planet  1.0  {q:.6e}  0.0  NO  NO\n").format(mu=case.mu, h=case.h_p, q=case.q_planet)
+            f"Planet  1.0  {case.q_planet:.6e}  0.0  NO  NO\n")
 
 
 def par_text(case: Case, output_dir: str, planet_file: str) -> str:

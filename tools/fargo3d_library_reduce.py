@@ -30,9 +30,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # tests.templates.fidelity (beam smoothing)
-import fargo3d_library_cases as lib  # noqa: E402
-import make_fargo3d_references as ref3  # noqa: E402  (remap, steadiness, outputs_available)
-import reference_common as rc  # noqa: E402
+import fargo3d_library_cases as lib
+import make_fargo3d_references as ref3
+import reference_common as rc
 
 TAU0S = (0.1, 0.3, 1.0, 3.0)
 QUANTUM = 2.0**-17   # maps are rounded to multiples of this (7.6e-6) before gzip: 3x smaller files
@@ -211,7 +211,8 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
     orbits = main["t"] / lib.TWO_PI
     p = params
     attrs = {
-        "run": case.name, "batch": case.batch, "variant": case.group.split("_", 2)[2] if case.group.count("_") >= 2 else "",
+        "run": case.name, "batch": case.batch,
+        "variant": case.group.split("_", 2)[2] if case.group.count("_") >= 2 else "",
         "mu_Mth": case.mu, "mu_M1": 1.5 * case.mu, "h_p": case.h_p, "q_planet": case.q_planet,
         "beta": case.beta, "stokes": case.stokes, "dust_to_gas": 0.01 if case.stokes else 0.0,
         "gamma": float(p.get("GAMMA", 1.0)) if beta else 1.0, "fluid": fluid, "setup": case.setup,
@@ -257,7 +258,8 @@ def reader_check(run: Path, n: int, fluid: str, x, phi, delta_ref, valid, adiaba
     sel = valid & (x >= tmpl.x[0]) & (x <= tmpl.x[-1])
     diff = np.abs(tmpl.evaluate(x[sel][:, None], phi[None, :], 1.0, 0.0) - delta_ref[sel])
     return {"status": f"read OK with fluid={fluid!r}", "reader_mass_Mth": round(float(tmpl.mass), 4),
-            "rms_delta_difference_over_rms_delta": round(float(np.sqrt(np.mean(diff**2) / np.mean(delta_ref[sel] ** 2))), 4),
+            "rms_delta_difference_over_rms_delta":
+                round(float(np.sqrt(np.mean(diff**2) / np.mean(delta_ref[sel] ** 2))), 4),
             "max_abs_delta_difference": round(float(diff.max()), 4)}
 
 

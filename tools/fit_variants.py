@@ -20,6 +20,7 @@ import argparse
 import json
 import logging
 import os
+from pathlib import Path
 
 
 from tests.templates import fidelity as F
@@ -55,7 +56,7 @@ def main() -> None:
 
 
 def _rows(cache, exclude):
-    store = json.load(open(cache)) if cache and os.path.exists(cache) else {}
+    store = json.loads(Path(cache).read_text()) if cache and os.path.exists(cache) else {}
     rows = []
     for c in F.acceptance_cases():
         if c.label in exclude:

@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import fargo3d_library_cases as lib  # noqa: E402
+import fargo3d_library_cases as lib
 
 HERE = Path(__file__).resolve().parent
 FARGO3D_SOURCE = "/work/.mirror/FARGO3D+fargo3d/repo"   # or https://github.com/FARGO3D/fargo3d

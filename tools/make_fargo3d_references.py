@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import reference_common as rc  # noqa: E402
+import reference_common as rc
 
 HERE = Path(__file__).resolve().parent
 RUNS = {  # name: (mu = M_p/M_th, h_p, reference output or None for the last)
@@ -294,7 +294,8 @@ def main(argv=None):
         if d_last is not None:
             datasets["dsigma_last"] = d_last
         cases[f"h{h_p:.2f}_mu{mu:g}"] = {"datasets": datasets, "attrs": attrs, "dataset_attrs": {
-            "dsigma": {"description": "Sigma/<Sigma>_phi - 1 of the gas (zero azimuthal mean per x); 0 where not valid"},
+            "dsigma": {"description": "Sigma/<Sigma>_phi - 1 of the gas (zero azimuthal mean per x); 0 where not "
+                                      "valid"},
             "dsigma_last": {"description": "Sigma/<Sigma>_phi - 1 at the run's last output (see attribute "
                                            "last_output); 0 where not valid"},
             "sigma_axisym": {"description": "<Sigma>_phi / Sigma_0(r_p) (the gap); NaN where not valid"},

@@ -57,7 +57,7 @@ if not hasattr(np, "trapz"):  # NumPy >= 2.4 removed np.trapz, which wakeflow 1.
     np.trapz = np.trapezoid
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import reference_common as rc  # noqa: E402
+import reference_common as rc
 
 H_PS = (0.05, 0.07, 0.10)
 MUS = (0.1, 0.3, 1.0)

@@ -20,7 +20,8 @@ napoleon_use_ivar = True  # dataclass fields: a field list, not a second descrip
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"  # the docstrings state types with units; signatures stay readable
 # each object is documented once, in the module that defines it (not again where a package re-exports it)
-autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": False, "ignore-module-all": True}
+autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": False,
+                           "ignore-module-all": True}
 # optional back ends imported lazily by the code: not needed to document it
 autodoc_mock_imports = ["casatools", "casatasks", "casacore", "schwimmbad", "mpi4py", "dask_jobqueue"]
 

@@ -14,29 +14,29 @@ A notebook session needs only the names exported here::
 
 import logging
 
-from . import exceptions  # noqa: E402
-from ._version import __version__  # noqa: E402
-from .axisymmetric import AxisymmetricModel, FrankSettings, fit_axisymmetric  # noqa: E402
-from .geometry import DiscGeometry  # noqa: E402
-from .inference.detection.alternatives import AlternativesResult, fit_alternatives  # noqa: E402
-from .inference.detection.settings import AlternativesSettings, DetectionSettings  # noqa: E402
-from .inference.detection.follow_up import rescan_at_fitted_geometry  # noqa: E402
-from .inference.detection.verdict import Verdict, detect  # noqa: E402
-from .inference.limits.exclusion import ExclusionLimits, compute_limits  # noqa: E402
-from .inference.limits.forecasting import Forecast, forecast  # noqa: E402
-from .inference.limits.recovery import CompletenessResult, completeness  # noqa: E402
-from .inference.limits.settings import CompletenessSettings, ForecastSettings, LimitSettings  # noqa: E402
-from .inference.posterior.conditional import SpiralLikelihood  # noqa: E402
-from .inference.posterior.priors import Priors  # noqa: E402
-from .inference.posterior.results import PosteriorResult  # noqa: E402
-from .inference.posterior.sampler import sample_posterior  # noqa: E402
-from .inference.posterior.settings import PriorSettings, SamplingSettings  # noqa: E402
-from .inference.scan.run import ScanResult, scan  # noqa: E402
-from .inference.scan.settings import ScanSettings  # noqa: E402
-from .io import load_visibilities, save_visibilities  # noqa: E402
-from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage  # noqa: E402
-from .templates import SpiralTemplate, TemplateBank, compromise_bank, default_bank, make_template, variant_bank  # noqa: E402
-from .visibilities import Visibilities, bin_deprojected, estimate_weights  # noqa: E402
+from . import exceptions
+from ._version import __version__
+from .axisymmetric import AxisymmetricModel, FrankSettings, fit_axisymmetric
+from .geometry import DiscGeometry
+from .inference.detection.alternatives import AlternativesResult, fit_alternatives
+from .inference.detection.settings import AlternativesSettings, DetectionSettings
+from .inference.detection.follow_up import rescan_at_fitted_geometry
+from .inference.detection.verdict import Verdict, detect
+from .inference.limits.exclusion import ExclusionLimits, compute_limits
+from .inference.limits.forecasting import Forecast, forecast
+from .inference.limits.recovery import CompletenessResult, completeness
+from .inference.limits.settings import CompletenessSettings, ForecastSettings, LimitSettings
+from .inference.posterior.conditional import SpiralLikelihood
+from .inference.posterior.priors import Priors
+from .inference.posterior.results import PosteriorResult
+from .inference.posterior.sampler import sample_posterior
+from .inference.posterior.settings import PriorSettings, SamplingSettings
+from .inference.scan.run import ScanResult, scan
+from .inference.scan.settings import ScanSettings
+from .io import load_visibilities, save_visibilities
+from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage
+from .templates import SpiralTemplate, TemplateBank, compromise_bank, default_bank, make_template, variant_bank
+from .visibilities import Visibilities, bin_deprojected, estimate_weights
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 

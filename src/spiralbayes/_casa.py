@@ -54,7 +54,8 @@ def _configure(logfile: str, respect_user_config: bool) -> None:
         raise MissingDependencyError(
             f"CASA is not installed ({exc.name or exc}): {INSTALL_HINT} (casatools, casatasks and casadata, ~2 GB)"
         ) from None
-    loaded = [f for f in getattr(cfg, "load_success", list)() if not f.replace("\\", "/").endswith("casaconfig/config.py")]
+    loaded = [f for f in getattr(cfg, "load_success", list)()
+              if not f.replace("\\", "/").endswith("casaconfig/config.py")]
     if respect_user_config and loaded:
         log.info("CASA: keeping the configuration of %s", ", ".join(loaded))
     else:

@@ -22,8 +22,8 @@ import numpy as np
 
 from ._version import __version__
 
-__all__ = ["atomic_path", "check_output_name", "content_hash", "provenance_record", "data_hash", "json_default", "json_safe", "to_json",
-           "FORMAT_VERSION"]
+__all__ = ["atomic_path", "check_output_name", "content_hash", "provenance_record", "data_hash", "json_default",
+           "json_safe", "to_json", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
 """Version of spiralbayes' HDF5 layouts; bumped when a layout changes."""
@@ -120,10 +120,8 @@ def provenance_record(**extra) -> dict:
     """Package and dependency versions, time and host, plus ``extra`` items."""
     versions = {"spiralbayes": __version__, "numpy": np.__version__, "python": platform.python_version()}
     for mod in ("scipy", "ducc0", "frank", "emcee", "h5py"):
-        try:
+        with contextlib.suppress(Exception):  # an optional or broken install is left out of the record
             versions[mod] = __import__(mod).__version__
-        except Exception:  # pragma: no cover - optional or broken install
-            pass
     return {
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "versions": versions,

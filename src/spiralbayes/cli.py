@@ -199,7 +199,7 @@ def _cmd_compare(args) -> int:
         log.error("%s", exc)
         return 2
     print(result.verdict.summary())
-    print(open(result.files[-2]).read(), end="")
+    print(Path(result.files[-2]).read_text(), end="")
     print("wrote:\n  " + "\n  ".join(str(f) for f in result.files))
     return 0
 
@@ -279,7 +279,8 @@ def _geometry_args(p, required: bool = False):
     p.add_argument("--inc", type=_inclination, default=None if required else 30.0,
                    help="inclination [deg], in [0, 90)" + (" (required unless --fit-geometry)" if required else ""))
     p.add_argument("--pa", type=_finite, default=None if required else 60.0,
-                   help="position angle, east of north [deg]" + (" (required unless --fit-geometry)" if required else ""))
+                   help="position angle, east of north [deg]"
+                   + (" (required unless --fit-geometry)" if required else ""))
     p.add_argument("--dra", type=_finite, default=0.0, help="RA offset of the disc centre [arcsec]")
     p.add_argument("--ddec", type=_finite, default=0.0, help="Dec offset of the disc centre [arcsec]")
 

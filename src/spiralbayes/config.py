@@ -1,4 +1,5 @@
-"""One configuration schema for every command (``scan``, ``sample``, ``limits``, ``compare``) and for notebooks (TOML files).
+"""One configuration schema for every command (``scan``, ``sample``, ``limits``, ``compare``) and for
+notebooks (TOML files).
 
 Every option has a default (from Stevenson et al. 2024 where the paper sets one) and a
 description with units; unknown sections or keys are rejected with the list of valid ones, and
@@ -48,14 +49,16 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "uv_units": ("", "units of u, v in a uvtable: 'lambda' or 'm' (empty: from the file header, else lambda)"),
         "wavelength": (0.0, "observing wavelength [m] for u, v in metres (0: from the file)"),
         "conjugated": (False, "true if V is the complex conjugate of the CASA/frank convention (visread exports)"),
-        "estimate_weights": (False, "rescale the weights from the scatter of the visibilities (CASA weights are often not statistical)"),
+        "estimate_weights": (False, "rescale the weights from the scatter of the visibilities (CASA weights are often "
+                                    "not statistical)"),
     },
     "geometry": {
         "inc": (0.0, "inclination [deg]"),
         "PA": (0.0, "position angle of the major axis, east of north [deg]"),
         "dRA": (0.0, "disc centre offset to the east [arcsec]"),
         "dDec": (0.0, "disc centre offset to the north [arcsec]"),
-        "fit": (False, "fit the geometry with frank's nonparametric fitter (started from its Gaussian fit and the values above)"),
+        "fit": (False, "fit the geometry with frank's nonparametric fitter (started from its Gaussian fit and the "
+                       "values above)"),
         "distance": (DEFAULT_DISTANCE_PC, "distance [pc], for au axes and planet masses"),
     },
     "frank": {
@@ -63,7 +66,12 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
     "templates": {
-        "bank": ("default", "'default' (the built-in bank robust to the spiral's morphology: the paper's 64 templates for H/r = 0.05, 0.07, 0.10 in the compromise, hydro and wakeflow morphologies, 576 templates, cached; limits hold for every morphology; 'variants' is the same bank), 'compromise' (the same grid in the compromise morphology alone, 192 templates: the paper's comparison, limits not robust to the spiral's shape; docs/limits.md) or the path of a TemplateBank HDF5 file"),
+        "bank": ("default", "'default' (the built-in bank robust to the spiral's morphology: the paper's 64 templates "
+                            "for H/r = 0.05, 0.07, 0.10 in the compromise, hydro and wakeflow morphologies, 576 "
+                            "templates, cached; limits hold for every morphology; 'variants' is the same bank), "
+                            "'compromise' (the same grid in the compromise morphology alone, 192 templates: the "
+                            "paper's comparison, limits not robust to the spiral's shape; docs/limits.md) or the path "
+                            "of a TemplateBank HDF5 file"),
         "mass": ([], "planet masses M_p/M_th to keep (empty: all)"),
         "tau0": ([], "initial optical depths at r_p to keep (empty: all)"),
         "beta": ([], "cooling times t_c Omega to keep (empty: all)"),
@@ -78,19 +86,24 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
                           "this machine; else a scheduler address (tcp://host:8786)"),
     },
     "alternatives": {
-        "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = 2) and apply test 3"),
+        "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = "
+                      "2) and apply test 3"),
         **config_options(AlternativesSettings),
-        "refit_geometry": (True, "if no spiral is detected and the geometry alternative has Delta BIC > 10: refit frank at its geometry, rescan and decide again (OUTPUT/refit_geometry/)"),
+        "refit_geometry": (True, "if no spiral is detected and the geometry alternative has Delta BIC > 10: refit "
+                                 "frank at its geometry, rescan and decide again (OUTPUT/refit_geometry/)"),
     },
     "sample": {
         **config_options(SamplingSettings, ["run_name"]),
-        "scan": ("", "a saved ScanResult (.h5) to start walkers from and prune templates (empty: OUTPUT/scan.h5 if present)"),
+        "scan": ("", "a saved ScanResult (.h5) to start walkers from and prune templates (empty: OUTPUT/scan.h5 if "
+                     "present)"),
         **config_options(SamplingSettings, [f.name for f in fields(SamplingSettings)
                                             if f.metadata["config"] and f.name != "run_name"]),
     },
     "priors": config_options(PriorSettings),
     "compare": {
-        "residuals": ("visibilities", "'visibilities': CLEAN image of the residual visibilities (data - frank model); 'difference': CLEAN image of the data minus that of the frank model at the same baselines (carries CLEAN artefacts)"),
+        "residuals": ("visibilities", "'visibilities': CLEAN image of the residual visibilities (data - frank model); "
+                                      "'difference': CLEAN image of the data minus that of the frank model at the "
+                                      "same baselines (carries CLEAN artefacts)"),
         "weighting": ("briggs", "tclean weighting: 'natural', 'briggs' or 'uniform'"),
         "robust": (0.5, "Briggs robust parameter"),
         "deconvolver": ("hogbom", "tclean deconvolver: 'hogbom' or 'multiscale' (scales 0, 5, 15 pixels)"),
@@ -98,7 +111,8 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "threshold_sigma": (2.0, "CLEAN down to this many natural-weighted image noises 1/sqrt(sum w)"),
         "imsize": (0, "image size [pixels] (0: at least 6 r_out and 4 arcsec across)"),
         "cell": (0.0, "pixel [arcsec] (0: 1/(3 u_max))"),
-        "r_out": (0.0, "outer disc radius [arcsec] for the residual statistic and the profile (0: 1.1 R_99 of the frank profile)"),
+        "r_out": (0.0, "outer disc radius [arcsec] for the residual statistic and the profile (0: 1.1 R_99 of the "
+                       "frank profile)"),
         "keep_casa_files": (True, "keep the Measurement Sets, CASA images and CASA log in OUTPUT/casa"),
     },
     "limits": config_options(LimitSettings),
@@ -154,7 +168,8 @@ def _scan_check(key):
 
 def _distance(v):
     return None if math.isfinite(v) and MIN_DISTANCE_PC <= v <= MAX_DISTANCE_PC else \
-        f"must be a distance in pc between {MIN_DISTANCE_PC:g} and {MAX_DISTANCE_PC:g} (e.g. {DEFAULT_DISTANCE_PC:g} for Taurus)"
+        f"must be a distance in pc between {MIN_DISTANCE_PC:g} and {MAX_DISTANCE_PC:g} " \
+        f"(e.g. {DEFAULT_DISTANCE_PC:g} for Taurus)"
 
 
 def _inclination(v):
@@ -205,9 +220,11 @@ CHECKS: dict[str, dict[str, object]] = {
                   "h_p": _each(_number(_positive))},
     "grid": {key: _scan_check(key) for key in GRID_FIELDS},
     "scan": {key: _scan_check(key) for key in ScanSettings.field_names() if key not in GRID_FIELDS},
-    "compare": {"residuals": _choice("visibilities", "difference"), "weighting": _choice("natural", "briggs", "uniform"),
+    "compare": {"residuals": _choice("visibilities", "difference"),
+                "weighting": _choice("natural", "briggs", "uniform"),
                 "robust": _finite, "deconvolver": _choice("hogbom", "multiscale"), "niter": _int_at_least(0),
-                "threshold_sigma": _positive, "imsize": _int_at_least(0), "cell": _non_negative, "r_out": _non_negative},
+                "threshold_sigma": _positive, "imsize": _int_at_least(0), "cell": _non_negative,
+                "r_out": _non_negative},
     "output": {"dir": lambda v: None if v.strip() else "must name a directory"},
 }
 """section -> option -> check of its (already type-coerced) value, for the sections without a settings

@@ -77,7 +77,7 @@ class DiscGeometry:
     def to_dict(self) -> dict:
         return asdict(self)
 
-    def replace(self, **changes) -> "DiscGeometry":
+    def replace(self, **changes) -> DiscGeometry:
         return DiscGeometry(**{**self.to_dict(), **changes})
 
     # --- uv plane -------------------------------------------------------------

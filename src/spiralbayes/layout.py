@@ -105,7 +105,7 @@ class ObservationLayout:
     def n_antennas(self) -> int:
         return self.positions.shape[0]
 
-    def subset(self, index) -> "ObservationLayout":
+    def subset(self, index) -> ObservationLayout:
         """The layout of the selected rows (boolean mask or indices); antennas are kept."""
         from dataclasses import replace
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -194,8 +194,9 @@ def _next_pow2_multiple(n: int, base: int) -> int:
 def template_on_quadrature(template, quad: PolarQuadrature) -> np.ndarray:
     """``delta`` at the quadrature's cell centres with the planet at ``phi = 0``; shape ``quad.shape``.
 
-    The template's bilinear interpolant in ``(ln x, phi)`` (:meth:`~spiralbayes.templates.template.SpiralTemplate.evaluate`),
-    evaluated as two 1-D linear interpolations: a tensor-product grid needs no more.
+    The template's bilinear interpolant in ``(ln x, phi)``
+    (:meth:`~spiralbayes.templates.template.SpiralTemplate.evaluate`), evaluated as two 1-D linear
+    interpolations: a tensor-product grid needs no more.
     """
     log_x = np.log(np.asarray(template.x, dtype=float))
     delta = np.asarray(template.delta, dtype=float)

@@ -20,8 +20,8 @@ import dataclasses
 import math
 import numbers
 
-__all__ = ["DEFAULT_DISTANCE_PC", "DEFAULT_MSTAR_MSUN", "MAX_DISTANCE_PC", "MIN_DISTANCE_PC", "config_options", "from_config", "is_finite_number",
-           "is_integer", "option", "with_overrides"]
+__all__ = ["DEFAULT_DISTANCE_PC", "DEFAULT_MSTAR_MSUN", "MAX_DISTANCE_PC", "MIN_DISTANCE_PC", "config_options",
+           "from_config", "is_finite_number", "is_integer", "option", "with_overrides"]
 
 DEFAULT_DISTANCE_PC = 140.0
 """Distance [pc] assumed when none is given (the Taurus and Lupus star-forming regions are at ~140-160 pc)."""
@@ -57,7 +57,7 @@ def option(default, doc: str, *, toml=_NO_TOML, config: bool = True):
 
 
 def _toml_default(f: dataclasses.Field):
-    value = f.metadata["toml"] if "toml" in f.metadata else f.default
+    value = f.metadata.get("toml", f.default)
     return list(value) if isinstance(value, tuple) else value
 
 

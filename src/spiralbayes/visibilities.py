@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -195,24 +195,24 @@ class Visibilities:
         """Noise of each of Re V and Im V [Jy]."""
         return 1.0 / np.sqrt(self.weights)
 
-    def standardised(self) -> "Visibilities":
+    def standardised(self) -> Visibilities:
         """The same data in the frank/galario convention (un-conjugated if needed)."""
         if not self.conjugated:
             return self
         prov = {**self.provenance, "conjugated_on_load": True}
         return replace(self, V=np.conj(self.V), conjugated=False, provenance=prov)
 
-    def subset(self, index) -> "Visibilities":
+    def subset(self, index) -> Visibilities:
         """A copy with only the selected rows (boolean mask or indices)."""
         return replace(self, u=self.u[index], v=self.v[index], V=self.V[index], weights=self.weights[index],
                        **self._row_fields(index))
 
-    def with_weights(self, weights, note: str) -> "Visibilities":
+    def with_weights(self, weights, note: str) -> Visibilities:
         """A copy with new weights; ``note`` is recorded in the provenance."""
         prov = {**self.provenance, "weights": note}
         return replace(self, weights=np.asarray(weights, dtype=float), provenance=prov)
 
-    def with_V(self, V, note: str | None = None) -> "Visibilities":
+    def with_V(self, V, note: str | None = None) -> Visibilities:
         """A copy with new visibility values (e.g. model or residuals)."""
         prov = self.provenance if note is None else {**self.provenance, "V": note}
         return replace(self, V=np.asarray(V, dtype=complex), provenance=prov)

@@ -19,7 +19,8 @@ def run(out_dir):
     model = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=60)
     template = weak_template()
     priors = Priors.default(model, r_p=(0.3, 0.4))
-    return sample_posterior(vis, model, [template, template.mirror()], priors=priors, run_name="job", chains_dir=out_dir,
+    return sample_posterior(vis, model, [template, template.mirror()], priors=priors, run_name="job",
+                            chains_dir=out_dir,
                             n_walkers=12, n_steps=N_STEPS, flush_every=FLUSH, mcmc_templates=[template.name],
                             convergence="ignore", evidence_draws=100, progress=False, seed=7,
                             likelihood_kwargs={"rp_tolerance": 0.05})

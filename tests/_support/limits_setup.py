@@ -24,18 +24,18 @@ MASSES = (0.3, 1.0, 3.0)
 GRID = dict(n_x=120, n_phi=360)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def coverage():
     return uv_coverage(["C-4"], -25.0, (-0.1, 0.1), 60.0, WAVELENGTH)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def disc_model() -> AxisymmetricModel:
     disc = DiscModel(distance=DISTANCE, tau_ref=0.3)
     return AxisymmetricModel.from_profile(disc.profile(WAVELENGTH), GEOMETRY)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def family(tau0: float = 0.3, beta: float = 10.0, masses=MASSES) -> tuple:
     """R and L templates of each mass, in the order R(m1), L(m1), R(m2), ..."""
     out = []

@@ -7,6 +7,8 @@ that exist in both versions are imported here.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 try:
@@ -20,6 +22,10 @@ from spiralbayes.inference.limits.families import template_families
 from spiralbayes.inference.posterior import NullRun, PosteriorResult, Priors, TemplateRun
 from spiralbayes.inference.scan import ScanResult
 from spiralbayes.inference.validation.planted import PlantedExclusion
+
+if TYPE_CHECKING:  # annotations only: the code before the renames may lack these import paths
+    from spiralbayes.inference.detection import Verdict
+    from spiralbayes.inference.limits import ExclusionLimits
 
 
 def _templates():

@@ -10,8 +10,8 @@ import pytest
 
 matplotlib.use("Agg")
 from spiralbayes.axisymmetric import AxisymmetricModel, fit_axisymmetric
-from spiralbayes.geometry import ARCSEC, DiscGeometry  # noqa: E402
-from spiralbayes.visibilities import Visibilities  # noqa: E402
+from spiralbayes.geometry import ARCSEC, DiscGeometry
+from spiralbayes.visibilities import Visibilities
 from tests._support.axisymmetric_setup import (
     PEAK,
     TRUE_GEOMETRY,

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 matplotlib.use("Agg")
-from frank.geometry import FixedGeometry  # noqa: E402
+from frank.geometry import FixedGeometry
 
 from spiralbayes.axisymmetric import AxisymmetricModel
-from spiralbayes.fourier import sample_image  # noqa: E402
-from spiralbayes.geometry import ARCSEC, DiscGeometry  # noqa: E402
+from spiralbayes.fourier import sample_image
+from spiralbayes.geometry import ARCSEC, DiscGeometry
 from tests._support.axisymmetric_setup import PEAK, random_baselines
 from tests._support.helpers import DATA
 

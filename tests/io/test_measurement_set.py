@@ -15,8 +15,8 @@ tables = pytest.importorskip("casacore.tables")
 from spiralbayes.io import load_visibilities, save_visibilities  # noqa: E402
 from spiralbayes.io.measurement_set import read_ms, write_ms  # noqa: E402
 from spiralbayes.units import C_LIGHT  # noqa: E402
-from spiralbayes.visibilities import (
-    Visibilities,  # noqa: E402
+from spiralbayes.visibilities import (  # noqa: E402
+    Visibilities,
     )
 
 # spectral windows: spw 0 at 230 GHz, spw 1 at 345 GHz, two channels each. The data
@@ -218,7 +218,8 @@ def test_missing_columns_are_named(tmp_path, column):
 def test_missing_data_column_is_named(tmp_path):
     path = tmp_path / "nodata.ms"
     _make_ms(path)
-    with pytest.raises(ValueError, match=r"nodata\.ms: Measurement Set has no \(filled\) column CORRECTED_DATA.*'DATA'"):
+    with pytest.raises(ValueError,
+                       match=r"nodata\.ms: Measurement Set has no \(filled\) column CORRECTED_DATA.*'DATA'"):
         read_ms(path, column="CORRECTED_DATA")
 
 

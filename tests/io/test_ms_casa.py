@@ -65,7 +65,8 @@ def test_casa_metadata_tools_accept_the_set(casa, point_east):
     try:
         assert msmd.nantennas() == vis.layout.n_antennas
         assert msmd.observatorynames()[0] == "ALMA"
-        assert len(msmd.timesforfield(0)) == np.unique(np.column_stack([vis.layout.scan, vis.layout.hour_angle]), axis=0).shape[0]
+        n_times = np.unique(np.column_stack([vis.layout.scan, vis.layout.hour_angle]), axis=0).shape[0]
+        assert len(msmd.timesforfield(0)) == n_times
         assert msmd.nbaselines() == 2 * 903
     finally:
         msmd.close()

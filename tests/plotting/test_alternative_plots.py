@@ -3,11 +3,11 @@
 import matplotlib
 
 matplotlib.use("Agg")
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import numpy as np
+import pytest
 
-from spiralbayes.fourier import dirty_image  # noqa: E402
-from spiralbayes.plotting.alternatives import plot_residual_comparison  # noqa: E402
+from spiralbayes.fourier import dirty_image
+from spiralbayes.plotting.alternatives import plot_residual_comparison
 
 
 def test_residual_comparison_shares_one_scale_and_adds_up(planet_observation, planet_scan, planet_alternatives,

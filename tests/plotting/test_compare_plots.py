@@ -3,14 +3,14 @@
 import matplotlib
 
 matplotlib.use("Agg")
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import numpy as np
+import pytest
 
-from spiralbayes.image_plane import CleanImage, CleanResiduals, gap_depth, residual_detection  # noqa: E402
-from spiralbayes.fourier import image_axes  # noqa: E402
-from spiralbayes.inference.detection.verdict import detect  # noqa: E402
-from spiralbayes.plotting.compare import plot_comparison  # noqa: E402
-from tests._support.helpers import DISTANCE, GEOMETRY  # noqa: E402
+from spiralbayes.image_plane import CleanImage, CleanResiduals, gap_depth, residual_detection
+from spiralbayes.fourier import image_axes
+from spiralbayes.inference.detection.verdict import detect
+from spiralbayes.plotting.compare import plot_comparison
+from tests._support.helpers import DISTANCE, GEOMETRY
 
 CELL, N = 0.02, 160
 

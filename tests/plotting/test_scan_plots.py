@@ -3,16 +3,16 @@
 import matplotlib
 
 matplotlib.use("Agg")
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import numpy as np
+import pytest
 
-from spiralbayes.plotting.scan import (  # noqa: E402
+from spiralbayes.plotting.scan import (
     plot_chi2_vs_rp,
     plot_heatmap,
     plot_heatmap_pair,
     plot_template_grid_heatmaps,
 )
-from tests._support.helpers import DISTANCE  # noqa: E402
+from tests._support.helpers import DISTANCE
 
 
 def test_heatmap_pair_shares_a_zero_centred_colour_scale(planet_scan):

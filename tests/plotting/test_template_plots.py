@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 matplotlib.use("Agg")
-from spiralbayes.templates import TemplateBank, make_template  # noqa: E402
+from spiralbayes.templates import TemplateBank, make_template
 
 TINY = dict(n_x=24, n_phi=90, n_eta=256)
 

@@ -11,8 +11,9 @@ compared with the built-in generator's template at the same (M_p, H/r, τ0), β 
 * observation level (the issue's criteria): the reference spiral is injected into the fiducial
   synthetic observation (planet at 50 au, 140 pc) face-on or at 30° inclination (no noise and
   the true axisymmetric disc by default: expectation values; see :func:`observe_and_scan`), and
-  :func:`spiralbayes.inference.scan.run.scan` scans the reference template and the generator's templates of every bank mass near the truth (5 radii one paper grid step apart,
-  the full 90 azimuths). Recovery = generator's Δχ² at the truth / reference's Δχ² at the truth;
+  :func:`spiralbayes.inference.scan.run.scan` scans the reference template and the generator's templates
+  of every bank mass near the truth (5 radii one paper grid step apart, the full 90 azimuths).
+  Recovery = generator's Δχ² at the truth / reference's Δχ² at the truth;
   position error of the true-mass template's best fit; best mass = the bank mass with the
   highest peak Δχ².
 """
@@ -191,7 +192,7 @@ def smoothed_image(template, tau0: float) -> np.ndarray:
     """Face-on image of ``δ · I_axi`` (planet at (1, 0), fiducial disc extent) convolved with the
     fiducial beam: what the visibilities see of a template, up to the uv weighting."""
     R, PH, beam = _image_grid()
-    inside = (R >= X_RANGE[0]) & (R <= X_RANGE[1])
+    inside = (X_RANGE[0] <= R) & (X_RANGE[1] >= R)
     intensity = np.where(inside, np.maximum(R, 1e-3) ** -0.5 * (1.0 - np.exp(-tau0 / np.maximum(R, 1e-3))), 0.0)
     img = template.evaluate(R, PH, r_p=1.0) * intensity
     return np.real(np.fft.ifft2(np.fft.fft2(img) * beam))

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 matplotlib.use("Agg")
-from spiralbayes.templates import (  # noqa: E402
+from spiralbayes.templates import (
     TemplateBank,
     compromise_bank,
     default_bank,
     make_template,
     variant_bank,
 )
-from spiralbayes.templates import bank as bank_mod  # noqa: E402
-from spiralbayes.templates import wake as wake_mod  # noqa: E402
+from spiralbayes.templates import bank as bank_mod
+from spiralbayes.templates import wake as wake_mod
 
 TINY = dict(n_x=24, n_phi=90, n_eta=256)
 

@@ -10,14 +10,14 @@ for those that do not (they are listed in the closing note of issue 9).
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
 
 pytest.importorskip("h5py")
 
-from tests.templates import fidelity as F  # noqa: E402
+from tests.templates import fidelity as F
 
 CASES = [c for c in F.reference_cases() if c.source != "fargo3dlib"]  # the issue-9 calibration set
 LIBRARY = [c for c in F.reference_cases() if c.source == "fargo3dlib"]  # issue 21: reported, see below
@@ -131,7 +131,7 @@ WRONG_MASS = {("fargo3d:h0.07_mu1", 0.3)}
 """The bank's 0.3 M_th template fits FARGO3D's 1 M_th τ0 = 0.3 spiral better than the 1 M_th one."""
 
 
-@lru_cache(maxsize=None)
+@cache
 def _scan_row(label: str, tau0: float, setup: str) -> dict:
     case = next(c for c in CASES if c.label == label)
     inc, phi_p = F.SETUPS[SETUP_IDS.index(setup)]

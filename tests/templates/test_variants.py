@@ -14,17 +14,17 @@ import pytest
 
 pytest.importorskip("h5py")
 
-from spiralbayes.inference.limits.families import template_families  # noqa: E402
-from spiralbayes.templates import make_template  # noqa: E402
-from spiralbayes.templates.template import template_metadata  # noqa: E402
-from spiralbayes.templates.variants import (  # noqa: E402
+from spiralbayes.inference.limits.families import template_families
+from spiralbayes.templates import make_template
+from spiralbayes.templates.template import template_metadata
+from spiralbayes.templates.variants import (
     DEFAULT_VARIANTS,
     VARIANTS,
     blob_template,
     variant_template,
 )
-from tests.templates import fidelity as F  # noqa: E402
-from tests.templates import variant_fit as VF  # noqa: E402
+from tests.templates import fidelity as F
+from tests.templates import variant_fit as VF
 
 SMALL = dict(n_x=120, n_phi=360)
 CASES = {c.label: c for c in F.acceptance_cases()}

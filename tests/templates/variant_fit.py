@@ -11,7 +11,8 @@ linear combination of templates as well.
 
 from __future__ import annotations
 
-from functools import lru_cache
+import contextlib
+from functools import cache
 
 import numpy as np
 
@@ -45,7 +46,8 @@ def _disk_key(case: F.Case, tau0: float, setup: str = "fiducial") -> str:
     from spiralbayes.templates.wake import GENERATOR_VERSION, WakeSettings
 
     st = (F.REF_DIR / case.file).stat()
-    key = (f"{case.file}:{case.group}|{tau0:g}|{st.st_size}-{st.st_mtime_ns}|v{GENERATOR_VERSION}|{WakeSettings().key()}"
+    key = (f"{case.file}:{case.group}|{tau0:g}|{st.st_size}-{st.st_mtime_ns}|v{GENERATOR_VERSION}"
+           f"|{WakeSettings().key()}"
            f"|blocks{GRAM_VERSION}|W{BROAD_WIDTH:g}")
     return key if setup == "fiducial" else f"{key}|{setup}"
 
@@ -68,10 +70,8 @@ def case_gram(case: F.Case, tau0: float, setup: str = "fiducial") -> dict:
     if key not in store:
         compute = compute_case_gram if setup == "fiducial" else compute_c4_gram
         store[key] = {k: float(v) for k, v in compute(case, tau0).items()}
-        try:  # re-read: another process may have added entries meanwhile
+        with contextlib.suppress(OSError, ValueError):  # re-read: another process may have added entries meanwhile
             store = {**json.loads(path.read_text()), key: store[key]}
-        except (OSError, ValueError):
-            pass
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             tmp = path.with_suffix(f".{os.getpid()}.tmp")
@@ -82,7 +82,7 @@ def case_gram(case: F.Case, tau0: float, setup: str = "fiducial") -> dict:
     return dict(store[key])
 
 
-@lru_cache(maxsize=None)
+@cache
 def compute_case_gram(case: F.Case, tau0: float) -> dict:
     """Inner products of the reference S with the variant blocks (T: the compromise template of the
     case's mass, h_p and β — the β = 10 generator for the β = 10 runs; B: the near-planet blob; W:
@@ -101,7 +101,7 @@ def compute_case_gram(case: F.Case, tau0: float) -> dict:
             "WW": power[3], "TB": tx[1], "TW": tx[2], "BW": bw[1]}
 
 
-@lru_cache(maxsize=None)
+@cache
 def compute_c4_gram(case: F.Case, tau0: float) -> dict:
     """:func:`compute_case_gram` in the ``c4`` set-up (:data:`SETUPS`; templates on the calibration's
     coarser grid ``limits_setup.GRID``), from the scan engine's cross and power terms at the truth."""
@@ -191,7 +191,8 @@ def fit_source(rows, slopes=BLOB_SLOPES, scale_slopes=(0.0,), margin: float = MA
     ``k_m <= margin`` that leaves every map of that mass with ``A_hat >= 1/margin``
     (:func:`mass_factors`); the pair whose shrunk variant has the smallest mean residual is kept.
     Returns the constants (``scale_final``, ``blob_final``, ``broad_final``: before the shrink), the
-    shrinks ``mass_factors`` (``k``: the smallest) and the binding map (overall and per mass). ``broad=False``: T and B only (broad = 0)."""
+    shrinks ``mass_factors`` (``k``: the smallest) and the binding map (overall and per mass).
+    ``broad=False``: T and B only (broad = 0)."""
     use = [0, 1, 2] if broad else [0, 1]
     best = None
     for a in scale_slopes:
@@ -205,8 +206,8 @@ def fit_source(rows, slopes=BLOB_SLOPES, scale_slopes=(0.0,), margin: float = MA
             coef[use] = np.linalg.solve(gram[np.ix_(use, use)], y[use])
             scale, blob, w = coef
 
-            def amps(case, k=1.0):
-                return k * scale * case.mu**a, k * blob * case.mu**c, k * w * case.mu**a
+            def amps(case, k=1.0):  # called within this iteration only
+                return k * scale * case.mu**a, k * blob * case.mu**c, k * w * case.mu**a  # noqa: B023
 
             a_hats = [upper_limit(g, *amps(case))[0] for case, _, g in rows]
             factors = mass_factors(rows, a_hats, margin)

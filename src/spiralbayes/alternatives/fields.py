@@ -77,7 +77,7 @@ class ProfileContext:
     I_table: np.ndarray
 
     @classmethod
-    def build(cls, profile, grid: DiscGrid) -> "ProfileContext":
+    def build(cls, profile, grid: DiscGrid) -> ProfileContext:
         """From a brightness callable ``I_A(r [arcsec]) -> Jy/sr``."""
         r_table = np.linspace(0.0, 2.0 * grid.r_max, PROFILE_TABLE_POINTS)
         I_table = np.asarray(profile(r_table), dtype=float)
@@ -225,7 +225,8 @@ class LopsidedModel(_CosSinModel):
 
     def describe(self, theta):
         a_c, a_s, r_c, s_r = theta
-        return {"amplitude": float(np.hypot(a_c, a_s)), "phi_0_deg": float(wrap_angle(np.degrees(np.arctan2(a_s, a_c)), 0.0, 360.0)),
+        return {"amplitude": float(np.hypot(a_c, a_s)),
+                "phi_0_deg": float(wrap_angle(np.degrees(np.arctan2(a_s, a_c)), 0.0, 360.0)),
                 "r_c": float(r_c), "sigma_r": float(s_r)}
 
 
@@ -287,7 +288,8 @@ class EccentricRingModel(FieldModel):
 
     def describe(self, theta):
         e_c, e_s, r_c, s_r = theta
-        return {"e": float(np.hypot(e_c, e_s)), "omega_deg": float(wrap_angle(np.degrees(np.arctan2(e_s, e_c)), 0.0, 360.0)),
+        return {"e": float(np.hypot(e_c, e_s)),
+                "omega_deg": float(wrap_angle(np.degrees(np.arctan2(e_s, e_c)), 0.0, 360.0)),
                 "r_c": float(r_c), "sigma_r": float(s_r)}
 
 

@@ -69,7 +69,7 @@ class DiscGrid:
             raise InputError(f"DiscGrid needs n_r >= 2 and n_phi >= 8, got {self.n_r}, {self.n_phi}")
 
     @classmethod
-    def for_baselines(cls, uv_max: float, r_max: float, cell_factor: float = DEFAULT_CELL_FACTOR) -> "DiscGrid":
+    def for_baselines(cls, uv_max: float, r_max: float, cell_factor: float = DEFAULT_CELL_FACTOR) -> DiscGrid:
         """The grid for baselines up to ``uv_max`` [lambda] and emission within ``r_max`` [arcsec]."""
         dr_max = 1.0 / (cell_factor * uv_max) / ARCSEC
         n_r = max(int(np.ceil(r_max / dr_max)), 2)

@@ -310,7 +310,7 @@ def _collocation_count(vis: Visibilities, geometry: DiscGeometry, Rmax: float, N
         log.info("sparse data (%d visibilities < %d): frank N = %d covers the longest baseline (see "
                  "fit_axisymmetric's notes)", vis.n, default, sparse)
         return sparse
-    if N > vis.n and sparse < N:
+    if vis.n < N and sparse < N:
         warnings.warn(f"frank's N = {N} exceeds the {vis.n} visibilities: the extra coefficients are set by the "
                       f"prior alone while each of frank's ~500-800 iterations costs O(N^3); N = {sparse} covers the "
                       "longest baseline and fits ~5x faster with the profile within ~1 % "

@@ -110,7 +110,7 @@ class ProfilePrior:
         return self.dht.coefficients(np.abs(np.asarray(q, dtype=float)), direction="forward")
 
     @classmethod
-    def from_model(cls, axisymmetric, *, floor: float = PROFILE_POWER_FLOOR) -> "ProfilePrior":
+    def from_model(cls, axisymmetric, *, floor: float = PROFILE_POWER_FLOOR) -> ProfilePrior:
         """The prior of a frank fit (its MAP power spectrum), else the profile's own power.
 
         Parameters
@@ -161,7 +161,7 @@ class QGridProjector:
     stats: dict = field(default_factory=dict)
 
     @classmethod
-    def build(cls, prior: ProfilePrior, q_max: float, *, tolerance: float = 1e-9, order: int = 8) -> "QGridProjector":
+    def build(cls, prior: ProfilePrior, q_max: float, *, tolerance: float = 1e-9, order: int = 8) -> QGridProjector:
         """A grid up to ``q_max`` [lambda] whose interpolation error is about ``tolerance``."""
         if order not in _LAGRANGE_CONSTANT:
             raise InputError(f"order = {order}: use one of {sorted(_LAGRANGE_CONSTANT)}")

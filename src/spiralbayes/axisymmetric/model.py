@@ -10,7 +10,7 @@ import logging
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -137,7 +137,7 @@ class AxisymmetricModel:
     @classmethod
     def from_profile(cls, profile: Callable[[np.ndarray], np.ndarray], geometry: DiscGeometry | None = None,
                      *, N: int = DEFAULT_HYPERPARAMETERS["N"], Rmax: float = DEFAULT_HYPERPARAMETERS["Rmax"],
-                     ) -> "AxisymmetricModel":
+                     ) -> AxisymmetricModel:
         """A model of a known brightness profile (no fit), e.g. for simulations and tests.
 
         Parameters
@@ -159,14 +159,14 @@ class AxisymmetricModel:
                    hyperparameters={"N": int(N), "Rmax": float(Rmax), "source": "profile"},
                    frank_version=_frank_version())
 
-    def nonnegative(self) -> "AxisymmetricModel":
+    def nonnegative(self) -> AxisymmetricModel:
         """The same model with the non-negative profile ``I_nonneg`` as its brightness."""
         if self.I_nonneg is None:
             raise InputError("this model has no non-negative profile: fit with nonnegative=True")
         return replace(self, I=self.I_nonneg, I_err=None,
                        hyperparameters={**self.hyperparameters, "profile": "nonnegative"})
 
-    def with_geometry(self, geometry: DiscGeometry) -> "AxisymmetricModel":
+    def with_geometry(self, geometry: DiscGeometry) -> AxisymmetricModel:
         """The same profile seen under another geometry."""
         return replace(self, geometry=geometry)
 
@@ -410,7 +410,7 @@ class AxisymmetricModel:
                 f"face-on flux {self.total_flux:.4g} Jy, sky flux {self.total_flux * g.cos_inc:.4g} Jy)")
 
     @classmethod
-    def load(cls, path) -> "AxisymmetricModel":
+    def load(cls, path) -> AxisymmetricModel:
         """Read a model written by :meth:`save`.
 
         A missing, truncated or corrupt file raises :class:`~spiralbayes.exceptions.MissingFileError`

@@ -71,9 +71,8 @@ MS_SUFFIXES = (".ms",)
 def _format_of(path: Path) -> str:
     suffixes = [s.lower() for s in path.suffixes]
     suffix = suffixes[-2] if suffixes and suffixes[-1] == ".gz" and len(suffixes) > 1 else path.suffix.lower()
-    if path.is_dir() or suffix in MS_SUFFIXES:
-        if suffix in MS_SUFFIXES or (path / "table.dat").exists():
-            return "ms"
+    if (path.is_dir() or suffix in MS_SUFFIXES) and (suffix in MS_SUFFIXES or (path / "table.dat").exists()):
+        return "ms"
     if suffix in UVTABLE_SUFFIXES:
         return "uvtable"
     if suffix in NPZ_SUFFIXES:

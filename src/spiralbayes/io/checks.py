@@ -71,7 +71,7 @@ def check_uv_units(u, v, wavelength=None, source: str = "data", *, warn_ambiguou
     if q.size == 0:
         return
     q_lo, q_hi = float(np.quantile(q, 0.01)), float(q.max())
-    as_metres = MIN_BASELINE_M / 3 <= q_lo and q_hi <= MAX_BASELINE_M
+    as_metres = q_lo >= MIN_BASELINE_M / 3 and q_hi <= MAX_BASELINE_M
     known = wavelength is not None and np.all(np.isfinite(wavelength))
     if known:
         wle = float(np.mean(wavelength))

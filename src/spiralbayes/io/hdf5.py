@@ -115,9 +115,8 @@ def write_hdf5(vis: Visibilities, path) -> Path:
     import h5py
 
     path = Path(path)
-    with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w") as fh:
-            visibilities_to_hdf5_group(vis, fh)
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as fh:
+        visibilities_to_hdf5_group(vis, fh)
     log.info("wrote %d visibilities to %s", vis.n, path)
     return path
 

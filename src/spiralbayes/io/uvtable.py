@@ -56,7 +56,7 @@ class _UVTableHeader:
 
 
 def _open_text(path: Path):
-    return gzip.open(path, "rt") if path.suffix.lower() == ".gz" else open(path, "r", encoding="utf-8",
+    return gzip.open(path, "rt") if path.suffix.lower() == ".gz" else open(path, encoding="utf-8",
                                                                              errors="replace")
 
 
@@ -244,8 +244,8 @@ def write_uvtable(vis: Visibilities, path, *, delimiter: str | None = None) -> P
               "Columns:\tu[lambda]\tv[lambda]\tRe(V)[Jy]\tIm(V)[Jy]\tweight[Jy^-2]"]
     table = np.column_stack([vis.u, vis.v, vis.V.real, vis.V.imag, vis.weights])
     with atomic_path(path) as tmp:
-        target = gzip.open(tmp, "wb") if path.suffix.lower() == ".gz" else open(tmp, "wb")
-        with target as fh:
+        opener = gzip.open if path.suffix.lower() == ".gz" else open
+        with opener(tmp, "wb") as fh:
             np.savetxt(fh, table, fmt="%.17g", delimiter=delimiter, header="\n".join(lines))
     log.info("wrote %d visibilities to %s", vis.n, path)
     return path

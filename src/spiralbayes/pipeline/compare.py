@@ -86,7 +86,8 @@ def run_compare_config(config: dict, *, progress: bool = True) -> CompareResult:
     r_out = c["r_out"] or 1.1 * axisym.R_eff(0.99)
     t1 = time.perf_counter()
     residuals = clean_residuals(vis, axisym, out_dir / "casa", method=c["residuals"], r_out=r_out,
-                                imsize=c["imsize"] or None, cell=c["cell"] or None, threshold_sigma=c["threshold_sigma"],
+                                imsize=c["imsize"] or None, cell=c["cell"] or None,
+                                threshold_sigma=c["threshold_sigma"],
                                 weighting=c["weighting"], robust=c["robust"], niter=c["niter"],
                                 deconvolver=c["deconvolver"], keep_files=c["keep_casa_files"])
     timings["clean_s"] = time.perf_counter() - t1

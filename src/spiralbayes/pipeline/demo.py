@@ -47,8 +47,9 @@ def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0
 
     The planet: 1 M_th, tau0 = 3, beta = 10, right-handed, at 50 au (140 pc), phi_p = 0, in a
     power-law disc (10-110 au) whose optical depth at 50 au is the template's tau0 = 3, of
-    inclination 30 deg and PA 60 deg. The scan takes the default bank's templates (:func:`~spiralbayes.templates.default_bank`:
-    every morphology, both hands) at the masses given, tau0 = 3, beta = 10 and H/r = 0.07, on the
+    inclination 30 deg and PA 60 deg. The scan takes the default bank's templates
+    (:func:`~spiralbayes.templates.default_bank`: every morphology, both hands) at the masses given,
+    tau0 = 3, beta = 10 and H/r = 0.07, on the
     default grid (:class:`~spiralbayes.inference.scan.settings.ScanSettings`): the path a user's own
     ``sb.scan(vis, disc, sb.default_bank().select(...))`` takes, on a smaller template set.
     With ``alternatives`` the competing asymmetry models are fitted too (test 3). ``scheduler`` as

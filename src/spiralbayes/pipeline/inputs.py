@@ -91,8 +91,8 @@ def load_axisymmetric(config: dict, vis, *, progress: bool = True) -> Axisymmetr
         check_fitted_to(model, vis, f"[frank] model {f['model']}")
         return model
     if not config["geometry"]["fit"] and not geometry_given(config):
-        raise ConfigError(f"{getattr(config, 'source', '') or 'the configuration'}: no [geometry] inc and PA, and frank "
-                          "must be fitted: give the disc's inclination and position angle in degrees ([geometry] "
+        raise ConfigError(f"{getattr(config, 'source', '') or 'the configuration'}: no [geometry] inc and PA, and "
+                          "frank must be fitted: give the disc's inclination and position angle in degrees ([geometry] "
                           "inc = ..., PA = ...), or set [geometry] fit = true to fit them")
     axisym = fit_axisymmetric(vis, _geometry(config), N=f["N"] or None, Rmax=f["Rmax"], alpha=f["alpha"], p0=f["p0"],
                               weights_smooth=f["weights_smooth"], nonnegative=f["nonnegative"],

@@ -14,7 +14,6 @@ from ..geometry import DiscGeometry
 from ..settings import DEFAULT_DISTANCE_PC
 from ..inference.scan.run import scan
 from ..simulate import DiscModel, simulate_observation
-from ..settings import DEFAULT_DISTANCE_PC
 from ..templates import default_bank, make_template
 from .._hdf5 import require_file
 from .inputs import load_data, load_templates
@@ -84,7 +83,8 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
     table3 = build_table3(limits, comps[0] if len(comps) == 1 else None, name=name, thresholds=thresholds)
     if len(comps) > 1:
         table3.meta["notes"] = list(table3.meta["notes"]) + [
-            f"Minimum detectable mass, {label}: 50 %: {_det(c, 0.5)}; 90 %: {_det(c, 0.9)}" for label, c in first.items()]
+            f"Minimum detectable mass, {label}: 50 %: {_det(c, 0.5)}; 90 %: {_det(c, 0.9)}"
+            for label, c in first.items()]
     table = markdown_table(table3)
     files += write_table(table3, out_dir / "table3")
     several = len(limits.families) > 1  # then the first line is the limit that holds for every family

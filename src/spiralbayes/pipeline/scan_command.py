@@ -86,8 +86,8 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
                                axisymmetric=axisym, templates=templates)
     files.append(axisym.save(out_dir / "axisymmetric.h5"))
     forced = result.provenance.get("forced_resume")
-    note = "" if not forced else ("# FORCED RESUME (--force-resume): the numbers kept from the checkpoint were computed "
-                                  "with other inputs: " + "; ".join(forced["differences"]) + "\n")
+    note = "" if not forced else ("# FORCED RESUME (--force-resume): the numbers kept from the checkpoint were "
+                                  "computed with other inputs: " + "; ".join(forced["differences"]) + "\n")
     files.append(_write_text(out_dir / "config_used.toml", note + describe_config(config)))
     follow = None
     if alts is not None and a["refit_geometry"] and _geometry_error_significant(alts) and not verdict.detected:
@@ -95,7 +95,8 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
                                            scheduler=scheduler, progress=progress, alternative_kwargs=alt_kwargs,
                                            detect_kwargs=detect_kwargs)
         sub = out_dir / "refit_geometry"
-        files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude, alternatives=follow.alternatives,
+        files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude,
+                                    alternatives=follow.alternatives,
                                     vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
         files.append(follow.axisymmetric.save(sub / "axisymmetric.h5"))
     return ScanRun(verdict, result, alts, follow, files)

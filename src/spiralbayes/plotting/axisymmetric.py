@@ -6,7 +6,7 @@ state (safe under the Agg backend, in scripts and in tests).
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from matplotlib.figure import Figure

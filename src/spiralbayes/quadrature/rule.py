@@ -140,7 +140,7 @@ class ProductQuadrature:
         """Node positions ``(xi, eta)`` [rad], shape ``(size, 2)`` (flat order, cached)."""
         return self._positions
 
-    def at(self, r_p: float, support: float | None = None) -> "ProductQuadrature":
+    def at(self, r_p: float, support: float | None = None) -> ProductQuadrature:
         """The same nodes in ``x`` at a planet radius ``r_p <= self.r_p`` (still exact: the kernel's
         phase per unit x and the angular bandwidth only shrink), for a profile vanishing beyond
         ``support`` [arcsec] (default: this rule's). Build the rule without ``support`` when it

@@ -117,7 +117,7 @@ class TemplateBank(Sequence):
         return int(sum(t.delta.nbytes for t in self._templates))
 
     # ----------------------------------------------------------------- selection
-    def select(self, *, mass=None, tau0=None, beta=None, hand=None, h_p=None, rtol: float = 1e-6) -> "TemplateBank":
+    def select(self, *, mass=None, tau0=None, beta=None, hand=None, h_p=None, rtol: float = 1e-6) -> TemplateBank:
         """Sub-bank of templates matching every given criterion.
 
         Each criterion is a scalar or a list of accepted values; floats compare with relative
@@ -175,7 +175,7 @@ class TemplateBank(Sequence):
         return Path(path)
 
     @classmethod
-    def load(cls, path) -> "TemplateBank":
+    def load(cls, path) -> TemplateBank:
         """Read a bank written by :meth:`save`.
 
         A missing, truncated or corrupt file raises :class:`~spiralbayes.exceptions.MissingFileError`

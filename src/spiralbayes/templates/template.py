@@ -29,7 +29,8 @@ from .._provenance import json_safe, to_json
 from ..exceptions import InputError
 from ..units import TWO_PI
 
-__all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "template_metadata", "check_mass_beta", "check_tau0", "template_name", "validate_hand"]
+__all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "template_metadata", "check_mass_beta", "check_tau0",
+           "template_name", "validate_hand"]
 
 log = logging.getLogger(__name__)
 
@@ -209,7 +210,7 @@ class SpiralTemplate:
         return float(np.sqrt(np.sum(w * d2) / np.sum(w)))
 
     # ------------------------------------------------------------------ transformations
-    def mirror(self) -> "SpiralTemplate":
+    def mirror(self) -> SpiralTemplate:
         """The other hand: ``δ_L(x, φ) = δ_R(x, −φ)``, ``hand`` flipped.
 
         Exact on the grid when ``phi`` is symmetric under ``φ → −φ (mod 2π)`` (e.g. ``φ_k = 2πk/n``);
@@ -257,7 +258,7 @@ class SpiralTemplate:
             u = np.log(r / r_p)
         return _bilinear(self.delta, np.log(self.x), self.phi, u, phi - phi_p)
 
-    def on_grid(self, x_new, n_phi: int | None = None) -> "SpiralTemplate":
+    def on_grid(self, x_new, n_phi: int | None = None) -> SpiralTemplate:
         """Resample onto radii ``x_new`` (r/r_p) and ``n_phi`` uniform azimuths ``2πk/n_phi``.
 
         Uses :meth:`evaluate` (bilinear in ``(ln x, φ)``); radii outside the current range get 0.
@@ -290,7 +291,7 @@ class SpiralTemplate:
         group.attrs["provenance"] = self.provenance_json()
 
     @classmethod
-    def from_hdf5_group(cls, group) -> "SpiralTemplate":
+    def from_hdf5_group(cls, group) -> SpiralTemplate:
         """Read a template written by :meth:`to_hdf5_group`."""
         a = group.attrs
         return cls(x=group["x"][()], phi=group["phi"][()], delta=group["delta"][()], hand=str(a["hand"]),

@@ -39,6 +39,7 @@ the template family (:mod:`spiralbayes.inference.limits.families`) and of mirror
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
@@ -257,7 +258,7 @@ def variant_template(mass: float, tau0: float, beta: float, hand: str = "R", var
     return t if validate_hand(hand) == "R" else t.mirror()
 
 
-def variant_grid(variants=DEFAULT_VARIANTS, masses=PAPER_MASSES, taus=PAPER_TAUS, betas=PAPER_BETAS,  # noqa: PLR0913
+def variant_grid(variants=DEFAULT_VARIANTS, masses=PAPER_MASSES, taus=PAPER_TAUS, betas=PAPER_BETAS,
                  hands=("R", "L"), h_ps=(0.07,), **options) -> list[SpiralTemplate]:
     """Every variant's template for each (H/r, mass, τ0, β, hand): the paper's grid times the
     morphology set (3 variants × 3 H/r × 64 = 576 templates with the defaults of the default bank)."""
@@ -305,10 +306,8 @@ def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: 
     log.info("built the morphology-variant bank (%d templates) in %.1f s", len(templates), time.perf_counter() - t0)
     bank = TemplateBank(templates, {"variant_key": key, "variants": [v.name for v in chosen], "h_ps": list(h_ps),
                                     "generator": "spiralbayes.templates.variants.variant_grid"})
-    try:
+    with contextlib.suppress(OSError):  # a read-only cache folder costs a rebuild next time, nothing more
         bank.save(path)
-    except OSError:
-        pass
     return bank
 
 

@@ -19,7 +19,7 @@ FILES = {"scan.h5": b.scan_result, "alternatives.h5": b.alternatives_result, "li
          "completeness.h5": b.completeness_result, "posterior.h5": b.posterior_result}
 
 if __name__ == "__main__":
-    if not hasattr(spiralbayes.ScanResult.best, "__call__") or hasattr(spiralbayes, "results"):
+    if not callable(spiralbayes.ScanResult.best) or hasattr(spiralbayes, "results"):
         sys.exit(f"{spiralbayes.__file__} is not the code before the dataclass layout: see this script's docstring")
     for name, build in FILES.items():
         build().save(OUT / name)

@@ -82,7 +82,8 @@ def evaluate(seed: int, frank: bool = False) -> dict:
     if first.test1_passed and first.test2_passed:
         alts = fit_alternatives(vis, axisym, geometry, progress=False)
     verdict = detect_with_planet_peak(result, vis, axisym, templates, geometry, alternatives=alts)
-    return {"seed": seed, "frank": frank, "n_vis": int(vis.V.size), "delta_bic": verdict.delta_bic, "template": verdict.template,
+    return {"seed": seed, "frank": frank, "n_vis": int(vis.V.size), "delta_bic": verdict.delta_bic,
+            "template": verdict.template,
             "test1": verdict.test1_passed, "test2": verdict.test2_passed, "test3": verdict.test3_passed,
             "candidate": verdict.candidate is not None, "detected": verdict.detected}
 

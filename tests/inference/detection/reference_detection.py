@@ -173,13 +173,16 @@ def format_table(rows) -> str:
         margin = "-" if r["test3_margin"] is None else f"{r['test3_margin']:.0f} ({r['best_alternative']})"
         if r["test3_spiral_model"] == "spiral + compact peak at the planet":
             margin += " +peak"
-        mr = "-" if r["mass_range_mth"] is None else "–".join(sorted({f"{m:g}" for m in r["mass_range_mth"]}, key=float))
+        mr = ("-" if r["mass_range_mth"] is None
+              else "–".join(sorted({f"{m:g}" for m in r["mass_range_mth"]}, key=float)))
         if r["detected"]:
             verdict = "detected" + ("" if accepted(r) or not required(r) else " (misplaced)")
         else:
             verdict = "not detected" + (" **(required)**" if required(r) else "")
-        lines.append(f"| {r['case']} | {r['tau0']:g} | {r['own_delta_bic']:.0f} | {r['delta_bic']:.0f} | {r['template']} "
-                     f"| {mr} | {r['mass_steps']:+d} | {r['dr_steps']:+.0f} | {r['dphi_deg']:+.0f} | {margin} | {verdict} |")
+        lines.append(f"| {r['case']} | {r['tau0']:g} | {r['own_delta_bic']:.0f} | {r['delta_bic']:.0f} | "
+                     f"{r['template']} "
+                     f"| {mr} | {r['mass_steps']:+d} | {r['dr_steps']:+.0f} | {r['dphi_deg']:+.0f} | {margin} | "
+                     f"{verdict} |")
     return "\n".join(lines)
 
 

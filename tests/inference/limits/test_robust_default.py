@@ -90,7 +90,8 @@ def _config(tmp_path, vis, model, bank_line: str = "") -> str:
     path.write_text(
         f'[data]\npath = "{vis_file.name}"\n[geometry]\ninc = 30\nPA = 60\ndistance = {F.DISTANCE}\n'
         f'[frank]\nmodel = "{model_file.name}"\n{bank_line}'
-        f"[grid]\nr_p_min = {float(R_GRID[0])!r}\nr_p_max = {float(R_GRID[-1])!r}\nn_r_p = {R_GRID.size}\nn_phi_p = {N_PHI}\n"
+        f"[grid]\nr_p_min = {float(R_GRID[0])!r}\nr_p_max = {float(R_GRID[-1])!r}\nn_r_p = {R_GRID.size}\nn_phi_p = "
+        f"{N_PHI}\n"
         '[alternatives]\nfit = false\n[limits]\ncompleteness = false\n'
         f'[output]\ndir = "{out.name}"\nplots = false\n')
     return str(path)

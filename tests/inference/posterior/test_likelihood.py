@@ -142,13 +142,13 @@ def test_amplitude_integral_and_draws():
 
     rng = np.random.default_rng(1)
     for c1, c2 in [(0.0, 0.0), (3.0, 0.0), (-3.0, 0.0), (5.0, 4.0), (-50.0, 10.0), (40.0, 15.0), (3e3, 1e3)]:
-        f = lambda a: np.exp(a * c1 - 0.5 * a * a * c2 - max(0.0, c1 * 2.0))  # noqa: E731
+        f = lambda a, c1=c1, c2=c2: np.exp(a * c1 - 0.5 * a * a * c2 - max(0.0, c1 * 2.0))  # noqa: E731
         shift = max(0.0, c1 * 2.0)
         if c1 < 100:
             ref = np.log(integrate.quad(f, 0, 2, limit=200)[0] / 2) + shift
             assert log_amplitude_integral(c1, c2, 2.0) == pytest.approx(ref, abs=1e-8)
             A = draw_amplitude(np.full(20000, c1), np.full(20000, c2), 2.0, rng)
-            mean = integrate.quad(lambda a: a * f(a), 0, 2)[0] / integrate.quad(f, 0, 2)[0]
+            mean = integrate.quad(lambda a, f=f: a * f(a), 0, 2)[0] / integrate.quad(f, 0, 2)[0]
             assert A.mean() == pytest.approx(mean, abs=5 * A.std() / np.sqrt(A.size) + 1e-6)
             assert A.min() >= 0 and A.max() <= 2
         else:  # far outside the prior: piled against A_max

@@ -51,7 +51,8 @@ def test_free_amplitude_never_worse(planet_scan):
 def test_resume_after_interruption_gives_identical_result(tmp_path, monkeypatch, planet_observation, small_bank):
     import importlib
 
-    scan_module = importlib.import_module("spiralbayes.inference.scan.run")  # the package exports a function of that name
+    # the package exports a function of that name
+    scan_module = importlib.import_module("spiralbayes.inference.scan.run")
 
     vis, axisym = planet_observation
     kwargs = dict(r_p=np.linspace(0.1, 0.5, 5), n_phi_p=30, progress=False)

@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from spiralbayes.inference.scan.uv_levels import build_level, lagrange_weights, power_all_phi, theta_count, uv_weight_coefficients
+from spiralbayes.inference.scan.uv_levels import (
+    build_level,
+    lagrange_weights,
+    power_all_phi,
+    theta_count,
+    uv_weight_coefficients,
+)
 from spiralbayes.units import ARCSEC
 
 

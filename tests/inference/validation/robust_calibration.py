@@ -60,7 +60,7 @@ def family(variants, mu: float, tau0: float, beta: float, h_p: float, hands: str
     return out
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def disc_model(tau0: float) -> AxisymmetricModel:
     disc = DiscModel(distance=L.DISTANCE, tau_ref=tau0)
     return AxisymmetricModel.from_profile(disc.profile(L.WAVELENGTH), L.GEOMETRY)

@@ -66,7 +66,8 @@ def test_planet_at_the_limiting_mass_is_rarely_excluded_many_realisations(limits
     print(out.summary())
     # between two scanned azimuths (half a 12 deg step) the nearest template instance overlaps the
     # planet less; reported, not asserted (docs/limits.md, "azimuth grid")
-    print("half a grid step off:", planted_at_limit(limits_case, 400, ON_GRID_PHI + np.pi / limits_setup.N_PHI).summary())
+    off_grid = planted_at_limit(limits_case, 400, ON_GRID_PHI + np.pi / limits_setup.N_PHI)
+    print("half a grid step off:", off_grid.summary())
 
 
 def test_amplitude_estimate_at_the_planted_instance_is_unbiased_with_the_stated_error(limits_case):
@@ -119,7 +120,7 @@ def systematic_rates(cases, n, power=100.0):
     family = limits_setup.family(tau0=0.3, beta=0.0)
     r_p, phi_p = 0.3, ON_GRID_PHI  # on the azimuth grid: only the template differs
     reports = []
-    for name, reference, mu in cases:
+    for _name, reference, mu in cases:
         bank = [t for t in family if np.isclose(t.mass, mu) and t.hand == "R"][0]
         probe = limits_setup.observation(35e-6)
         ctx = ScanContext.build(probe, limits_setup.disc_model(), limits_setup.GEOMETRY, [r_p], limits_setup.N_PHI)

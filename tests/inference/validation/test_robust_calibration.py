@@ -7,9 +7,9 @@ from scipy.stats import norm
 
 pytest.importorskip("h5py")
 
-from tests.inference.validation import robust_calibration as RC  # noqa: E402
-from tests.templates import fidelity as F  # noqa: E402
-from tests.templates import variant_fit as VF  # noqa: E402
+from tests.inference.validation import robust_calibration as RC
+from tests.templates import fidelity as F
+from tests.templates import variant_fit as VF
 
 CASES = {c.label: c for c in F.acceptance_cases()}
 

@@ -162,7 +162,8 @@ class AlternativesResult(ResultMixin):
         rows = [f"{'model':<16}{'k':>3}{'dchi2':>11}{'dBIC':>11}  parameters"]
         for name, fit in sorted(self.fits.items(), key=lambda kv: -kv[1].delta_chi2):
             pars = ", ".join(f"{k}={v:.4g}" for k, v in fit.params.items())
-            rows.append(f"{name:<16}{fit.n_params:>3}{fit.delta_chi2:>11.1f}{fit.delta_bic(self.n_data):>11.1f}  {pars}")
+            rows.append(f"{name:<16}{fit.n_params:>3}{fit.delta_chi2:>11.1f}"
+                        f"{fit.delta_bic(self.n_data):>11.1f}  {pars}")
         return "\n".join(rows)
 
     def summary(self) -> str:

@@ -13,7 +13,8 @@ peak is nearly a point source and adds nothing for extended impostors (arcs, lop
 patterns, eccentric rings, geometry errors); it is only compared with the **arc** alternative
 (the only compact one); every other alternative still faces the bare spiral's ΔBIC. Tests 1 and 2
 are unchanged. The verdict says which spiral score test 3 used (``Verdict.test3_spiral_model``).
-:func:`~.verdict.detect` applies it when given the scanned data (``vis``, ``axisymmetric``, ``templates``), as the pipeline runs it.
+:func:`~.verdict.detect` applies it when given the scanned data (``vis``, ``axisymmetric``,
+``templates``), as the pipeline runs it.
 """
 
 from __future__ import annotations
@@ -118,7 +119,8 @@ def apply_planet_peak(verdict, alternatives, peak: dict):
     margin, alt_bic, fit, with_peak = margins[name]
     passed = bool(margin > verdict.alternative_threshold)
     detected = verdict.test1_passed and verdict.test2_passed and passed
-    return dataclasses.replace(verdict, test3_passed=passed, best_alternative=fit.name, best_alternative_label=fit.label,
+    return dataclasses.replace(verdict, test3_passed=passed, best_alternative=fit.name,
+                               best_alternative_label=fit.label,
                                alternative_delta_bic=alt_bic, delta_bic_vs_alternative=float(margin),
                                detected=bool(detected),
                                test3_spiral_model=SPIRAL_PEAK_LABEL if with_peak else "spiral",

@@ -77,10 +77,8 @@ def _fourier_candidates(S, ctx, beam, model_name):
     g, r = ctx.grid, ctx.grid.r
     m = 2 if model_name == "m2" else 1
     S_m = np.fft.fft(S, axis=1)[:, m] / g.n_phi  # sum_phi S e^{-i m phi} / n_phi
-    if model_name == "eccentric_ring":
-        radial = r * ctx.interpolate(r)[1]  # dP/de at e = 0 is r I_A' W cos(phi - omega)
-    else:
-        radial = ctx.I_ring
+    # dP/de at e = 0 is r I_A' W cos(phi - omega)
+    radial = r * ctx.interpolate(r)[1] if model_name == "eccentric_ring" else ctx.I_ring
     kappas = (-2.0, 0.0, 2.0) if model_name == "m2" else (0.0,)
     out = []
     centres = r[r > 2 * g.dr]
@@ -111,7 +109,7 @@ def _same_place(a, b, name: str, min_sep: float) -> bool:
 def _distinct(cands, name, top: int, min_sep: float):
     """The ``top`` best candidates, skipping any too close (:func:`_same_place`) to a better one."""
     chosen = []
-    for score, theta in sorted(cands, key=lambda c: -c[0]):
+    for _score, theta in sorted(cands, key=lambda c: -c[0]):
         if any(_same_place(theta, t, name, min_sep) for t in chosen):
             continue
         chosen.append(theta)
@@ -162,10 +160,7 @@ def candidate_starts(name: str, S, ctx: ProfileContext, transform, R, weights, b
                      n_starts: int, n_candidates: int = 6):
     """Starting parameters for model ``name``: the ``n_starts`` best of ``n_candidates`` shapes."""
     model = FIELD_MODELS[name]
-    if name == "arc":
-        cands = _arc_candidates(S, ctx, beam)
-    else:
-        cands = _fourier_candidates(S, ctx, beam, name)
+    cands = _arc_candidates(S, ctx, beam) if name == "arc" else _fourier_candidates(S, ctx, beam, name)
     shapes = _distinct(cands, name, n_candidates, min_sep=2 * beam)
     if not shapes:
         return []

@@ -351,7 +351,8 @@ class Verdict(ResultMixin):
         label, margin, thr = self.best_alternative_label, self.delta_bic_vs_alternative, self.alternative_threshold
         own = f"Delta BIC = {self.alternative_delta_bic:.1f} against the axisymmetric model"
         if self.test3_spiral_model == "spiral + compact peak at the planet":
-            own += "; the spiral hypothesis scored as spiral + compact peak at the planet (inference.detection.planet_peak)"
+            own += ("; the spiral hypothesis scored as spiral + compact peak at the planet "
+                    "(inference.detection.planet_peak)")
         if self.test3_passed:
             return (f" Test 3: the spiral is preferred over the best competing asymmetry model ({label}, {own}) "
                     f"by Delta BIC = {margin:.1f} (> {thr:g}).")

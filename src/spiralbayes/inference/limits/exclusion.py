@@ -330,8 +330,8 @@ class ExclusionLimits(ResultMixin):
 
     def __repr__(self) -> str:
         flagged = int(np.count_nonzero(self.flags != ""))
-        return (f"ExclusionLimits({len(self.templates)} templates in {len(self.families)} families, {self.r_p.size} r_p "
-                f"({flagged} flagged), CL = {self.cl:g}, method = {self.method!r}, hand = {self.hand!r})")
+        return (f"ExclusionLimits({len(self.templates)} templates in {len(self.families)} families, {self.r_p.size} "
+                f"r_p ({flagged} flagged), CL = {self.cl:g}, method = {self.method!r}, hand = {self.hand!r})")
 
 
 def _read_format_1(f) -> ExclusionLimits:

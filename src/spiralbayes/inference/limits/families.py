@@ -73,7 +73,7 @@ class Family:
         return {"key": self.key, "masses": self.masses, "members": self.members, "label": self.label}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Family":
+    def from_dict(cls, d: dict) -> Family:
         return cls(d["key"], list(d["masses"]), {h: list(v) for h, v in d["members"].items()})
 
 

@@ -32,7 +32,8 @@ def _verdict_dict(planets) -> dict | None:
     """A detection verdict as a dict (a Verdict or its ``to_dict()``), or None."""
     if hasattr(planets, "test1_passed"):
         return {"test1_passed": planets.test1_passed, "r_p": planets.r_p,
-                "candidate": getattr(planets, "candidate", None), "alternatives": getattr(planets, "alternatives", None)}
+                "candidate": getattr(planets, "candidate", None),
+                "alternatives": getattr(planets, "alternatives", None)}
     if isinstance(planets, dict) and "test1_passed" in planets:
         return planets
     return None

@@ -23,7 +23,7 @@ __all__ = ["build_table3", "describe_family_limits", "families_text", "limits_ta
            "table_markdown", "write_table"]
 
 from .robust import family_morphology, morphologies, overall_price
-from .wording import THRESHOLDS, _family_list, _span, format_range, format_ranges, guard_sentences, runs
+from .wording import THRESHOLDS, _span, format_range, format_ranges, guard_sentences, runs
 
 
 def families_text(limits) -> str:

@@ -73,7 +73,8 @@ def guard_sentences(limits) -> list[str]:
                    + " arcsec are not reported as excluded (the planet is not in the model).")
     if prov.get("near_asymmetries"):
         out.append("Radii within one beam of significant non-spiral asymmetries ("
-                   + "; ".join(f"{b['model']} at {b['r_min']:.3g}-{b['r_max']:.3g} arcsec, Delta BIC {b['delta_bic']:.0f}"
+                   + "; ".join(f"{b['model']} at {b['r_min']:.3g}-{b['r_max']:.3g} arcsec, Delta BIC "
+                               f"{b['delta_bic']:.0f}"
                                for b in prov["near_asymmetries"])
                    + ") are not reported as excluded (no template stands for them).")
     return out

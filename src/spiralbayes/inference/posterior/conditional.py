@@ -106,7 +106,7 @@ class SpiralLikelihood:
     def __init__(self, vis, axisymmetric, template, r_range, *, reference_geometry: DiscGeometry | None = None,
                  epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
                  rp_step: float | None = None, cell_factor: float = DEFAULT_CELL_FACTOR, progress: bool = False,
-                 mirror_of: "SpiralLikelihood | None" = None):
+                 mirror_of: SpiralLikelihood | None = None):
         vis = vis.standardised()
         self.template = template
         self.axisymmetric = axisymmetric

@@ -65,8 +65,8 @@ def _convergence_message(name: str, diag: dict) -> str:
     low_ess = min(diag["ess"], key=diag["ess"].get)
     return (f"template {name}: chain of {diag['n_steps']} steps is not converged: it needs > "
             f"{diag['tau_factor']:g} tau = {diag['tau_factor'] * diag['tau_max']:.0f} steps (largest tau = "
-            f"{diag['tau_max']:.1f} for {worst!r}) and ESS >= {diag['min_ess']:g} (lowest {diag['ess'][low_ess]:.0f} for "
-            f"{low_ess!r}); run about {diag['more_steps']} more steps (tau estimates grow on short chains, so "
+            f"{diag['tau_max']:.1f} for {worst!r}) and ESS >= {diag['min_ess']:g} (lowest {diag['ess'][low_ess]:.0f} "
+            f"for {low_ess!r}); run about {diag['more_steps']} more steps (tau estimates grow on short chains, so "
             "maybe more)")
 
 

@@ -34,8 +34,8 @@ midpoint cells is not needed.
 
 Mirror templates share tables: ``delta_L(x, phi) = delta_R(x, -phi)`` and the quadrature is
 symmetric under ``phi -> -phi``, so ``T_L(sigma_xi, sigma_eta) = T_R(sigma_xi, -sigma_eta)``;
-:class:`~spiralbayes.inference.perturbation.FastPerturbation` built with ``mirror_of`` flips the sign of one coordinate instead of
-building a table (checked in the tests against a table of its own).
+:class:`~spiralbayes.inference.perturbation.FastPerturbation` built with ``mirror_of`` flips the sign of one
+coordinate instead of building a table (checked in the tests against a table of its own).
 """
 
 from __future__ import annotations
@@ -96,7 +96,7 @@ class AxisymmetricTable:
 
     @classmethod
     def build(cls, axisymmetric, q_max: float, *, relative_error: float = 1e-7,
-              max_nodes: int = 2 ** 21) -> "AxisymmetricTable":
+              max_nodes: int = 2 ** 21) -> AxisymmetricTable:
         """Tabulate up to ``q_max`` [lambda] with linear-interpolation error ~``relative_error``.
 
         The curve of a profile of radius ``R`` oscillates at most like ``cos(2 pi q R)``, whose
@@ -160,7 +160,7 @@ class _Cells:
 
     @classmethod
     def build(cls, template, r_max: float, uv_max: float, cell_factor: float | None = None,
-              support: float | None = None, breaks=()) -> "_Cells":
+              support: float | None = None, breaks=()) -> _Cells:
         """``cell_factor`` is accepted for compatibility and unused (the product rule needs none)."""
         return cls(template, r_max, uv_max, support, breaks)
 

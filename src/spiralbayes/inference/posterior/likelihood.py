@@ -283,7 +283,7 @@ class ProfileMarginal:
         return replace(self.axisymmetric, I=I, I_err=err, I_nonneg=None, geometry=g, hyperparameters=hyper,
                        frank_solution=None)
 
-    def centred_at(self, geometry) -> "ProfileMarginal":
+    def centred_at(self, geometry) -> ProfileMarginal:
         """A copy centred on the conditional profile at ``geometry`` (same numbers, smaller terms)."""
         model = self.conditional_profile(geometry)
         other = ProfileMarginal.__new__(ProfileMarginal)

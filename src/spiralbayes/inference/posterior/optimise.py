@@ -131,7 +131,7 @@ def find_map(logpost, priors: Priors, scan, name: str, geometry: np.ndarray, geo
             break
     optima = []
     for s in chosen:
-        planet = _nelder_mead(lambda p: f(np.concatenate([p, s[2:]])), s[:2], np.array([0.02 * span, 0.05]), 120,
+        planet = _nelder_mead(lambda p, s=s: f(np.concatenate([p, s[2:]])), s[:2], np.array([0.02 * span, 0.05]), 120,
                               restarts=1)
         x = np.concatenate([planet, s[2:]])
         steps = np.concatenate([[0.01 * span, 0.02], 3.0 * np.asarray(geometry_sigma, float)])

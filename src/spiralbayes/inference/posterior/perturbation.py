@@ -50,7 +50,7 @@ class FastPerturbation:
     def __init__(self, u, v, weights, profile, template, r_range, reference_geometry: DiscGeometry, *,
                  epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
                  rp_step: float | None = None, cell_factor: float = 20.0, progress: bool = False,
-                 mirror_of: "FastPerturbation | None" = None, max_nodes: int = 2000, rp_order: int = 6):
+                 mirror_of: FastPerturbation | None = None, max_nodes: int = 2000, rp_order: int = 6):
         t0 = time.perf_counter()
         r_lo, r_hi = float(r_range[0]), float(r_range[1])
         if not (0 < r_lo < r_hi):

@@ -89,7 +89,7 @@ class Priors:
 
     @classmethod
     def default(cls, axisymmetric, *, geometry: DiscGeometry | None = None, r_p=None, widths: dict | None = None,
-                amplitude_max: float | None = DEFAULT_AMPLITUDE_MAX) -> "Priors":
+                amplitude_max: float | None = DEFAULT_AMPLITUDE_MAX) -> Priors:
         """Defaults: r_p over the disc's extent, geometry centred on the frank geometry.
 
         Parameters
@@ -119,7 +119,7 @@ class Priors:
                    (geometry.dRA, widths["dRA"]), (geometry.dDec, widths["dDec"]), amplitude_max)
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Priors":
+    def from_dict(cls, d: dict) -> Priors:
         unknown = set(d) - {"r_p", "inc", "PA", "dRA", "dDec", "amplitude_max"}
         if unknown:
             raise InputError(f"unknown prior keys {sorted(unknown)}: use r_p, inc, PA, dRA, dDec, amplitude_max")

@@ -164,7 +164,7 @@ class TemplateRun(ResultMixin):
                 "chain_path": self.chain_path, "group": self.group}
 
     @classmethod
-    def from_record(cls, d: dict, samples: np.ndarray) -> "TemplateRun":
+    def from_record(cls, d: dict, samples: np.ndarray) -> TemplateRun:
         """The run from :meth:`record` and its samples."""
         return cls(d["name"], d["metadata"], d["mode"], np.asarray(samples), np.array(d["theta_map"]),
                    np.array(d["covariance"]), d["ln_evidence"], d["ln_evidence_err"], d["ln_evidence_laplace"],
@@ -207,7 +207,8 @@ class NullRun(ResultMixin):
 
     def summary(self) -> str:
         """ln Z_0 and the percentiles of the geometry."""
-        return (f"No planet ({len(self.samples)} samples): ln Z0 = {self.ln_evidence:.2f} +- {self.ln_evidence_err:.2f} "
+        return (f"No planet ({len(self.samples)} samples): ln Z0 = {self.ln_evidence:.2f} +- "
+                f"{self.ln_evidence_err:.2f} "
                 f"(Laplace {self.ln_evidence_laplace:.2f}); inc, PA [deg], dRA, dDec [arcsec]:\n"
                 + _format_stats(self.percentiles()))
 
@@ -226,7 +227,7 @@ class NullRun(ResultMixin):
                 "diagnostics": self.diagnostics}
 
     @classmethod
-    def from_record(cls, d: dict, samples: np.ndarray) -> "NullRun":
+    def from_record(cls, d: dict, samples: np.ndarray) -> NullRun:
         """The run from :meth:`record` and its samples."""
         return cls(np.asarray(samples), np.array(d["geometry_map"]), np.array(d["covariance"]), d["ln_evidence"],
                    d["ln_evidence_err"], d["ln_evidence_laplace"], d.get("profile", {}), d.get("diagnostics", {}))
@@ -334,7 +335,8 @@ class PosteriorResult(ResultMixin):
         return (f"planet preferred: P(planet | data) = {p:.4g}, ln B = {lnb:.2f}; most probable template "
                 f"{self.best.name} (P = {self.template_probabilities[self.best.name]:.3g} given a planet): "
                 f"r_p = {s['r_p']['median']:.4f} (+{s['r_p']['hi'] - s['r_p']['median']:.4f} "
-                f"-{s['r_p']['median'] - s['r_p']['lo']:.4f}) arcsec, phi_p = {wrap_angle(np.degrees(s['phi_p']['median']), 0.0, 360.0):.1f} "
+                f"-{s['r_p']['median'] - s['r_p']['lo']:.4f}) arcsec, phi_p = "
+                f"{wrap_angle(np.degrees(s['phi_p']['median']), 0.0, 360.0):.1f} "
                 f"+- {np.degrees(s['phi_p']['std']):.1f} deg, A = {s['A']['median']:.2f} "
                 f"(+{s['A']['hi'] - s['A']['median']:.2f} -{s['A']['median'] - s['A']['lo']:.2f})"
                 + self._mass_clause())
@@ -450,7 +452,8 @@ class PosteriorResult(ResultMixin):
                           "runs": [r.to_dict() for r in self.runs]})
 
     def __repr__(self) -> str:
-        return (f"PosteriorResult({self.run_name!r}, {len(self.runs)} templates, P(planet | data) = {self.p_planet:.3g}, "
+        return (f"PosteriorResult({self.run_name!r}, {len(self.runs)} templates, P(planet | data) = "
+                f"{self.p_planet:.3g}, "
                 f"ln B = {self.ln_bayes_factor:.2f}, best {self.best.name if self.runs else None})")
 
 

@@ -165,7 +165,8 @@ def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed,
     if _writes_files():
         store.write(ChainState(np.empty((0, 0, 4)), np.empty((0, 0)), None, np.zeros(0), None, inputs,
                                null.record(), samples))
-    log.info("no planet: geometry mode inc %.4f PA %.4f dRA %.2f mas dDec %.2f mas; ln Z0 = %.2f +- %.2f (Laplace %.2f)",
+    log.info("no planet: geometry mode inc %.4f PA %.4f dRA %.2f mas dDec %.2f mas; "
+             "ln Z0 = %.2f +- %.2f (Laplace %.2f)",
              g_map[0], g_map[1], 1e3 * g_map[2], 1e3 * g_map[3], null.ln_evidence, null.ln_evidence_err,
              null.ln_evidence_laplace)
     return null, base
@@ -218,10 +219,7 @@ def _laplace(logpost, theta_map, priors, null):
 
 def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.ndarray:
     """``(r_p, phi_p, A, inc, PA, dRA, dDec)``: ``A`` drawn from its conditional posterior per sample."""
-    if priors.amplitude_max is None:
-        A = np.ones(len(samples6))
-    else:
-        A = draw_amplitude(c1, c2, priors.amplitude_max, rng)
+    A = np.ones(len(samples6)) if priors.amplitude_max is None else draw_amplitude(c1, c2, priors.amplitude_max, rng)
     out = np.column_stack([samples6[:, :2], A, samples6[:, 2:]])
     return wrap_phi(out)[0]
 
@@ -354,7 +352,8 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
     priors = priors or Priors.default(axisymmetric)
     priors.check_data(vis, axisymmetric)
     names = [t.name for t in templates]
-    prior_t = np.full(len(templates), 1.0 / len(templates)) if template_prior is None else np.asarray(template_prior, float)
+    prior_t = (np.full(len(templates), 1.0 / len(templates)) if template_prior is None
+               else np.asarray(template_prior, float))
     if prior_t.shape != (len(templates),) or np.any(prior_t <= 0):
         raise InputError("template_prior must hold one positive probability per template")
     prior_t = prior_t / prior_t.sum()
@@ -415,7 +414,8 @@ class _Stages:
         if self.k:
             self.bar.update(1)
         self.k += 1
-        log.info("posterior %d/%d: %s (%.1f min so far)", self.k, self.total, what, (time.perf_counter() - self.t0) / 60)
+        log.info("posterior %d/%d: %s (%.1f min so far)", self.k, self.total, what,
+                 (time.perf_counter() - self.t0) / 60)
 
     def close(self) -> None:
         self.bar.update(self.total - self.bar.n)

@@ -317,7 +317,7 @@ def _scan_groups(context: ScanContext, groups: list[VariantGroup]) -> dict[int, 
     return {index: TemplateTerms(*row) for index, row in rows.items()}
 
 
-def _assemble(context: ScanContext, quad, rows: dict, i: int, gen: Generator,  # noqa: PLR0913
+def _assemble(context: ScanContext, quad, rows: dict, i: int, gen: Generator,
               t: _Block, b: _Block | None, pair_error: float) -> None:
     """Each variant of ``gen`` at radius ``i`` from its blocks (module docstring)."""
     tb = None if b is None or all(a == 0.0 for _, _, a in gen.members) else _cross_power(context, quad, t, b)

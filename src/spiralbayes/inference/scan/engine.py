@@ -84,8 +84,8 @@ from .uv_levels import (
     theta_count,
 )
 
-__all__ = ["EngineSettings", "ScanContext", "TemplateTerms", "cross_template", "direct_delta_chi2", "perturbation_spectrum",
-           "profile_and_model_vis", "scan_template", "with_residual"]
+__all__ = ["EngineSettings", "ScanContext", "TemplateTerms", "cross_template", "direct_delta_chi2",
+           "perturbation_spectrum", "profile_and_model_vis", "scan_template", "with_residual"]
 
 
 POWER_EPSILON = 1e-7
@@ -226,7 +226,7 @@ class ScanContext:
     def build(cls, vis, axisymmetric, geometry: DiscGeometry, r_p, n_phi_p: int = ScanSettings.n_phi_p,
               cell_factor: float = DEFAULT_CELL_FACTOR, x_max: float = 2.2, nthreads: int = 1, *,
               rule: str | None = None, power_path: str | None = None,
-              settings: EngineSettings | ScanSettings | None = None) -> "ScanContext":
+              settings: EngineSettings | ScanSettings | None = None) -> ScanContext:
         """Residual, weights and (polar path) the uv grids for the radii ``r_p`` [arcsec].
 
         ``x_max`` is the largest ``r / r_p`` of the templates to scan; ``settings`` (or the
@@ -286,7 +286,7 @@ class ScanContext:
                              "settings=EngineSettings(power_path='polar', banded=False)")
         return self.levels[0].hat
 
-    def with_full_grid(self) -> "ScanContext":
+    def with_full_grid(self) -> ScanContext:
         """This context with one unbanded polar uv grid for every radius (the full weight
         coefficients :attr:`uv_weights_hat`, which injection–recovery needs); itself if it has one."""
         if self.power_path == "polar" and len(self.levels) == 1 and self.levels[0].hat is not None:
@@ -507,7 +507,7 @@ def perturbation_spectrum(context: ScanContext, flux: np.ndarray, quad) -> np.nd
     Shape ``(n_rho, n_theta // 2)``, complex64, planet at ``phi_p = 0`` and without the ``cos i``
     factor; the other half follows from ``P_hat(rho, theta + pi) = conj(P_hat(rho, theta))``.
     """
-    context.uv_weights_hat  # raises unless the context has the full grid
+    context.uv_weights_hat  # noqa: B018  (the property raises unless the context has the full grid)
     n_rho, n_theta = context.levels[0].n_rho, context.levels[0].n_theta
     p_hat = context.power_plan(quad).exec(forward=False, points_in=np.ravel(flux).astype(complex))
     return p_hat.reshape(n_rho, n_theta // 2).astype(np.complex64)

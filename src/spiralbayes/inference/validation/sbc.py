@@ -72,7 +72,8 @@ def draw_truth(setup: CalibrationSetup, rng, planet: bool = True) -> dict:
     truth = {"inc": rng.normal(*priors.inc), "PA": rng.normal(*priors.PA), "dRA": rng.normal(*priors.dRA),
              "dDec": rng.normal(*priors.dDec)}
     if planet:
-        truth.update(r_p=rng.uniform(*priors.r_p), phi_p=rng.uniform(0.0, TWO_PI), A=rng.uniform(0.0, setup.amplitude_max))
+        truth.update(r_p=rng.uniform(*priors.r_p), phi_p=rng.uniform(0.0, TWO_PI),
+                     A=rng.uniform(0.0, setup.amplitude_max))
     else:
         truth.update(r_p=None, phi_p=None, A=0.0)
     return {k: (None if v is None else float(v)) for k, v in truth.items()}

@@ -19,8 +19,9 @@ by :func:`spiralbayes.config.merge_config`) whose ``[output] dir`` is ``OUTPUT/d
 every disc's folder is what ``spiralbayes scan`` and ``limits`` would have written for it. A disc's
 name needs a letter or digit (``"."`` or ``".."`` would name the output folder itself) and its
 distance, as every configuration's, must lie between
-:data:`~spiralbayes.settings.MIN_DISTANCE_PC` and :data:`~spiralbayes.settings.MAX_DISTANCE_PC`. The file is read, its values coerced and its
-paths resolved (relative to the survey file) by the single-disc loader's functions
+:data:`~spiralbayes.settings.MIN_DISTANCE_PC` and :data:`~spiralbayes.settings.MAX_DISTANCE_PC`. The file is read,
+its values coerced and its paths resolved (relative to the survey file) by the single-disc loader's
+functions
 (:func:`~spiralbayes.config.read_toml`, :func:`~spiralbayes.config.merge_section`,
 :func:`~spiralbayes.config.resolve_paths`).
 """

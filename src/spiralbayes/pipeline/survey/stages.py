@@ -1,4 +1,5 @@
-"""The stages of one survey disc, as functions a Dask worker runs: load, frank, scan (in chunks), test 3, detect, limits, posterior, table row.
+"""The stages of one survey disc, as functions a Dask worker runs: load, frank, scan (in chunks), test 3,
+detect, limits, posterior, table row.
 
 Each stage writes what the single-disc command writes, in the disc's ``[output] dir``, and a
 marker ``survey_stage_<stage>.json`` holding its resume key (a hash of the configuration sections
@@ -269,11 +270,10 @@ def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
             continue
         for i, terms in run_unit(setup.context, unit).items():
             path = _part_path(job.out_dir, i)
-            with atomic_path(path) as tmp:
-                with open(tmp, "wb") as fh:
-                    np.savez(fh, key=setup.key, cross=terms[0], power=terms[1],
-                             cross_error=np.asarray(getattr(terms, "cross_error", np.nan)),
-                             power_error=np.asarray(getattr(terms, "power_error", np.nan)))
+            with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+                np.savez(fh, key=setup.key, cross=terms[0], power=terms[1],
+                         cross_error=np.asarray(getattr(terms, "cross_error", np.nan)),
+                         power_error=np.asarray(getattr(terms, "power_error", np.nan)))
             out[i] = terms
     return out
 

@@ -1,4 +1,5 @@
-"""The survey's outputs: one row per disc (the paper's Table 3 columns and the verdict), the table as ECSV and Markdown, the figure set.
+"""The survey's outputs: one row per disc (the paper's Table 3 columns and the verdict), the table as ECSV and
+Markdown, the figure set.
 
 Columns (``COLUMNS``): ``disc``; ``R_eff95_arcsec`` and ``R_eff95_au`` (radius holding 95 %
 of the frank profile's flux); for each mass threshold M of ``[limits] thresholds`` (the paper's
