@@ -160,7 +160,9 @@ class Visibilities:
 
     def _row_fields(self, index) -> dict:
         """The per-row optional fields (layout, antennas, time) of the selected rows."""
-        pick = (lambda a: None if a is None else a[index])
+        def pick(a):
+            return None if a is None else a[index]
+
         return {"layout": None if self.layout is None else self.layout.subset(index),
                 "antenna1": pick(self.antenna1), "antenna2": pick(self.antenna2), "time": pick(self.time)}
 
