@@ -4,7 +4,8 @@ Gain errors multiply a visibility row of ``antenna1 = q``, ``antenna2 = p`` (bas
 ``position[p] - position[q]``, CASA's ``ANTENNA1 = p``) by ``g_p conj(g_q)``
 (:mod:`spiralbayes.simulate.gains`); an axisymmetric model ``M`` fitted to the data leaves the
 ratio ``r = V_obs / M = a_p a_q exp(i (phi_p - phi_q))`` plus noise. Where the visibilities record
-their antennas and times, the phases and the log amplitudes of ``r`` are solved per solution interval by weighted linear least squares:
+their antennas and times, the phases and the log amplitudes of ``r`` are solved per solution
+interval by weighted linear least squares:
 
 * phase: ``arg r_pq = phi_p - phi_q`` (antenna 0 of each interval as the reference), iterated
   on the wrapped residual so that tens of degrees are solved in full;
