@@ -16,6 +16,7 @@ import logging
 
 from . import exceptions
 from ._version import __version__
+from .calibration import CalibrationDiagnostic, diagnose_calibration
 from .axisymmetric import AxisymmetricModel, FrankSettings, fit_axisymmetric
 from .geometry import DiscGeometry
 from .inference.detection.alternatives import AlternativesResult, fit_alternatives
@@ -34,7 +35,7 @@ from .inference.posterior.settings import PriorSettings, SamplingSettings
 from .inference.scan.run import ScanResult, scan
 from .inference.scan.settings import ScanSettings
 from .io import load_visibilities, save_visibilities
-from .simulate import PRESETS, DiscModel, simulate_observation, uv_coverage
+from .simulate import PRESETS, DiscModel, GainErrors, simulate_observation, uv_coverage
 from .templates import SpiralTemplate, TemplateBank, compromise_bank, default_bank, make_template, variant_bank
 from .visibilities import Visibilities, bin_deprojected, estimate_weights
 
@@ -57,8 +58,9 @@ def __getattr__(name):
 # The public names, grouped by stage (as astropy.cosmology's ``__all__``); each stage's list is also
 # importable, e.g. ``spiralbayes.POSTERIOR``.
 DATA = ["Visibilities", "DiscGeometry", "load_visibilities", "save_visibilities", "bin_deprojected",
-        "estimate_weights", "PRESETS", "DiscModel", "simulate_observation", "uv_coverage"]
-"""Data: visibilities, disc geometry, files, synthetic observations."""
+        "estimate_weights", "PRESETS", "DiscModel", "GainErrors", "simulate_observation", "uv_coverage",
+        "CalibrationDiagnostic", "diagnose_calibration"]
+"""Data: visibilities, disc geometry, files, synthetic observations (with gain errors), calibration checks."""
 MODELS = ["AxisymmetricModel", "FrankSettings", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank",
           "compromise_bank", "variant_bank", "make_template"]
 """Models: the axisymmetric (frank) profile and the spiral templates."""
