@@ -515,6 +515,7 @@ def test_frank_failures_name_our_options_and_print_no_array_or_source_line(capsy
     assert capsys.readouterr().out == ""  # frank's print(p)
     assert not [w for w in caught if "overflow" in str(w.message)]
     assert "rout" not in str(info.value) and "`n`" not in str(info.value)
+    assert "antenna gain errors" in str(info.value)  # miscalibrated data fail this way too
 
 
 def test_cli_errors_and_warnings_are_single_lines_of_ours(tmp_path):

@@ -274,14 +274,16 @@ def _frank_quiet():
 def _bad_power_spectrum_message(vis: Visibilities, N: int, Rmax: float, p0: float) -> str:
     return (f"frank's power spectrum became NaN/inf fitting {vis.n} visibilities: check the data's units and "
             "weights (V in Jy, weights 1/sigma^2 in Jy^-2; [data] estimate_weights = true re-estimates them), "
-            "the geometry and phase centre ([geometry] inc, PA, dRA, dDec), and [frank] Rmax = "
+            "the geometry and phase centre ([geometry] inc, PA, dRA, dDec), residual antenna gain errors "
+            "(self-calibrate; sb.diagnose_calibration measures them), and [frank] Rmax = "
             f"{Rmax:g} arcsec (larger than the disc), N = {N}, p0 = {p0:g} Jy^2 (default 1e-15)")
 
 
 def _no_convergence_message(vis: Visibilities, N: int, Rmax: float, max_iter: int, alpha: float) -> str:
     return (f"frank did not converge within max_iter = {max_iter} iterations fitting {vis.n} visibilities: most "
             "often the data's units or weights (V in Jy, weights 1/sigma^2 in Jy^-2; [data] estimate_weights = true "
-            "re-estimates them) or the geometry ([geometry] inc, PA, dRA, dDec); else [frank] Rmax = "
+            "re-estimates them), the geometry ([geometry] inc, PA, dRA, dDec) or residual antenna gain errors "
+            "(self-calibrate; sb.diagnose_calibration measures them); else [frank] Rmax = "
             f"{Rmax:g} arcsec, N = {N}, alpha = {alpha:g} (convergence is slow for alpha close to 1)")
 
 
