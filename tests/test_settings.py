@@ -184,3 +184,20 @@ def test_settings_take_numpy_numbers_and_refuse_booleans():
     assert FrankSettings(N=np.int64(50)).N == 50 and SamplingSettings(n_walkers=np.int64(12)).n_walkers == 12
     with pytest.raises(InputError, match="n_azimuths = True"):
         CompletenessSettings(n_azimuths=True)
+
+
+@pytest.mark.parametrize("name", ["ScanSettings", "FrankSettings", "DetectionSettings", "AlternativesSettings",
+                                  "CompletenessSettings", "ForecastSettings", "LimitSettings", "PriorSettings",
+                                  "SamplingSettings"])
+def test_help_lists_every_field_with_its_description_and_default(name):
+    """``help(sb.XSettings)`` shows what ``--print-config`` shows: each field, its description, its default."""
+    import dataclasses
+    import pydoc
+
+    import spiralbayes as sb
+
+    cls = getattr(sb, name)
+    text = " ".join(pydoc.render_doc(cls, renderer=pydoc.plaintext).replace(" |", " ").split())  # help() margins
+    for f in dataclasses.fields(cls):
+        default = "automatic" if f.default is None else repr(f.default)
+        assert f"{f.name} {' '.join(f.metadata['doc'].split())} (default: {default})" in text, f.name

@@ -21,6 +21,7 @@ import math
 import numbers
 
 __all__ = ["DEFAULT_DISTANCE_PC", "DEFAULT_MSTAR_MSUN", "MAX_DISTANCE_PC", "MIN_DISTANCE_PC", "config_options",
+           "documented",
            "from_config", "is_finite_number", "is_integer", "option", "with_overrides"]
 
 DEFAULT_DISTANCE_PC = 140.0
@@ -123,3 +124,21 @@ def is_integer(value) -> bool:
 def is_finite_number(value) -> bool:
     """Whether ``value`` is a finite real number (Python or NumPy; ``True``/``False`` are not)."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def documented(cls):
+    """Class decorator (outside ``@dataclass``): append an ``Attributes`` section listing every
+    :func:`option` field with its description and default to the class docstring, so that
+    ``help(cls)`` and the API pages show what ``--print-config`` shows."""
+    lines = []
+    for f in dataclasses.fields(cls):
+        if "doc" not in f.metadata:
+            continue
+        default = f.metadata.get("toml", f.default) if f.default is None else f.default
+        spelled = "automatic" if f.default is None else repr(default)
+        lines += [f"    {f.name}", f"        {f.metadata['doc']} (default: {spelled})"]
+    if lines:
+        doc = (cls.__doc__ or "").rstrip()
+        cls.__doc__ = doc + "\n\n    Attributes\n    ----------\n" + "\n".join(lines) + "\n"
+    return cls
+

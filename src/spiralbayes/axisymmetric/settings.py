@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..exceptions import InputError
-from ..settings import is_integer, option
+from ..settings import documented, is_integer, option
 from .model import DEFAULT_HYPERPARAMETERS, _check_hyperparameters
 
 __all__ = ["FRANK_METHODS", "FrankSettings", "GEOMETRY_FITTERS"]
@@ -17,14 +17,15 @@ FRANK_METHODS = ("Normal", "LogNormal")
 CONVERGENCE_FAILURES = ("raise", "warn", "ignore")
 
 
+@documented
 @dataclass(frozen=True)
 class FrankSettings:
     """Options of :func:`~spiralbayes.axisymmetric.fit_axisymmetric` (TOML section ``[frank]``, which adds
     the pipeline's ``model``: a saved fit to use instead).
 
     The defaults are the paper's hyperparameters (:data:`~spiralbayes.axisymmetric.model.DEFAULT_HYPERPARAMETERS`).
-    Every field's description is its ``metadata["doc"]``; ``--print-config`` shows them. ``None``
-    means automatic (written ``0`` in the TOML file).
+    Every field's description is its ``metadata["doc"]``; ``help()``, the API pages and
+    ``--print-config`` show them. ``None`` means automatic (written ``0`` in the TOML file).
     """
 
     N: int | None = option(None, "number of radial collocation points; 0: the paper's "

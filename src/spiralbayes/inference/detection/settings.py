@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from ...alternatives import ALTERNATIVE_MODELS, DEFAULT_CELL_FACTOR
 from ...exceptions import InputError
-from ...settings import DEFAULT_MSTAR_MSUN, is_finite_number, is_integer, option
+from ...settings import DEFAULT_MSTAR_MSUN, documented, is_finite_number, is_integer, option
 
 __all__ = ["AlternativesSettings", "DELTA_BIC_THRESHOLD", "DetectionSettings", "MASS_BAND"]
 
@@ -18,13 +18,14 @@ MASS_BAND = 10.0
 """Templates within this ΔBIC of the best (near its position) make the reported mass range."""
 
 
+@documented
 @dataclass(frozen=True)
 class AlternativesSettings:
     """Options of :func:`~spiralbayes.inference.detection.fit_alternatives` and of test 3 in
     :func:`~spiralbayes.inference.detection.detect` (TOML section ``[alternatives]``, which adds the
     pipeline's switches ``fit`` and ``refit_geometry``).
 
-    Every field's description is its ``metadata["doc"]``; ``--print-config`` shows them.
+    Every field's description is its ``metadata["doc"]``; ``help()``, the API pages and ``--print-config`` show them.
     """
 
     models: tuple | None = option(None, "which of geometry, arc, lopsided, eccentric_ring, m2 to fit (empty: all)",
@@ -55,6 +56,7 @@ class AlternativesSettings:
             raise InputError(f"max_iter = {self.max_iter!r} must be an integer >= 1")
 
 
+@documented
 @dataclass(frozen=True)
 class DetectionSettings:
     """Thresholds of the verdict (:func:`~spiralbayes.inference.detection.detect`): tests 1 and 2 of

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...exceptions import InputError
-from ...settings import DEFAULT_MSTAR_MSUN, is_finite_number, is_integer, option
+from ...settings import DEFAULT_MSTAR_MSUN, documented, is_finite_number, is_integer, option
 from ..detection.settings import DetectionSettings
 
 __all__ = ["CompletenessSettings", "ForecastSettings", "HANDS", "LIMIT_METHODS", "LimitSettings", "TABLE3_THRESHOLDS"]
@@ -25,6 +25,7 @@ def _check_hands(name: str, hands) -> None:
         raise InputError(f"{name} = {hands!r} must be a non-empty list of 'R' and/or 'L'")
 
 
+@documented
 @dataclass(frozen=True)
 class CompletenessSettings:
     """Options of :func:`~spiralbayes.inference.limits.completeness` (injection-recovery by the fast path).
@@ -55,13 +56,14 @@ class CompletenessSettings:
             raise InputError(f"detection = {self.detection!r} must be a DetectionSettings")
 
 
+@documented
 @dataclass(frozen=True)
 class LimitSettings:
     """Options of :func:`~spiralbayes.inference.limits.compute_limits`, of
     :func:`~spiralbayes.inference.limits.completeness` (``n_azimuths``, ``inject_hand``) and of the
     Table 3 outputs (TOML section ``[limits]``).
 
-    Every field's description is its ``metadata["doc"]``; ``--print-config`` shows them.
+    Every field's description is its ``metadata["doc"]``; ``help()``, the API pages and ``--print-config`` show them.
     ``None`` means automatic (written ``0`` in the TOML file).
     """
 
@@ -124,6 +126,7 @@ class LimitSettings:
         object.__setattr__(self, "thresholds", tuple(self.thresholds))
 
 
+@documented
 @dataclass(frozen=True)
 class ForecastSettings:
     """Options of :func:`~spiralbayes.inference.limits.forecast` (and of

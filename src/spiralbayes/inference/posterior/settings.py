@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from ..._provenance import check_output_name
 from ...exceptions import InputError
-from ...settings import is_finite_number, is_integer, option
+from ...settings import documented, is_finite_number, is_integer, option
 from .likelihood import DEFAULT_AMPLITUDE_MAX
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 
@@ -17,11 +17,12 @@ CONVERGENCE_POLICIES = ("raise", "warn", "ignore")
 """What a run does with a chain shorter than 50 autocorrelation times."""
 
 
+@documented
 @dataclass(frozen=True)
 class SamplingSettings:
     """Options of :func:`~spiralbayes.inference.posterior.sample_posterior` (TOML section ``[sample]``).
 
-    Every field's description is its ``metadata["doc"]``; ``--print-config`` shows them.
+    Every field's description is its ``metadata["doc"]``; ``help()``, the API pages and ``--print-config`` show them.
     ``None`` means automatic (written ``0`` or ``[]`` in the TOML file).
     """
 
@@ -89,6 +90,7 @@ class SamplingSettings:
             raise InputError(f"flush_every = {self.flush_every!r} must be a positive number of steps")
 
 
+@documented
 @dataclass(frozen=True)
 class PriorSettings:
     """The user's choices of the priors (TOML section ``[priors]``); :meth:`priors` makes the

@@ -25,7 +25,7 @@ import numpy as np
 
 from ...exceptions import InputError
 from ...model import DEFAULT_CELL_FACTOR, DEFAULT_RULE, RULES
-from ...settings import option
+from ...settings import documented, option
 
 # the constants and helpers below are importable too (the configuration and the follow-up use them)
 __all__ = ["ScanSettings", "grid_radii"]
@@ -39,6 +39,7 @@ GRID_FIELDS = ("r_p_min", "r_p_max", "n_r_p", "n_phi_p")
 """The fields of the ``[grid]`` section; the other configuration fields form ``[scan]``."""
 
 
+@documented
 @dataclass(frozen=True)
 class ScanSettings:
     """Options of :func:`~spiralbayes.inference.scan.scan` (TOML sections ``[grid]`` and ``[scan]``).
