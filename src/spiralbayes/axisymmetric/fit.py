@@ -7,6 +7,7 @@ import io
 import logging
 import time
 import warnings
+from typing import Any
 
 import numpy as np
 
@@ -67,7 +68,7 @@ class _IterationProgress:
     def __init__(self, fitter, enabled: bool):
         self.fitter = fitter
         self.enabled = enabled
-        self.bar = None
+        self.bar: Any = None  # the tqdm bar while the fit runs
 
     def __enter__(self):
         from tqdm.auto import tqdm
@@ -195,6 +196,7 @@ def fit_axisymmetric(vis: Visibilities, geometry: DiscGeometry | None = None, *,
         geometry_time = time.perf_counter() - t0
         log.info("fitted geometry in %.1f s: inc = %.3f deg, PA = %.3f deg, dRA = %.2f mas, dDec = %.2f mas",
                  geometry_time, geometry.inc, geometry.PA, geometry.dRA * 1e3, geometry.dDec * 1e3)
+    assert geometry is not None  # given, or fitted above (fit_geometry is set when it is not given)
 
     N = _collocation_count(vis, geometry, Rmax, N)
     _check_baselines(vis, geometry, N, Rmax)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +25,8 @@ __all__ = ["AXISYMMETRIC_KIND", "DEFAULT_HYPERPARAMETERS", "AxisymmetricModel"]
 
 log = logging.getLogger(__name__)
 
-DEFAULT_HYPERPARAMETERS = {
+# values of mixed types (N an int, the others floats), read by name
+DEFAULT_HYPERPARAMETERS: dict[str, Any] = {
     "N": 200,
     "Rmax": 1.2,
     "alpha": 1.05,
@@ -341,7 +343,8 @@ class AxisymmetricModel:
             band-limited series' small tail beyond ``Rmax``, which frank's visibilities include:
             cutting it costs ~1e-4 relative for a profile still at 1 % of its peak at ``Rmax``.
         """
-        ny, nx = (int(shape), int(shape)) if np.isscalar(shape) else (int(shape[0]), int(shape[1]))
+        scalar = isinstance(shape, (int, float, np.number))
+        ny, nx = (int(shape), int(shape)) if scalar else (int(shape[0]), int(shape[1]))
         if ny < 1 or nx < 1:
             raise InputError(f"image shape {shape!r} must be positive")
         if not (np.isfinite(pixel_size) and pixel_size > 0):
@@ -418,7 +421,7 @@ class AxisymmetricModel:
         """
         with open_file(path, AXISYMMETRIC_KIND, "axisymmetric model") as f:
             geometry = DiscGeometry(**{k: float(f["geometry"].attrs[k]) for k in ("inc", "PA", "dRA", "dDec")})
-            arrays = {name: (f[name][()] if name in f else None)
+            arrays: dict[str, Any] = {name: (f[name][()] if name in f else None)
                       for name in ("r", "I", "I_err", "I_nonneg", "power_spectrum")}
             fit_time = float(f.attrs["fit_time_s"])
             return cls(geometry=geometry, Rmax=float(f.attrs["Rmax"]),

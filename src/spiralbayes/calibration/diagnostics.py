@@ -90,7 +90,7 @@ class CalibrationDiagnostic:
     def summary(self) -> str:
         """One line: the measured phase and amplitude scatter (or the reduced chi-squared)."""
         chi2 = f"residual reduced chi2 {self.reduced_chi2:.3g}"
-        if self.phase_rms_deg is None:
+        if self.phase_rms_deg is None or self.amp_rms is None:
             text = f"calibration: no antennas recorded; {chi2}"
         else:
             text = (f"calibration: antenna phase rms {self.phase_rms_deg:.3g} deg, amplitude rms "
@@ -194,6 +194,7 @@ def _solve_gains(vis: Visibilities, M: np.ndarray, interval_s, min_snr: float):
                          "lower min_snr or check that the model matches the data")
     ratio = vis.V[use] / M[use]
     wt = snr[use] ** 2
+    assert vis.antenna1 is not None and vis.antenna2 is not None  # called only when vis.has_antennas
     a1, a2 = vis.antenna1[use], vis.antenna2[use]
     interval = _intervals(vis, interval_s)[use]
     sq_phase, sq_amp, n_values = 0.0, 0.0, 0

@@ -27,6 +27,7 @@ ambiguous ones warned about (:func:`~spiralbayes.io.checks.check_uv_units`).
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from pathlib import Path
 
 from .._hdf5 import require_file
@@ -103,7 +104,9 @@ def load_visibilities(path, *, check_weights_on_load: bool = True, **kwargs) -> 
     """
     path = require_file(path, "visibility file")
     fmt = _format_of(path)
-    reader = {"ms": read_ms, "uvtable": read_uvtable, "npz": read_npz, "hdf5": read_hdf5}[fmt]
+    readers: dict[str, Callable[..., Visibilities]] = {"ms": read_ms, "uvtable": read_uvtable, "npz": read_npz,
+                                                       "hdf5": read_hdf5}
+    reader = readers[fmt]
     _check_options(reader, fmt, path, kwargs)
     vis = reader(path, **kwargs)
     check_uv_coverage(vis.u, vis.v, str(path))

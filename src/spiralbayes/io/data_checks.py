@@ -150,10 +150,11 @@ def _cut_reason(last: str, before: list[str], newline: bool) -> str | None:
         fewest = min(c.digits for c in column)
         if _INCOMPLETE_EXPONENT.search(number.text):
             return f"the last row's column {col} ({number.text!r}) ends inside its exponent"
-        if number.significant > 0 and all(c.exponent is not None for c in column):
+        exponents = [c.exponent for c in column if c.exponent is not None]
+        if number.significant > 0 and len(exponents) == len(column):
             if number.exponent is None:
                 return f"the last row's column {col} ({number.text!r}) has no exponent where every row before has one"
-            if number.exponent < min(c.exponent for c in column):
+            if number.exponent < min(exponents):
                 return f"the last row's column {col} ({number.text!r}) has a shorter exponent than every row before"
         # a plain zero may be a flagged row; %g drops the point of a whole number (one digit fewer)
         plain = not number.point and number.exponent is None and number.significant > 0

@@ -330,8 +330,9 @@ def _assemble(path: Path, parts: list, column: str, weight_col: str, used_spw: l
     if stored_prov is not None:
         prov["written_provenance"] = stored_prov
     try:
-        return Visibilities(wavelength=C_LIGHT / float(np.mean(freqs)), conjugated=False, provenance=prov,
-                            **arrays)
+        return Visibilities(arrays["u"], arrays["v"], arrays["V"], arrays["weights"],
+                            wavelength=C_LIGHT / float(np.mean(freqs)), conjugated=False, provenance=prov,
+                            antenna1=arrays.get("antenna1"), antenna2=arrays.get("antenna2"), time=arrays.get("time"))
     except ValueError as exc:
         raise InputError(f"{path}: {exc}") from None
 

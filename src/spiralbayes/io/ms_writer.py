@@ -140,7 +140,7 @@ def transit_time(ra_deg: float, date: str, lon_deg: float = ALMA_LONGITUDE) -> f
     except ValueError:
         raise InputError(f"date must be YYYY-MM-DD, got {date!r}") from None
     hour_angle0 = (gmst_deg(day) + lon_deg - ra_deg) % 360.0  # at 0h UT
-    return (day + ((360.0 - hour_angle0) % 360.0) / (360.0 * _SIDEREAL_RATE)) * _DAY
+    return float((day + ((360.0 - hour_angle0) % 360.0) / (360.0 * _SIDEREAL_RATE)) * _DAY)
 
 
 def row_times(layout: ObservationLayout, ra_deg: float, date: str) -> np.ndarray:
@@ -152,6 +152,7 @@ def row_times(layout: ObservationLayout, ra_deg: float, date: str) -> np.ndarray
 # ------------------------------------------------------------------------------------ rows
 def _known_rows(vis: Visibilities, phase_centre, date: str) -> dict:
     lay = vis.layout
+    assert lay is not None  # write_ms calls this only for data with a layout
     flip = lay.antenna1 < lay.antenna2  # package rows are uvw(a2) - uvw(a1); CASA's uvw(ANT1) - uvw(ANT2)
     sign = np.where(flip, -1.0, 1.0)
     ra, dec = phase_centre if phase_centre is not None else (DEFAULT_PHASE_CENTRE[0], lay.declination)
@@ -176,6 +177,7 @@ def _known_rows(vis: Visibilities, phase_centre, date: str) -> dict:
 
 def _recorded_rows(vis: Visibilities, phase_centre, date: str, rows_per_time: int) -> dict:
     rows = _generic_rows(vis, phase_centre, date, rows_per_time)
+    assert vis.antenna1 is not None and vis.antenna2 is not None  # write_ms checks vis.has_antennas
     n_ant = int(max(vis.antenna1.max(), vis.antenna2.max())) + 1
     angle = 2 * np.pi * np.arange(n_ant) / n_ant
     enu = np.column_stack([100.0 * np.cos(angle), 100.0 * np.sin(angle), np.zeros(n_ant)])
@@ -258,6 +260,7 @@ def write_ms(vis: Visibilities, path, *, field_name: str = "spiralbayes", phase_
         raise InputError("write_ms needs the observing wavelength to convert u, v to metres: "
                          "set it with dataclasses.replace(vis, wavelength=<metres>)")
     std = vis.standardised()
+    assert std.wavelength is not None  # standardised() keeps the wavelength checked above
     if std.layout is not None:
         rows = _known_rows(std, phase_centre, date)
     elif std.has_antennas:

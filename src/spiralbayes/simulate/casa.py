@@ -265,8 +265,8 @@ def _simulate(p, disc, geometry, perturbation, r_p, phi_p, seed, add_noise, ther
     configs = list(zip(p.configurations, p.hour_angles))
 
     def jobs(indices, shift):
-        return [_simobserve_kwargs(k, *configs[k], p, fits_path, pix, frequency, p.declination, seed, thermalnoise,
-                                   pwv, workdir, shift) for k in indices]
+        return [_simobserve_kwargs(k, configs[k][0], configs[k][1], p, fits_path, pix, frequency, p.declination,
+                                   seed, thermalnoise, pwv, workdir, shift) for k in indices]
 
     walls = _run_simobserve(jobs([0], 0.0), workdir)
     shift, offset0 = 0.0, _read_run(0, configs[0][1], workdir)["ha_offset_s"]

@@ -42,7 +42,10 @@ _SHORT_RE = re.compile(r"^C-?(\d+)$", re.IGNORECASE)
 # Antenna configurations
 # ---------------------------------------------------------------------------------------------
 def _config_root():
-    return resources.files("spiralbayes").joinpath(*_CONFIG_DIR)
+    root = resources.files("spiralbayes")
+    for part in _CONFIG_DIR:  # one level at a time: Traversable.joinpath takes one name before Python 3.11
+        root = root.joinpath(part)
+    return root
 
 
 def available_configurations() -> list[str]:
@@ -58,7 +61,7 @@ def available_configurations() -> list[str]:
     return [f"cycle{c}.{m}" for c, m in sorted(names)]
 
 
-def _canonical_name(name: str, cycle: int) -> str:
+def _canonical_name(name: str | Path, cycle: int) -> str:
     text = str(name).strip()
     short = _SHORT_RE.match(text)
     if short:
@@ -179,7 +182,7 @@ class UVCoverage:
 
     def layout(self) -> ObservationLayout | None:
         """Antennas and hour angles of every row (None if the antennas are not known)."""
-        if self.antenna1 is None or self.antenna_positions is None:
+        if self.antenna1 is None or self.antenna2 is None or self.antenna_positions is None:
             return None
         return ObservationLayout(self.antenna1, self.antenna2, self.hour_angle, self.configuration, self.w,
                                  self.antenna_positions, self.antenna_names, self.integration_time,
@@ -314,7 +317,8 @@ def uv_coverage(configurations, declination: float, hour_angles=(-0.5, 0.5),
 
     step_h = integration_time * SIDEREAL_RATE / 3600.0
     us, vs, ws, hs, idx, labels = [], [], [], [], [], []
-    ant1, ant2, positions, names = [], [], [], []
+    ant1, ant2, names = [], [], []
+    positions: list[np.ndarray] = []
     n_dropped = 0
     for k, (config, (h0, h1)) in enumerate(zip(configurations, ranges)):
         label = _config_label(config, cycle)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -97,13 +98,14 @@ def observe(model, coverage: UVCoverage, sensitivity: float | None = None, *,
     n = coverage.n
     if sensitivity is not None:
         sig = sigma_for_sensitivity(sensitivity, n)
-        noise_note = {"sensitivity_jy_beam": float(sensitivity)}
+        noise_note: dict[str, Any] = {"sensitivity_jy_beam": float(sensitivity)}
     elif sigma is not None:
         if not sigma > 0:
             raise InputError(f"sigma must be positive [Jy], got {sigma}")
         sig = float(sigma)
         noise_note = {}
     else:
+        assert radiometer is not None  # exactly one of the three is given (checked above)
         sig = radiometer.sigma(coverage.integration_time)
         noise_note = {"radiometer": asdict(radiometer)}
     noise_note.update(sigma_vis_jy=sig, image_noise_jy_beam=sig / np.sqrt(n))
@@ -135,7 +137,8 @@ def observe(model, coverage: UVCoverage, sensitivity: float | None = None, *,
         **(provenance or {}),
     }
     return Visibilities(coverage.u, coverage.v, V, np.full(n, sig**-2), wavelength=coverage.wavelength,
-                        provenance=prov, layout=coverage.layout(), **rows)
+                        provenance=prov, layout=coverage.layout(), antenna1=rows.get("antenna1"),
+                        antenna2=rows.get("antenna2"), time=rows.get("time"))
 
 
 def fit_beam(u, v, weights=None, *, pixel_size: float | None = None, n: int = 128):

@@ -53,7 +53,7 @@ def _need(path: Path, what: str) -> Path:
 def read_variables(directory) -> dict:
     """Parse ``variables.par`` into ``{KEY: value}`` (keys upper-case; numbers converted)."""
     path = _need(Path(directory) / "variables.par", "parameter file")
-    out = {}
+    out: dict[str, int | float | str] = {}
     for line in path.read_text().splitlines():
         parts = line.split(None, 1)
         if len(parts) < 2 or parts[0].startswith("#"):

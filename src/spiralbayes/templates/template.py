@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import logging
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -294,9 +295,10 @@ class SpiralTemplate:
     def from_hdf5_group(cls, group) -> SpiralTemplate:
         """Read a template written by :meth:`to_hdf5_group`."""
         a = group.attrs
+        scalars: dict[str, Any] = {k: float(a[k]) for k in SCALAR_FIELDS}
         return cls(x=group["x"][()], phi=group["phi"][()], delta=group["delta"][()], hand=str(a["hand"]),
                    name=str(a["name"]), provenance=json.loads(a.get("provenance", "{}")),
-                   **{k: float(a[k]) for k in SCALAR_FIELDS})
+                   **scalars)
 
     def provenance_json(self) -> str:
         """``provenance`` serialised to JSON (non-JSON values become strings)."""

@@ -85,7 +85,7 @@ class DetectionSettings:
         for name in ("max_handedness_ratio", "max_localisation"):
             value = getattr(self, name)
             # infinity switches the criterion off
-            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not value > 0:
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not float(value) > 0:
                 raise InputError(f"{name} = {value!r} must be a positive fraction (inf: no limit)")
         for name in ("bic_threshold_value", "alternative_threshold", "mass_band"):
             if not is_finite_number(getattr(self, name)):

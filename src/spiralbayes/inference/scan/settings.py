@@ -155,7 +155,7 @@ def field_error(name: str, value) -> str | None:
 
 def _positive_number(value) -> bool:
     return not isinstance(value, (bool, str)) and isinstance(value, (int, float, np.number)) \
-        and math.isfinite(value) and value > 0
+        and math.isfinite(value) and bool(value > 0)
 
 
 def _integer(value) -> bool:
