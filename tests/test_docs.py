@@ -31,7 +31,8 @@ def test_every_test_cited_by_the_conventions_page_exists():
             assert name in names, f"docs/conventions.md cites {file}::{name}, which does not exist"
 
 
-API = ROOT / "docs" / "api"
+DOCS = ROOT / "docs"
+API = DOCS / "api"
 
 
 def test_every_public_module_is_on_an_api_page():
@@ -51,8 +52,9 @@ def test_every_public_module_is_on_an_api_page():
     assert not documented - modules - {"spiralbayes"}, f"pages name missing modules: {sorted(documented - modules)}"
 
 
-def test_api_reference_builds_without_warnings(tmp_path):
-    """``sphinx-build -W``: every docstring parses and every :func:/:meth:/:mod:/:data: reference resolves."""
+def test_documentation_site_builds_without_warnings(tmp_path):
+    """The whole site (narrative pages, executed tutorials, API reference) with ``sphinx-build -W -n``: every
+    page and docstring parses, every cross-reference resolves, every tutorial cell runs."""
     import os
     import subprocess
     import sys
@@ -60,8 +62,25 @@ def test_api_reference_builds_without_warnings(tmp_path):
     import pytest
 
     pytest.importorskip("sphinx", reason="sphinx is not installed (pip install 'spiralbayes[test]')")
+    pytest.importorskip("myst_nb", reason="myst-nb is not installed (pip install 'spiralbayes[test]')")
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT / "src")}
-    out = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", str(API),
-                          str(tmp_path / "html")], capture_output=True, text=True, env=env, timeout=900)
-    assert out.returncode == 0, "sphinx-build -W failed:\n" + out.stderr[-6000:]
-    assert (tmp_path / "html" / "posterior.html").exists()
+    out = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-n", "-q", "-b", "html", str(DOCS),
+                          str(tmp_path / "html"), "-d", str(tmp_path / "doctrees")],
+                         capture_output=True, text=True, env=env, timeout=1800)
+    assert out.returncode == 0, "sphinx-build -W -n failed:\n" + out.stderr[-6000:]
+    html = tmp_path / "html"
+    pages = {p.stem for p in DOCS.glob("*.md")}
+    missing = [name for name in pages if not (html / f"{name}.html").exists()]
+    assert not missing, f"narrative pages not rendered: {missing}"
+    assert (html / "api" / "posterior.html").exists()
+    for notebook in (DOCS / "tutorials").glob("*.ipynb"):
+        assert (html / "tutorials" / f"{notebook.stem}.html").exists(), f"tutorial {notebook.name} not rendered"
+
+
+def test_the_site_configuration_ignores_no_role():
+    """Nitpicky references are resolved, not silenced: no pattern ignores and no whole role is ignored."""
+    conf = (DOCS / "conf.py").read_text()
+    assert "nitpick_ignore_regex" not in conf
+    assert "suppress_warnings" not in conf
+    ignored = re.findall(r'\("py:\w+", "([^"]+)"\)', conf)
+    assert all("*" not in target and "." in target for target in ignored), ignored

@@ -38,7 +38,7 @@ class HankelTable:
     Parameters
     ----------
     axisymmetric : object
-        Anything with ``visibilities(u, v, geometry)`` (an :class:`AxisymmetricModel`).
+        Anything with ``visibilities(u, v, geometry)`` (an :class:`~spiralbayes.axisymmetric.model.AxisymmetricModel`).
     q_max : float
         Largest deprojected baseline needed [lambda].
     r_max : float

@@ -40,7 +40,7 @@ def _bank_values(bank) -> str:
 
 
 def load_data(data: dict, geometry: DiscGeometry | None = None):
-    """A :class:`Visibilities` from the ``[data]`` section of a configuration.
+    """A :class:`~spiralbayes.visibilities.Visibilities` from the ``[data]`` section of a configuration.
 
     With ``estimate_weights = true`` the weights are rescaled by one factor from the scatter of
     each visibility about the plane through its uv neighbours (``method="neighbours"`` of

@@ -1,7 +1,8 @@
 """Product-integration polar quadrature of the spiral perturbation, exact by construction.
 
 The perturbation is ``P(r, phi) = I_A(r) delta(r / r_p, phi)`` with ``delta`` the template's
-bilinear interpolant in ``(ln x, phi)`` (zero outside ``[x_0, x_end]``, :class:`SpiralTemplate`),
+bilinear interpolant in ``(ln x, phi)`` (zero outside ``[x_0, x_end]``,
+:class:`~spiralbayes.templates.template.SpiralTemplate`),
 and its visibilities are ``P_hat(q) = int int P exp(2 pi i q . s) r dr dphi``. A midpoint sum over
 cells of size ``h`` errs by O((pi u_max h)^2), with a sign that does not average out (``Σ w |ΔV|^2``
 came out 3-9e-4 low with cells of 1 / (20 u_max)). The rule here does not approximate the

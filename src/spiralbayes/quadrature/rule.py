@@ -283,7 +283,7 @@ def make_product_quadrature(template, r_p: float, uv_max: float, *, phi_multiple
     support : float, optional
         Radius [arcsec] beyond which the profile vanishes (frank's ``Rmax``): nodes stop there.
     breaks : sequence of float
-        Radii [arcsec] where the profile jumps inside the support (:attr:`ProductQuadrature.breaks`).
+        Radii [arcsec] where the profile jumps inside the support (``ProductQuadrature.breaks``).
     radial : {"auto", "gauss", "sinc"}
         The radial basis; "auto" takes the one with fewer nodes.
     """

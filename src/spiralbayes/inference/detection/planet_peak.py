@@ -3,7 +3,8 @@
 Both kinds of reference spiral (FARGO3D hydrodynamics and wakeflow, ``tests/data/references``)
 hold a compact density peak at the planet, within about one pressure scale height, that the
 wake templates do not carry. In the data it is a compact source at the planet, which
-the arc/vortex alternative of test 3 (:mod:`.alternatives`) fits well (σ_φ of a few degrees) —
+the arc/vortex alternative of test 3 (:mod:`~spiralbayes.inference.detection.alternatives`) fits
+well (σ_φ of a few degrees) —
 so a real planet could lose test 3 to "an arc at the planet". A planet is spiral *plus* that
 peak, so for test 3 the spiral hypothesis is scored as the best spiral instance (template at
 ``A = 1``, as in the scan) plus a circular Gaussian source at the planet's sky position with a

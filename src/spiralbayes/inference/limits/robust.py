@@ -2,7 +2,7 @@
 
 No template is the true spiral (docs/limits.md §4c), so a planet is reported as ruled out only
 when **every** member of a set of families rules it out (each member already needs both hands
-and every ``phi_p``: :mod:`.limits`). Two sets are used:
+and every ``phi_p``: :mod:`~spiralbayes.inference.limits`). Two sets are used:
 
 * **over all families** — what :meth:`.ExclusionLimits.summary`, :meth:`~.ExclusionLimits.excluded`
   and the mass–radius plot give when no ``family=`` is chosen: the mass is excluded at ``r_p``

@@ -4,7 +4,7 @@ Stevenson et al. (2024, Table 3) list, per Taurus disc, the orbital radii at whi
 least 3 M_th and at least 1 M_th would have been detected had they been there, with the
 corresponding Jupiter masses. :func:`build_table3` gives the same from an
 :class:`~spiralbayes.inference.limits.ExclusionLimits` as an astropy Table (and, optionally, the
-minimum detectable mass from a :class:`~spiralbayes.inference.completeness.CompletenessResult`):
+minimum detectable mass from a :class:`~spiralbayes.inference.limits.recovery.CompletenessResult`):
 on a scan of several families first the row that holds for every family (:mod:`.robust`), then
 one row per family. The limit is only as good as the templates it assumes, so every row names
 its family, the morphologies (template variants) it covers and, over several morphologies, the

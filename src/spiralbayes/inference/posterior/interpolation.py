@@ -34,7 +34,7 @@ midpoint cells is not needed.
 
 Mirror templates share tables: ``delta_L(x, phi) = delta_R(x, -phi)`` and the quadrature is
 symmetric under ``phi -> -phi``, so ``T_L(sigma_xi, sigma_eta) = T_R(sigma_xi, -sigma_eta)``;
-:class:`~spiralbayes.inference.perturbation.FastPerturbation` built with ``mirror_of`` flips the sign of one
+:class:`~spiralbayes.inference.posterior.perturbation.FastPerturbation` built with ``mirror_of`` flips the sign of one
 coordinate instead of building a table (checked in the tests against a table of its own).
 """
 

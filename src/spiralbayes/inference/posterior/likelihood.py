@@ -47,8 +47,9 @@ Rmax = 1.2") with 6-point Lagrange weights (:class:`~spiralbayes.axisymmetric.gp
 frank's deprojected binning made exact — the normal matrix to 4e-10 of its largest element,
 measured), which turns the ``n x N^2`` normal matrix into an
 ``n_grid x N^2`` product; one Cholesky factorisation of the ``N x N`` (N = 200) precision.
-``benchmarks/bench_sample.py`` prints the measured split. :meth:`.exact_log_likelihood` is the
-plain NumPy reference (dense ``H`` at every datum, the exact type-3 perturbation).
+``benchmarks/bench_sample.py`` prints the measured split.
+:meth:`MarginalSpiralLikelihood.exact_log_likelihood` is the plain NumPy reference (dense ``H`` at
+every datum, the exact type-3 perturbation).
 """
 
 from __future__ import annotations

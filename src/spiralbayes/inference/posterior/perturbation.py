@@ -41,7 +41,7 @@ class FastPerturbation:
     reference_geometry : DiscGeometry
         Geometry at which the refinement measures interpolation errors.
     epsilon, oversample, rp_tolerance, rp_step, cell_factor, progress
-        As :class:`~spiralbayes.inference.likelihood.SpiralLikelihood`.
+        As :class:`~spiralbayes.inference.posterior.conditional.SpiralLikelihood`.
     mirror_of : FastPerturbation, optional
         The same perturbation for the mirror template (``template == mirror_of.template.mirror()``,
         same profile and baselines): its table is shared and one coordinate flipped.

@@ -45,7 +45,7 @@ __all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_ph
 
 RESULT_KIND = "spiralbayes.PosteriorResult"
 SAMPLE_NAMES = ("r_p", "phi_p", "A", "inc", "PA", "dRA", "dDec")
-"""Columns of :attr:`TemplateRun.samples`."""
+"""Columns of ``TemplateRun.samples``."""
 
 
 def wrap_phi(samples: np.ndarray, column: int = 1) -> tuple[np.ndarray, float]:

@@ -4,7 +4,8 @@ Why this module is long: it is the one place where the run's stages meet — the
 hypothesis, the per-template likelihoods, optimisation, emcee with resumable chain files and
 pools, the evidences and the combination — and splitting it would scatter one procedure.
 
-Hypotheses (:mod:`.results`): the disc alone ("no planet", parameters ``inc, PA, dRA, dDec``) and,
+Hypotheses (:mod:`~spiralbayes.inference.posterior.results`): the disc alone ("no planet",
+parameters ``inc, PA, dRA, dDec``) and,
 for every template, the disc plus that spiral (``r_p`` [arcsec], ``phi_p`` [rad], amplitude ``A``
 and the same geometry). In both the frank profile is integrated out analytically, and in the
 spiral model the amplitude too (:mod:`.likelihood`); priors in :mod:`.priors`.
@@ -37,7 +38,7 @@ Convergence: the default runs in chunks of ``check_every`` steps until every par
 longer than 50 autocorrelation times and its ESS reaches ``min_ess`` — or, when the template's
 Bayes factor shows the planet is not preferred, until the geometry's chain is (:mod:`.stopping`:
 a flat, prior-dominated ``(r_p, phi_p)`` posterior would otherwise take hours to reach 50 tau) —
-or ``max_steps`` (:mod:`.diagnostics`); ``n_steps`` fixes the total instead.
+or ``max_steps`` (:mod:`~spiralbayes.inference.posterior.diagnostics`); ``n_steps`` fixes the total instead.
 
 Chains and resume (:mod:`.chains`): ``<chains_dir>/<run_name>.h5``, one group per template plus
 ``__null__``, each rewritten atomically every ``flush_every`` steps with emcee's random state.

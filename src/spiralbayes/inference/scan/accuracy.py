@@ -1,6 +1,6 @@
 """The scan's accuracy: its self-check against exact sums and the tolerance rule.
 
-Every template's ``cross`` and ``power`` carry error estimates (:mod:`.engine`): the
+Every template's ``cross`` and ``power`` carry error estimates (:mod:`~spiralbayes.inference.scan.engine`): the
 quadrature's bound, plus the power path's own error, which :func:`check_terms` measures once per
 scan by comparing the fast terms with exact sums (ΔV at every baseline by a double-precision
 NUFFT at ``EXACT_EPSILON``) at the largest radius of each uv level. :func:`warn_if_inaccurate`

@@ -21,14 +21,14 @@ changes the last digits only.
 Accuracy
 --------
 Every template's ``cross`` and ``power`` come with error estimates (``cross_error``,
-``power_error``; :mod:`.engine` says how they are made); :meth:`ScanResult.delta_chi2_error`
+``power_error``; :mod:`~spiralbayes.inference.scan.engine` says how they are made); :meth:`ScanResult.delta_chi2_error`
 combines them and :func:`scan` raises an :class:`~spiralbayes.exceptions.AccuracyWarning` where
 the estimate exceeds ``0.05 + 1e-4 |Δχ²|`` (:mod:`.accuracy`).
 
 Why this module is long: the result class (with its best instance, format-1 reader and the error
 estimates), the runner and the resume key with its readable differences share one set of
 fields; split apart, each would have to know the others' layout. The numerics live elsewhere
-(:mod:`.engine`, :mod:`.uv_levels`, :mod:`.accuracy`).
+(:mod:`~spiralbayes.inference.scan.engine`, :mod:`.uv_levels`, :mod:`.accuracy`).
 """
 
 from __future__ import annotations
@@ -165,7 +165,7 @@ class ScanResult(ResultMixin):
         return 2 * self.cross_error + self.power_error
 
     def accuracy_violations(self, tolerance=TOLERANCE) -> np.ndarray:
-        """Where the error estimate exceeds ``tolerance[0] + tolerance[1] |Δχ²|`` (boolean, like :attr:`cross`)."""
+        """Where the error estimate exceeds ``tolerance[0] + tolerance[1] |Δχ²|`` (boolean, like ``cross``)."""
         err = np.nan_to_num(self.delta_chi2_error(), nan=0.0)
         return err > tolerance[0] + tolerance[1] * np.abs(np.nan_to_num(self.dchi2))
 

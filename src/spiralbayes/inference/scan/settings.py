@@ -31,7 +31,7 @@ from ...settings import documented, option
 __all__ = ["ScanSettings", "grid_radii"]
 
 POWER_PATHS = ("auto", "polar", "direct")
-"""How the power term is computed (:mod:`.engine`): "auto" takes the cheaper for the data."""
+"""How the power term is computed (:mod:`~spiralbayes.inference.scan.engine`): "auto" takes the cheaper for the data."""
 AMPLITUDES = ("fixed", "free")
 R_EFF_FRACTION = 0.6
 """The automatic largest planet radius, as a fraction of the profile's R_eff (95 % of the flux)."""

@@ -6,7 +6,8 @@ marker ``survey_stage_<stage>.json`` holding its resume key (a hash of the confi
 it depends on and of the data) and the files it wrote (:mod:`.files`). A stage whose marker
 matches is skipped on a rerun; one whose key changed runs again and replaces its earlier outputs,
 never a file the survey did not write. The scan is
-split into template chunks: :func:`stage_scan_setup` builds the :class:`ScanContext` once (the
+split into template chunks: :func:`stage_scan_setup` builds the
+:class:`~spiralbayes.inference.scan.engine.ScanContext` once (the
 uv grids; workers fetch it once from the worker that built it), resumes from
 ``scan_checkpoint.h5`` and from the chunks already written to ``survey_parts/``, and every
 :func:`stage_scan_chunk` computes and saves its templates' terms. :func:`stage_detect` assembles
