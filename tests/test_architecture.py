@@ -331,7 +331,7 @@ def test_threads_are_limited_by_the_one_helper():
 
 
 def test_docstrings_hold_no_change_history():
-    """Change history ("issue 9", "version 1") lives in docs/history.md, not in docstrings."""
+    """Change history ("issue 9", "version 1") lives in CHANGELOG.md, not in docstrings."""
     import re
 
     pattern = re.compile(r"\bissue #?\d+|\bversion[- ]1\b", re.I)
@@ -341,7 +341,7 @@ def test_docstrings_hold_no_change_history():
             if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
                 doc = ast.get_docstring(node) or ""
                 found += [f"{name}.{getattr(node, 'name', '')}: {m.group(0)}" for m in pattern.finditer(doc)]
-    assert not found, "change history in docstrings (move it to docs/history.md):\n" + "\n".join(found)
+    assert not found, "change history in docstrings (move it to CHANGELOG.md):\n" + "\n".join(found)
 
 
 # --- one settings pattern, each default written once ------------------------------------------------

@@ -84,3 +84,41 @@ def test_the_site_configuration_ignores_no_role():
     assert "suppress_warnings" not in conf
     ignored = re.findall(r'\("py:\w+", "([^"]+)"\)', conf)
     assert all("*" not in target and "." in target for target in ignored), ignored
+
+
+# Development history belongs in CHANGELOG.md: the pages, the README and the docstrings describe the package as it is.
+HISTORY_MARKERS = re.compile(
+    r"\bissues?\s+#?\d+"  # "issue 22", "issues 10/13"
+    r"|\b(?:this|that|the\s+(?:first|second|third|fourth|fifth|sixth|previous|next|last))\s+session\b"
+    r"|\b(?:first|second|third|fourth|fifth|sixth)\s+session's\b"
+    r"|\bpreviously\b|\bformerly\b|\bno\s+longer\b|\buntil\s+now\b|\bwas\s+renamed\b|\bin\s+earlier\s+versions\b"
+    r"|\bbefore\s+the\s+(?:fix|change|refit|merge)\b|\bafter\s+the\s+merge\b",
+    re.I)
+
+
+def _history_in(text: str) -> list[str]:
+    return [m.group(0).replace("\n", " ") for m in HISTORY_MARKERS.finditer(text)]
+
+
+def test_history_markers_are_found():
+    """The patterns catch the ways a page tells history (the test below is not vacuous)."""
+    for text in ("as issue 22 found", "the third\nsession's variants", "it no longer drags", "in this session",
+                 "before the refit", "previously 0.9"):
+        assert _history_in(text), text
+    for text in ("the second run set (`batch = issue22`)", "the planet's session", "before the fit", "no longest"):
+        assert not _history_in(text), text
+
+
+def test_pages_readme_and_docstrings_tell_no_development_history():
+    import ast
+
+    found = []
+    for page in [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))]:
+        if "_build" not in page.parts:
+            found += [f"{page.relative_to(ROOT)}: {hit}" for hit in _history_in(page.read_text())]
+    for path in sorted((ROOT / "src" / "spiralbayes").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+                doc = ast.get_docstring(node) or ""
+                found += [f"{path.relative_to(ROOT)}:{getattr(node, 'name', '')}: {hit}" for hit in _history_in(doc)]
+    assert not found, "development history outside CHANGELOG.md (move it there):\n" + "\n".join(found)

@@ -1,8 +1,7 @@
 """The README and the docs pages name only things that exist.
 
 Every ``sb.<name>`` (``import spiralbayes as sb``) and every dotted ``spiralbayes.<module>[.<name>]``
-written in README.md or a docs page (the design history, docs/history.md, excepted: it names what
-was there once) must resolve, so a user copying a line gets the object and not an AttributeError.
+written in README.md or a docs page must resolve, so a user copying a line gets the object and not an AttributeError.
 """
 
 import importlib
@@ -14,7 +13,7 @@ import pytest
 import spiralbayes as sb
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", *sorted(p for p in (ROOT / "docs").glob("*.md") if p.name != "history.md")]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 SB_NAME = re.compile(r"(?<![\w.])sb\.([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*)")
 DOTTED = re.compile(r"(?<![\w./-])spiralbayes((?:\.[A-Za-z_]\w*)+)")
 

@@ -33,7 +33,7 @@ speed ``c_s ∝ r^{-q}`` with ``q = 1/2 − f``; ``Σ ∝ r^{-p}``; rotation ant
    and 3: the four numbers maximise the mean over the 22 δ maps of the beam-smoothed (0.061″ at
    140 pc) image-plane recovery ``(2⟨S,T⟩ − ⟨T,T⟩)/⟨S,S⟩`` (capped at 1), by Nelder–Mead from a
    first fit to wakeflow alone; mean 0.81 over the wakeflow maps and 0.61 over FARGO3D's (the
-   pulse it replaced, and why: ``docs/history.md``). Wakeflow's negative part is a shallow
+   pulse it replaced, and why: ``CHANGELOG.md``, History of earlier versions). Wakeflow's negative part is a shallow
    background spread over the annulus. Within ``near_planet`` = 4/3 H_p of the planet (= 2l, where the Burgers
    solve starts) the amplitude factor ``1/g`` is held at its value there instead of falling to 0
    at r_p (g → ∞); 0.5, 0.8, 4/3, 2 and 3 H_p were tried (mean wakeflow recovery 0.74, 0.75, 0.77, 0.78, 0.78
@@ -392,7 +392,7 @@ def linear_profile(eta, amp: float = 0.5, width: float = 0.8, lobe_offset: float
     Rafikov (2001, Fig. 1) and Rafikov (2002). Positive η is the side the wave propagates towards
     (where the shock forms). The defaults of :class:`WakeSettings` (0.4, 0.95, −0.5, 11.5) are
     fitted to the reference maps (module docstring, step 3); these arguments' defaults are the
-    first version's narrow-lobe shape (``docs/history.md``).
+    first version's narrow-lobe shape (``CHANGELOG.md``, History of earlier versions).
     """
     eta = np.asarray(eta, dtype=float)
     w2 = lobe_width * width

@@ -2,7 +2,7 @@
 
 A phase-centre error of 10 mas on a disc with a 1 M_th planet (Δχ² ≈ 5,500 at the right geometry)
 makes the scan's global peak a false, unhanded one (Δχ² ≈ 2,350) that test 2 rejects, while the
-planet itself is never reported (Stevenson et al. 2024, App. A; issues 13 and 15). The geometry
+planet itself is never reported (Stevenson et al. 2024, App. A). The geometry
 alternative of test 3 measures the error; :func:`rescan_at_fitted_geometry` takes its geometry,
 refits the axisymmetric profile there with the same frank hyperparameters, rescans the same
 templates and grid, refits the alternatives and returns the new verdict

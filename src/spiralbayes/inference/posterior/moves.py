@@ -5,8 +5,8 @@ Differential evolution (ter Braak 2006; Nelson et al. 2014, as emcee's ``DEMove`
 ``phi_p`` the difference is taken the short way round the circle (in ``(-pi, pi]``) and ``x'`` is
 wrapped into ``[0, 2 pi)``. The proposal stays symmetric — the pair ``(b, a)`` is as likely as
 ``(a, b)`` and gives the opposite difference — so this is a valid Metropolis move on the circle
-for any target that is ``2 pi``-periodic in ``phi_p``. Walkers can no longer drift without bound
-along a flat ``phi_p`` (planet-free data, where unwrapped walkers reached 1e29 rad), and the
+for any target that is ``2 pi``-periodic in ``phi_p``. Walkers cannot drift without bound
+along a flat ``phi_p`` (planet-free data, where unwrapped walkers reach 1e29 rad), and the
 chain's ``phi_p`` is always in ``[0, 2 pi)``.
 
 A move may act on a block of the coordinates only (``block``): the difference vector is zero

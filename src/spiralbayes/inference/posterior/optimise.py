@@ -3,8 +3,8 @@
 1. **The no-planet mode** (:func:`fit_null_geometry`): the geometry ``(inc, PA, dRA, dDec)`` that
    maximises the profile-marginalised disc likelihood times the geometry prior. The profile is
    refitted at every trial geometry inside the likelihood, so a frank fit made at a wrong
-   geometry (3 deg off in inclination, the case of Stevenson et al. 2024, appendix A) no longer
-   pins the geometry to itself.
+   geometry (3 deg off in inclination, the case of Stevenson et al. 2024, appendix A) does not
+   pin the geometry to itself.
 2. **The planet** (:func:`find_map`): at that geometry, the scan's best ``(r_p, phi_p)`` (when a
    scan is given) and a coarse grid over the prior are ranked by the spiral posterior; the best
    few distinct ones are optimised, first in ``(r_p, phi_p)`` alone, then jointly with the
