@@ -43,6 +43,8 @@ nb_execution_mode = "force"
 nb_execution_timeout = 600
 nb_execution_raise_on_error = True
 nb_execution_show_tb = True
+# progress-bar and library notices on stderr are not part of a tutorial's story
+nb_output_stderr = "remove"
 
 html_theme = "alabaster"
 html_title = "spiralbayes"

@@ -1,8 +1,11 @@
-"""The conventions page cites the tests that pin each convention: every cited test must exist."""
+"""The documentation: the site builds (pages, tutorials, API reference), the pages cite tests that exist, name
+modules that exist and tell no development history, and the tutorials use the public API."""
 
 import ast
 import re
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).parent.parent
 
@@ -52,9 +55,7 @@ def test_every_public_module_is_on_an_api_page():
     assert not documented - modules - {"spiralbayes"}, f"pages name missing modules: {sorted(documented - modules)}"
 
 
-def test_documentation_site_builds_without_warnings(tmp_path):
-    """The whole site (narrative pages, executed tutorials, API reference) with ``sphinx-build -W -n``: every
-    page and docstring parses, every cross-reference resolves, every tutorial cell runs."""
+def _build_site(tmp_path, size: str):
     import os
     import subprocess
     import sys
@@ -63,7 +64,7 @@ def test_documentation_site_builds_without_warnings(tmp_path):
 
     pytest.importorskip("sphinx", reason="sphinx is not installed (pip install 'spiralbayes[test]')")
     pytest.importorskip("myst_nb", reason="myst-nb is not installed (pip install 'spiralbayes[test]')")
-    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT / "src")}
+    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT / "src"), "SPIRALBAYES_TUTORIAL_SIZE": size}
     out = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-n", "-q", "-b", "html", str(DOCS),
                           str(tmp_path / "html"), "-d", str(tmp_path / "doctrees")],
                          capture_output=True, text=True, env=env, timeout=1800)
@@ -75,6 +76,36 @@ def test_documentation_site_builds_without_warnings(tmp_path):
     assert (html / "api" / "posterior.html").exists()
     for notebook in (DOCS / "tutorials").glob("*.ipynb"):
         assert (html / "tutorials" / f"{notebook.stem}.html").exists(), f"tutorial {notebook.name} not rendered"
+
+
+def test_documentation_site_builds_without_warnings(tmp_path):
+    """The whole site (narrative pages, tutorials executed at the reduced size, API reference) with
+    ``sphinx-build -W -n``: every page and docstring parses, every cross-reference resolves, every tutorial
+    cell runs."""
+    _build_site(tmp_path, "reduced")
+
+
+@pytest.mark.slow
+def test_documentation_site_builds_with_full_size_tutorials(tmp_path):
+    """The same build with the tutorials at the size of a real analysis (SPIRALBAYES_TUTORIAL_SIZE=full)."""
+    _build_site(tmp_path, "full")
+
+
+def test_tutorials_use_the_public_api_only():
+    """A tutorial's code imports ``spiralbayes as sb`` and reaches everything through ``sb.``; each runs at two
+    sizes chosen by SPIRALBAYES_TUTORIAL_SIZE; each stored notebook has no outputs (the build makes them)."""
+    import json
+
+    notebooks = sorted((DOCS / "tutorials").glob("*.ipynb"))
+    assert len(notebooks) >= 3
+    for path in notebooks:
+        cells = [c for c in json.loads(path.read_text())["cells"] if c["cell_type"] == "code"]
+        code = "\n".join("".join(c["source"]) for c in cells)
+        assert "import spiralbayes as sb" in code, path.name
+        assert "SPIRALBAYES_TUTORIAL_SIZE" in code, path.name
+        deep = re.findall(r"from spiralbayes[\w.]* import|import spiralbayes\.|(?<![\w.])spiralbayes\.\w+", code)
+        assert not deep, f"{path.name} reaches past sb.: {deep}"
+        assert not any(c.get("outputs") for c in cells), f"{path.name} is stored with outputs"
 
 
 def test_the_site_configuration_ignores_no_role():
