@@ -101,6 +101,20 @@ def load_visibilities(path, *, check_weights_on_load: bool = True, **kwargs) -> 
     With ``check_weights_on_load`` (default) the weights are compared with the scatter of the
     data and a :class:`~spiralbayes.exceptions.DataWarning` says how to fix them when they do
     not look statistical (:func:`.check_weights`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file (or Measurement Set directory); its extension chooses the reader.
+    check_weights_on_load : bool
+        Compare the weights with the scatter of the data and warn when they do not look statistical.
+    **kwargs
+        Options of the reader (e.g. ``wavelength=`` [m] for a uvtable in metres).
+
+    Returns
+    -------
+    Visibilities
+        u, v [λ], V [Jy], weights [Jy⁻²] and the file's provenance, in the package's convention.
     """
     path = require_file(path, "visibility file")
     fmt = _format_of(path)
@@ -140,6 +154,20 @@ def save_visibilities(vis: Visibilities, path, **kwargs) -> Path:
     """Write ``vis`` in the format given by the extension of ``path`` (see :func:`load_visibilities`).
 
     Existing files are replaced atomically. Keyword arguments go to the writer.
+
+    Parameters
+    ----------
+    vis : Visibilities
+        The data to write.
+    path : str or Path
+        The file: ``.txt/.dat/.csv`` (uvtable), ``.npz``, ``.h5/.hdf5`` or a ``.ms`` directory.
+    **kwargs
+        Options of the writer.
+
+    Returns
+    -------
+    Path
+        The path written.
     """
     path = Path(path)
     fmt = _format_of(path)

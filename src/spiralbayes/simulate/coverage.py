@@ -278,6 +278,12 @@ def uv_coverage(configurations, declination: float, hour_angles=(-0.5, 0.5),
     cycle : int
         ALMA cycle for ``"C-M"`` names.
 
+    Returns
+    -------
+    UVCoverage
+        u, v, w [λ] of every baseline and integration, with the antennas, hour angles and configuration of
+        each row.
+
     Raises
     ------
     ValueError

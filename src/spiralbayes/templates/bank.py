@@ -235,6 +235,11 @@ def compromise_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = 
         Disc aspect ratios ``H/r`` at r_p.
     **options
         Other :class:`~spiralbayes.templates.wake.WakeSettings` fields (e.g. ``n_phi``, ``wavelength``).
+
+    Returns
+    -------
+    TemplateBank
+        The paper's 64 templates for each H/r of ``h_ps`` (192 with the default three), one morphology.
     """
     if "h_p" in options:
         h_ps = (options.pop("h_p"),)

@@ -284,6 +284,24 @@ def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: 
     :func:`~spiralbayes.inference.limits.compute_limits` then reports robust limits (a mass is
     excluded only where every variant excludes it) and the price of robustness, and the
     detection's best template may be of any variant.
+
+    Parameters
+    ----------
+    variants : sequence of str
+        Names of the morphology variants (default: compromise, hydro, wakeflow).
+    h_ps : float or sequence of float, optional
+        Aspect ratios H/r at the planet (default ``DEFAULT_H_PS``: 0.05, 0.07, 0.10).
+    cache_dir : str or Path, optional
+        Where to cache the bank (default: the package's cache folder).
+    rebuild : bool
+        Build the bank even when a cached copy exists.
+    **options
+        Generator options (fields of ``WakeSettings``), part of the cache key.
+
+    Returns
+    -------
+    TemplateBank
+        ``64 × len(h_ps) × len(variants)`` templates.
     """
     h_ps = tuple(float(h) for h in np.atleast_1d(DEFAULT_H_PS if h_ps is None else h_ps))
     chosen = [get_variant(v) for v in variants]
@@ -335,6 +353,11 @@ def default_bank(cache_dir=None, rebuild: bool = False, h_ps=DEFAULT_H_PS, **opt
     **options
         Passed to :func:`variant_bank` (``variants``, or :class:`~spiralbayes.templates.wake.WakeSettings`
         fields such as ``n_phi`` or ``wavelength``).
+
+    Returns
+    -------
+    TemplateBank
+        576 templates with the default H/r and morphologies (fewer with other ``h_ps``).
     """
     if "h_p" in options:
         h_ps = (options.pop("h_p"),)

@@ -101,6 +101,11 @@ def rescan_at_fitted_geometry(vis, axisymmetric, templates, alternatives: Altern
         options (``N``, ``Rmax``, ``alpha``, ``p0``, ``weights_smooth``, ``nonnegative``);
         ``previous_scan=`` and ``client=``, the old names of ``scan_result=`` and
         ``scheduler=``, are accepted with a FutureWarning.
+
+    Returns
+    -------
+    GeometryFollowUp
+        The geometry used, the refitted axisymmetric model, the new scan, alternatives and verdict.
     """
     where = "rescan_at_fitted_geometry"
     scan_result = renamed_keyword(overrides, "previous_scan", "scan_result", scan_result, where)

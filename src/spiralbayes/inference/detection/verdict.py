@@ -266,6 +266,46 @@ class Verdict(ResultMixin):
     ``test3_spiral_model`` which spiral hypothesis test 3 scored ("spiral", or "spiral + compact peak
     at the planet" from :func:`.apply_planet_peak`);
     ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass_range`).
+
+    Attributes
+    ----------
+    detected : bool
+        All tests passed (test 3 only when alternatives were given).
+    delta_bic : float
+        ΔBIC of the best spiral against the axisymmetric model (test 1 passes above the threshold, 10).
+    test1_passed, test2_passed : bool
+        Tests 1 (ΔBIC) and 2 (a handed, compact peak).
+    handedness_ratio : float
+        The mirror template's best Δχ² at the peak's radius over the peak's Δχ².
+    localisation : float
+        Fraction of the scanned area within the peak.
+    template : str
+        Name of the best template.
+    r_p : float
+        Its radius [arcsec].
+    phi_p_deg : float
+        Its azimuth [deg].
+    delta_chi2 : float
+        Its Δχ².
+    threshold_6lnN : float
+        ``6 ln N``, the Δχ² at ΔBIC = 0.
+    distance : float or None
+        Distance [pc] for the au values.
+    test3_passed : bool or None
+        Test 3 (the competing asymmetry models); None when not run.
+    best_alternative, best_alternative_label : str or None
+        The best competing model's key and its name in words.
+    alternative_delta_bic : float or None
+        Its ΔBIC against the axisymmetric model.
+    delta_bic_vs_alternative : float or None
+        ``ΔBIC_spiral − ΔBIC_alternative`` (positive favours the spiral).
+    alternative_threshold : float
+        The margin test 3 requires (10).
+    alternatives, candidate, planet_peak, mass_range : dict or None
+        Every alternative's scores; the best handed compact candidate when the global peak fails test 2;
+        the compact-peak score of test 3; the masses [M_th] within a ΔBIC band of the best.
+    test3_spiral_model : str or None
+        Which spiral hypothesis test 3 scored.
     """
 
     detected: bool
@@ -421,6 +461,25 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
     **overrides
         Fields of :class:`DetectionSettings` replacing those of ``settings`` (e.g.
         ``bic_threshold_value=15``, ``mstar=1.2``).
+
+    Returns
+    -------
+    Verdict
+        The outcome of tests 1-3, the best template and position, and ``summary()``'s sentence.
+
+    Examples
+    --------
+    >>> import spiralbayes as sb
+    >>> vis = sb.simulate_observation("taurus", seed=1)  # the Taurus survey's set-up, no planet
+    >>> disc = sb.fit_axisymmetric(vis, sb.DiscGeometry(inc=30, PA=60), progress=False, N=100)
+    >>> templates = [sb.make_template(mass=3.0, tau0=3.0, beta=10.0, hand=h, wavelength=1.33e-3) for h in "RL"]
+    >>> result = sb.scan(vis, disc, templates, r_p=[0.2, 0.3, 0.4], distance=140.0, progress=False)
+    >>> verdict = sb.detect(result)
+    >>> verdict.detected, verdict.test1_passed
+    (False, False)
+
+    With the competing asymmetry models, test 3 is applied too:
+    ``sb.detect(result, alternatives=sb.fit_alternatives(vis, disc))``.
     """
     if "result" in overrides:
         if scan_result is not None:

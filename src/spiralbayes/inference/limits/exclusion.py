@@ -423,11 +423,30 @@ def compute_limits(scan_result, *, settings: LimitSettings | None = None, vis=No
     **overrides
         Fields of :class:`LimitSettings` replacing those of ``settings`` (e.g. ``cl=0.99``).
 
+    Returns
+    -------
+    ExclusionLimits
+        ``M_lim(r_p)`` [M_th] of every template family (and the robust limit over morphologies), the
+        upper limits on the amplitude per instance, and the flags of radii the data cannot judge.
+
     Raises
     ------
     InputError
         A confidence level outside (0.5, 1), an unknown method or hand, a scan without families,
         or a radius grid lying entirely outside the data (every r_p flagged).
+
+    Examples
+    --------
+    >>> import spiralbayes as sb
+    >>> vis = sb.simulate_observation("taurus", seed=1)  # the Taurus survey's set-up, no planet
+    >>> disc = sb.fit_axisymmetric(vis, sb.DiscGeometry(inc=30, PA=60), progress=False, N=100)
+    >>> templates = [sb.make_template(mass=3.0, tau0=3.0, beta=10.0, hand=h, wavelength=1.33e-3) for h in "RL"]
+    >>> result = sb.scan(vis, disc, templates, r_p=[0.2, 0.3, 0.4], distance=140.0, progress=False)
+    >>> limits = sb.compute_limits(result, vis=vis, axisymmetric=disc, distance=140.0)
+    >>> limits.excluded_ranges(mass=3.0)  # r_p [arcsec] where planets of >= 3 M_th are ruled out
+    [(0.3, 0.4)]
+    >>> print(limits.summary())  # doctest: +ELLIPSIS
+    Planets of >= 3 M_th ... are ruled out at 95% confidence at 42-56 au (0.76-0.94 M_Jup)...
     """
     s = with_overrides(settings, LimitSettings, overrides, "compute_limits")
     cl, method, hand, resolution, resolution_factor = s.cl, s.method, s.hand, s.resolution, s.resolution_factor

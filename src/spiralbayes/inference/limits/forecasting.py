@@ -222,6 +222,12 @@ def forecast(disc, template, r_p: float, setup="fiducial", *, settings: Forecast
         Reuse a coverage of the same set-up.
     **overrides
         Fields of :class:`ForecastSettings` replacing those of ``settings`` (e.g. ``n_phi=18``).
+
+    Returns
+    -------
+    Forecast
+        E[Δχ²] over the planet azimuths, its spread, the threshold and P(ΔBIC > 10); ``summary()``
+        says the time on source a 90 % detection needs.
     """
     s = with_overrides(settings, ForecastSettings, overrides, "forecast")
     time_on_source, sensitivity, n_phi, nthreads = s.time_on_source, s.sensitivity, s.n_phi, s.nthreads

@@ -280,6 +280,12 @@ def completeness(vis, axisymmetric, templates, scan_result, *, settings: Complet
     **overrides
         Fields of :class:`CompletenessSettings` (e.g. ``n_azimuths=4``) or of its ``detection``
         (e.g. ``bic_threshold_value=15``) replacing those of ``settings``.
+
+    Returns
+    -------
+    CompletenessResult
+        The detected fraction at every (mass [M_th], r_p [arcsec]) and the minimum detectable mass
+        ``M_det(r_p)`` [M_th].
     """
     s = _settings(settings, overrides, "completeness")
     n_azimuths, hands, chunk, nthreads = s.n_azimuths, s.hands, s.chunk, s.nthreads

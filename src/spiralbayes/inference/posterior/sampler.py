@@ -336,6 +336,19 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
     -------
     PosteriorResult
         ``p_planet``, ``ln_bayes_factor``, ``verdict``, per-template runs and the ``null`` run.
+
+    Examples
+    --------
+    A short run (minutes on 2 cores; leave ``n_steps`` unset to sample until the chains converge):
+
+    >>> import spiralbayes as sb
+    >>> vis = sb.load_visibilities("disc.txt")  # doctest: +SKIP
+    >>> disc = sb.fit_axisymmetric(vis, sb.DiscGeometry(inc=30, PA=60), progress=False)  # doctest: +SKIP
+    >>> templates = sb.default_bank().select(mass=3.0, tau0=3.0, beta=10.0, h_p=0.07)  # doctest: +SKIP
+    >>> result = sb.scan(vis, disc, templates, progress=False)  # doctest: +SKIP
+    >>> post = sb.sample_posterior(vis, disc, templates, scan_result=result, progress=False,
+    ...                            settings=sb.SamplingSettings(n_walkers=16, n_steps=150))  # doctest: +SKIP
+    >>> print(post.verdict)  # doctest: +SKIP
     """
     if "scan" in overrides:
         if scan_result is not None:

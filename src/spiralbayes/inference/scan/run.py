@@ -309,6 +309,12 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
         ``rule=`` and ``client=``, the old names of ``quadrature=`` and ``scheduler=``, are
         accepted with a FutureWarning.
 
+    Returns
+    -------
+    ScanResult
+        Δχ² (and the cross and power terms, with error estimates) of every template at every
+        ``(r_p [arcsec], phi_p [rad])``, with the provenance of the data, model and templates.
+
     Notes
     -----
     The result carries error estimates (:meth:`ScanResult.delta_chi2_error`); an
@@ -316,6 +322,19 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     ``0.05 + 1e-4 |Δχ²|``. The power path's own check is in ``provenance["power_check"]``, the
     settings used in ``provenance["scan_settings"]``. Results agree to ~1e-9 between thread
     counts and are identical for the same count.
+
+    Examples
+    --------
+    >>> import spiralbayes as sb
+    >>> vis = sb.simulate_observation("taurus", seed=1)  # the Taurus survey's set-up, no planet
+    >>> disc = sb.fit_axisymmetric(vis, sb.DiscGeometry(inc=30, PA=60), progress=False, N=100)
+    >>> templates = [sb.make_template(mass=3.0, tau0=3.0, beta=10.0, hand=h, wavelength=1.33e-3) for h in "RL"]
+    >>> result = sb.scan(vis, disc, templates, r_p=[0.2, 0.3, 0.4], distance=140.0, progress=False)
+    >>> result.delta_chi2().shape  # (template, r_p, phi_p)
+    (2, 3, 90)
+
+    Scan a whole bank with ``sb.default_bank()`` (576 templates) or a selection of it
+    (``sb.default_bank().select(tau0=3, h_p=0.07)``).
     """
     scheduler = renamed_keyword(overrides, "client", "scheduler", scheduler, "scan")
     if "rule" in overrides:
