@@ -345,6 +345,128 @@ runs the same from the command line.
 '''),
 ]
 
+TUTORIALS["survey"] = [
+    md('''
+# A survey on a laptop and on a cluster
+
+`sb.run_survey` runs the whole single-disc search — frank, the scan, test 3's alternatives, the verdict,
+the exclusion limits and the posterior of candidates — over every disc of a survey file, and writes one
+table. The same file runs on a laptop (serially or on a local Dask cluster) and on a batch cluster;
+only the `scheduler` changes.
+'''),
+    code(SETUP.replace("import numpy as np\n\n", "")),
+    md('''
+## 1. The survey file
+
+Two synthetic, planet-free discs observed with the Taurus set-up: a `simulate` entry writes each disc's
+data at `path` when the file is missing (for real data, give the path of a Measurement Set, uvtable,
+`.npz` or `.h5` file and leave `simulate` out). `[bank]` is the template family scanned in every disc,
+in the three default morphologies; any section of the single-disc configuration (`[grid]`, `[frank]`,
+`[limits]`, ...; `spiralbayes scan --print-config` lists them) applies to every disc, and a
+`[disc.<section>]` table overrides it for one disc.
+'''),
+    code('''
+import tempfile
+from pathlib import Path
+
+folder = Path(tempfile.mkdtemp(prefix="spiralbayes-survey-"))
+n_r_p = 25 if FULL else 8
+# reduced size: a smaller frank fit, no test 3 (the alternatives) and no per-disc figures
+quick = "" if FULL else "[frank]\\nN = 100\\n[alternatives]\\nfit = false\\n[output]\\nplots = false\\n"
+survey_file = folder / "survey.toml"
+survey_file.write_text(f"""
+[survey]
+name = "two synthetic Taurus discs"
+output = "survey-output"
+scheduler = "serial"
+posterior = "none"
+
+[bank]
+mass = [1.0, 3.0]
+tau0 = [0.3]
+beta = [10.0]
+h_p = [0.07]
+wavelength = 1.33e-3
+
+[grid]
+r_p_max = 0.5
+n_r_p = {n_r_p}
+
+{quick}
+[[disc]]
+name = "Disc A"
+path = "data/disc_a.h5"
+distance = 140.0
+inc = 30.0
+PA = 60.0
+fit_geometry = false
+simulate = {{ preset = "taurus", flux = 0.12, r_eff = 0.3, seed = 1 }}
+
+[[disc]]
+name = "Disc B"
+path = "data/disc_b.h5"
+distance = 160.0
+inc = 45.0
+PA = 120.0
+fit_geometry = false
+simulate = {{ preset = "taurus", flux = 0.08, r_eff = 0.4, seed = 2 }}
+""")
+'''),
+    md('''
+## 2. On a laptop
+
+`scheduler = "serial"` runs the discs one after the other in this process; `"local"` (or `""`, the
+default) starts a Dask LocalCluster with one single-threaded worker per core and runs the discs' tasks
+in parallel.
+'''),
+    code('''
+run = sb.run_survey(survey_file, progress=False)
+print("failed discs:", run.failed or "none")
+run.table["disc", "R_eff95_au", "excluded_ge3Mth", "excluded_ge1Mth", "verdict", "delta_bic"]
+'''),
+    md('''
+The output folder holds the table (`survey_table.ecsv`, `survey_table.md`), the provenance of the run,
+one page of every disc's limits (`figures/limits_grid.png`) and, under `discs/<name>/`, exactly what
+`spiralbayes scan` and `spiralbayes limits` write for one disc. A rerun skips every stage whose inputs
+did not change.
+'''),
+    code('''
+sorted(str(p.relative_to(folder / "survey-output")) for p in (folder / "survey-output").glob("*"))
+'''),
+    md('''
+## 3. On a cluster (shown, not run here)
+
+On a SLURM or PBS cluster (`pip install "spiralbayes[cluster]"`), set the scheduler and the batch
+options in the survey file; the survey starts the batch jobs, runs the discs' tasks on their workers and
+releases the jobs at the end:
+
+```toml
+[survey]
+scheduler = "slurm"       # or "pbs"
+[cluster]                 # keyword arguments of dask_jobqueue.SLURMCluster / PBSCluster
+jobs = 8
+cores = 16                # 16 worker processes x 1 thread per job
+memory = "64GB"
+walltime = "04:00:00"
+queue = "compute"
+account = "disc-survey"
+```
+
+Or start a cluster yourself and pass its address (or a `distributed.Client`):
+
+```python
+from dask_jobqueue import SLURMCluster
+
+cluster = SLURMCluster(cores=16, processes=16, memory="64GB", walltime="04:00:00")
+cluster.scale(jobs=8)
+run = sb.run_survey("survey.toml", scheduler=cluster.scheduler_address)
+```
+
+From the command line: `spiralbayes survey survey.toml --scheduler tcp://head-node:8786`. The survey
+page of this site gives the measured costs and the MPI variant.
+'''),
+]
+
 
 def main():
     for name, cells in TUTORIALS.items():
