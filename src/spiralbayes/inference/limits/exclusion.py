@@ -227,8 +227,9 @@ class ExclusionLimits(ResultMixin):
         masses = fam.masses if mass is None else [mass]
         rows = []
         for m in masses:
-            idx = [fam.index(m, h) for h in self._hands(fam)]
-            if any(i is None for i in idx):
+            found = [fam.index(m, h) for h in self._hands(fam)]
+            idx = [i for i in found if i is not None]
+            if len(idx) < len(found):
                 raise InputError(f"mass {m} is not in the family {fam.label} (masses {fam.masses}) for every hand")
             rows.append(np.all(self.upper_limit[idx] < 1.0, axis=0) & (self.flags == ""))
         out = np.array(rows)
@@ -247,11 +248,8 @@ class ExclusionLimits(ResultMixin):
         :func:`compute_limits`, else the family's own ``h_p``, else 0.07."""
         if self.disc.get("h_ref") is not None and not self.disc.get("h_ref_from_family", False):
             return float(self.disc["h_ref"])
-        if family is not None:
-            h_ps = {family.key.get("h_p") if isinstance(family, Family) else self.family(family).key.get("h_p")}
-        else:
-            h_ps = {f.key.get("h_p") for f in self.families}
-        h_ps.discard(None)
+        fams = self.families if family is None else [family if isinstance(family, Family) else self.family(family)]
+        h_ps = {f.key["h_p"] for f in fams if f.key.get("h_p") is not None}
         if len(h_ps) > 1:
             raise InputError(f"the families have several h_p ({sorted(h_ps)}): give family= for Jupiter masses")
         return float(h_ps.pop()) if h_ps else 0.07

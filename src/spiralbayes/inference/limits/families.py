@@ -97,10 +97,10 @@ def template_families(templates: list) -> list[Family]:
         members: dict = {}
         for mass, hand, index in rows:
             members.setdefault(hand, [None] * len(masses))[masses.index(mass)] = index
-        key = {"tau0": tau0, "beta": beta, "h_p": h_p}
+        family_key = {"tau0": tau0, "beta": beta, "h_p": h_p}
         if variant is not None:
-            key["variant"] = variant
-        families.append(Family(key, masses, members))
+            family_key["variant"] = variant
+        families.append(Family(family_key, masses, members))
     return families
 
 

@@ -209,7 +209,7 @@ class InjectionEngine:
 
 def _band(B: np.ndarray, n_theta: int) -> np.ndarray:
     """Angular frequencies (FFT order) holding all but ``BAND_TOLERANCE`` of the spectral energy."""
-    energy = np.sum(B.real ** 2 + B.imag ** 2, axis=(0, 1), dtype=np.float64)
+    energy = np.asarray(np.sum(B.real ** 2 + B.imag ** 2, axis=(0, 1), dtype=np.float64))
     total = energy.sum()
     if total <= 0:
         return np.zeros(0, dtype=int)

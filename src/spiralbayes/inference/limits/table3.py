@@ -32,7 +32,7 @@ def families_text(limits) -> str:
     fams = list(limits.families)
     if len(fams) == 1:
         return fams[0].label
-    values = {}
+    values: dict[str, list] = {}
     for fam in fams:
         for key in ("tau0", "beta", "h_p"):
             if fam.key.get(key) is not None and fam.key[key] not in values.setdefault(key, []):

@@ -51,6 +51,7 @@ split apart, each piece would reach into the others' caches.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -193,7 +194,7 @@ class ScanContext:
     Build it with :meth:`ScanContext.build`.
     """
 
-    profile: object
+    profile: Callable[[np.ndarray], np.ndarray]  # I(r) [Jy/sr], r [arcsec]
     geometry: DiscGeometry
     u: np.ndarray
     v: np.ndarray
