@@ -23,7 +23,6 @@ napoleon_google_docstring = False
 # "float [arcsec]"), not cross-references: the type fields are prose with units.
 napoleon_use_param = False
 napoleon_use_rtype = False
-napoleon_use_ivar = True
 # Attributes like Parameters (a field list; the attribute itself is documented once, by autodoc)
 napoleon_custom_sections = [("Attributes", "params_style")]
 napoleon_use_keyword = False
@@ -50,15 +49,14 @@ html_theme = "alabaster"
 html_title = "spiralbayes"
 exclude_patterns = ["_build", "**.ipynb_checkpoints", "jupyter_execute"]
 nitpicky = True  # every cross-reference must resolve
-# Base classes and return types from libraries whose own documentation is not linked (no intersphinx: the
-# build runs offline); each is named, nothing else is ignored.
+# Classes of libraries whose own documentation is not linked (no intersphinx: the build runs offline), named by
+# docstrings; each is listed, nothing else is ignored.
 nitpick_ignore = [
-    ("py:class", "collections.abc.Sequence"),
-    ("py:class", "emcee.backends.backend.Backend"),
-    ("py:class", "emcee.moves.red_blue.RedBlueMove"),
     ("py:class", "distributed.LocalCluster"),
     ("py:class", "matplotlib.figure.Figure"),
 ]
+
+
 def _canonical_name(dotted: str) -> str | None:
     """``module.qualname`` of the object a dotted name reaches (a re-export resolves to its home)."""
     import importlib
