@@ -1,0 +1,255 @@
+"""Antenna gains per solution interval by weighted linear least squares: one implementation for the
+diagnostic (:mod:`.diagnostics`) and the solver (:mod:`.solve`).
+
+A row of :class:`~spiralbayes.visibilities.Visibilities` with ``antenna1 = q``, ``antenna2 = p`` is
+corrupted as ``g_p conj(g_q) V`` (:mod:`spiralbayes.simulate.gains`), so the ratio of the data to a
+model ``M`` of them is ``r = V_obs / M = a_p a_q exp(i (phi_p - phi_q))`` plus noise of variance
+``1 / (|M|^2 w)`` on each of Re r and Im r. Per interval and per connected set of antennas:
+
+* phase: ``arg r_pq = phi_p - phi_q`` with the set's first antenna fixed at 0, solved for the
+  increment on the wrapped residual and iterated, so that tens of degrees are solved in full;
+* position (``keep_position``): phases ``2 pi (U_p dl + V_p dm)``, linear in the antennas' uv positions
+  ``U_p`` (from the baselines ``u_pq = U_p - U_q``), shift the whole image; they are projected out, so that
+  the gains cannot move the disc or absorb the centroid offset of an asymmetric structure;
+* amplitude: ``Re(r_pq exp(-i (phi_p - phi_q))) / (a_p a_q) - 1 = alpha_p + alpha_q`` to first order in
+  the fractional corrections ``alpha`` (the real part of the phase-corrected ratio has unbiased noise,
+  unlike ``|r|``); each iteration multiplies the amplitudes by ``1 + alpha``. One iteration from
+  ``a = 1`` is the diagnostic's first-order estimate.
+
+The weight of a row is ``|M|^2 w`` times ``(a_p a_q)^2`` of the current amplitudes; rows with model
+S/N ``|M| sqrt(w) < min_snr`` are not used. The covariances returned are those of the last linear
+step (the Gauss-Newton covariance of the solution).
+
+Units: phases [rad]; amplitudes fractional; times [s].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import InputError
+from ..visibilities import Visibilities
+
+__all__ = ["GroupSolution", "interval_labels", "model_visibilities", "solve_groups"]
+
+PHASE_ITERATIONS = 4
+"""Wrapped-residual phase iterations (each converges the phases of a group further; 4 solves 60 deg)."""
+
+
+@dataclass
+class GroupSolution:
+    """The gains of one connected set of antennas in one solution interval.
+
+    Attributes
+    ----------
+    interval : int
+        Label of the interval (:func:`interval_labels`).
+    rows : ndarray of int
+        Rows of the data used (indices into the visibilities passed to :func:`solve_groups`).
+    antennas : ndarray of int
+        Antenna indices of the set, sorted; ``antennas[0]`` is the phase reference (phase 0).
+    phase : ndarray
+        Antenna phases [rad] relative to ``antennas[0]``.
+    cov_phase : ndarray, shape (n, n)
+        Their covariance [rad^2] (zero row and column for the reference).
+    amp : ndarray or None
+        Antenna amplitudes ``a`` (1 = no error); None when amplitudes were not solved.
+    cov_amp : ndarray or None
+        Covariance of the fractional amplitudes.
+    """
+
+    interval: int
+    rows: np.ndarray
+    antennas: np.ndarray
+    phase: np.ndarray
+    cov_phase: np.ndarray
+    amp: np.ndarray | None = None
+    cov_amp: np.ndarray | None = None
+
+
+EDGE_TOLERANCE = 1e-6
+"""Fraction of an interval by which a time before an interval's edge still counts as on it."""
+
+
+def model_visibilities(vis: Visibilities, model) -> np.ndarray:
+    """The model's visibilities at the data's baselines: an array of ``vis.n`` values or an object with
+    ``visibilities(u, v)``."""
+    M = model.visibilities(vis.u, vis.v) if hasattr(model, "visibilities") else model
+    M = np.asarray(M, dtype=complex).ravel()
+    if M.shape != (vis.n,):
+        raise InputError(f"model has {M.size} visibilities for {vis.n} data points: give the model at the data's "
+                         "baselines (model.visibilities(vis.u, vis.v)) or the model object")
+    return M
+
+
+def interval_labels(time, interval_s: float | None, n: int) -> np.ndarray:
+    """Solution interval of each row: one per distinct time (``interval_s`` None), else intervals of
+    ``interval_s`` seconds that restart after any gap longer than one interval; all rows one interval
+    when there are no times."""
+    if time is None:
+        return np.zeros(n, dtype=np.int64)
+    if interval_s is None:
+        return np.unique(time, return_inverse=True)[1].ravel()
+    # intervals restart after each gap longer than an interval (a new block of the observation)
+    times, row = np.unique(time, return_inverse=True)
+    block = np.concatenate([[0], np.cumsum(np.diff(times) > interval_s)])
+    start = times[np.searchsorted(block, block)]  # first time of each time's block
+    # a time on an interval's edge belongs to the later interval whatever the rounding of (t - start)
+    label = np.unique(np.column_stack([block, np.floor((times - start) / interval_s + EDGE_TOLERANCE)]), axis=0,
+                      return_inverse=True)[1].ravel()
+    return label[row.ravel()]
+
+
+def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min_snr: float, *,
+                 amplitude: bool = True, amp_iterations: int = 1,
+                 keep_position: bool = False) -> tuple[list[GroupSolution], np.ndarray]:
+    """Solve the antenna gains of every interval's connected sets of three or more antennas.
+
+    Parameters
+    ----------
+    vis : Visibilities
+        Data with ``antenna1``, ``antenna2`` (and ``time``; without it one interval).
+    M : ndarray of complex, shape (N,)
+        The model's visibilities [Jy].
+    interval_s : float or None
+        Solution interval [s] (:func:`interval_labels`).
+    min_snr : float
+        Rows with ``|M| sqrt(w)`` below this are not used.
+    amplitude : bool
+        Also solve the amplitudes.
+    amp_iterations : int
+        Amplitude iterations (1: the first-order estimate from unit amplitudes).
+    keep_position : bool
+        Remove from each set's phases their part linear in the antennas' uv positions (an image shift),
+        after the mean: the phases then have mean zero and no gradient, and ``antennas[0]`` is no longer
+        at zero.
+
+    Returns
+    -------
+    solutions : list of GroupSolution
+    use : ndarray of bool, shape (N,)
+        Rows above ``min_snr``.
+    """
+    snr = np.abs(M) * np.sqrt(vis.weights)
+    use = snr >= min_snr
+    if use.sum() < 3:
+        raise InputError(f"only {int(use.sum())} visibilities have model S/N >= min_snr = {min_snr}: "
+                         "lower min_snr or check that the model matches the data")
+    index = np.flatnonzero(use)
+    ratio = vis.V[use] / M[use]
+    wt = snr[use] ** 2
+    a1, a2 = vis.antenna1[use], vis.antenna2[use]
+    interval = interval_labels(vis.time, interval_s, vis.n)[use]
+    out = []
+    for rows in _solution_groups(interval, a1, a2):
+        ants, idx = np.unique(np.concatenate([a1[rows], a2[rows]]), return_inverse=True)
+        n_ant = ants.size
+        if n_ant < 3:
+            continue
+        q, p = idx[: rows.size], idx[rows.size:]  # p = antenna2 carries g, q = antenna1 conj(g)
+        phi, cov_phi = _solve_phase(ratio[rows], wt[rows], p, q, n_ant)
+        if phi is None:
+            continue
+        if keep_position:
+            phi, cov_phi = _without_shift(phi, cov_phi, vis.u[index[rows]], vis.v[index[rows]], p, q, n_ant)
+        amp = cov_amp = None
+        if amplitude:
+            amp, cov_amp = _solve_amp(ratio[rows] * np.exp(-1j * (phi[p] - phi[q])), wt[rows], p, q, n_ant,
+                                      amp_iterations)
+            if amp is None:
+                continue
+        out.append(GroupSolution(int(interval[rows[0]]), index[rows], ants, phi, cov_phi, amp, cov_amp))
+    if not out:
+        raise InputError("no solution interval has three or more antennas with enough S/N: "
+                         "lengthen interval_s or lower min_snr")
+    return out, use
+
+
+def _solution_groups(interval: np.ndarray, a1: np.ndarray, a2: np.ndarray):
+    """Row indices of each interval's connected sets of antennas (each needs its own reference)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    order = np.argsort(interval, kind="stable")
+    starts = np.flatnonzero(np.diff(interval[order])) + 1
+    for rows in np.split(order, starts):
+        ants, idx = np.unique(np.concatenate([a1[rows], a2[rows]]), return_inverse=True)
+        graph = coo_matrix((np.ones(rows.size), (idx[: rows.size], idx[rows.size:])), shape=(ants.size,) * 2)
+        n_comp, label = connected_components(graph, directed=False)
+        if n_comp == 1:
+            yield rows
+            continue
+        row_label = label[idx[: rows.size]]
+        for c in range(n_comp):
+            yield rows[row_label == c]
+
+
+def _design(p, q, n_ant: int, sign: float) -> np.ndarray:
+    A = np.zeros((p.size, n_ant))
+    np.add.at(A, (np.arange(p.size), p), 1.0)
+    np.add.at(A, (np.arange(p.size), q), sign)
+    return A
+
+
+def _weighted_solve(A, y, wt):
+    """Least-squares solution and its covariance, or (None, None) when singular."""
+    normal = A.T @ (wt[:, None] * A)
+    try:
+        cov = np.linalg.inv(normal)
+    except np.linalg.LinAlgError:
+        return None, None
+    return cov @ (A.T @ (wt.reshape(wt.shape + (1,) * (y.ndim - 1)) * y)), cov
+
+
+def _solve_phase(ratio, wt, p, q, n_ant: int, n_iter: int = PHASE_ITERATIONS):
+    """Antenna phases [rad] (antenna 0 of the set fixed at 0) and their covariance."""
+    A = _design(p, q, n_ant, -1.0)[:, 1:]
+    phi = np.zeros(n_ant - 1)
+    cov = None
+    for _ in range(n_iter):
+        model = A @ phi
+        resid = np.angle(ratio * np.exp(-1j * model))  # wrapped: solve the increment
+        step, cov = _weighted_solve(A, resid, wt)
+        if step is None:
+            return None, None
+        phi = phi + step
+    full = np.zeros((n_ant, n_ant))
+    full[1:, 1:] = cov
+    return np.concatenate([[0.0], phi]), full
+
+
+def _antenna_uv(u, v, p, q, n_ant: int) -> np.ndarray:
+    """Antenna positions ``(n_ant, 2)`` [lambda], mean zero, from the baselines ``u = U_p - U_q`` (the
+    interval's mean where it spans several times)."""
+    A = _design(p, q, n_ant, -1.0)[:, 1:]
+    pos, _ = _weighted_solve(A, np.column_stack([u, v]), np.ones(u.size))
+    pos = np.vstack([[0.0, 0.0], pos])
+    return pos - pos.mean(axis=0)
+
+
+def _without_shift(phi, cov, u, v, p, q, n_ant: int):
+    """Phases with their part linear in the antennas' uv positions removed, and its covariance.
+
+    Phases ``2 pi (U_p dl + V_p dm)`` shift the whole image by ``(dl, dm)``: taken out, the gains cannot
+    move the disc or absorb the centroid offset of an asymmetric structure.
+    """
+    G = 2 * np.pi * _antenna_uv(u, v, p, q, n_ant)
+    centre = np.eye(n_ant) - 1.0 / n_ant
+    projector = centre - G @ np.linalg.pinv(G) @ centre  # G is centred: removes mean and gradient
+    return projector @ phi, projector @ cov @ projector.T
+
+
+def _solve_amp(phased_ratio, wt, p, q, n_ant: int, n_iter: int):
+    """Antenna amplitudes and the covariance of their fractional errors from the phase-corrected ratios."""
+    A = _design(p, q, n_ant, 1.0)
+    amp = np.ones(n_ant)
+    cov = None
+    for _ in range(max(int(n_iter), 1)):
+        both = amp[p] * amp[q]
+        step, cov = _weighted_solve(A, (phased_ratio / both).real - 1.0, wt * both ** 2)
+        if step is None:
+            return None, None
+        amp = amp * (1.0 + step)
+    return amp, cov

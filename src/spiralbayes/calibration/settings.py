@@ -1,0 +1,63 @@
+"""How antenna gains are solved: :class:`CalibrationSettings`, the ``[calibration]`` section of the configuration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..exceptions import InputError
+from ..settings import documented, is_finite_number, is_integer, option
+
+__all__ = ["CalibrationSettings", "SOLVE_MODES"]
+
+SOLVE_MODES = ("none", "phase", "amplitude+phase")
+"""``[calibration] solve`` values: no solve, antenna phases, or antenna amplitudes and phases."""
+
+
+@documented
+@dataclass(frozen=True)
+class CalibrationSettings:
+    """Options of :func:`~spiralbayes.calibration.solve_gains` and :func:`~spiralbayes.calibration.selfcal`
+    (TOML section ``[calibration]``).
+
+    The default interval, 120 s, is two of the 60-s integrations of time-averaged ALMA continuum data:
+    short against the minutes over which residual atmospheric phases wander, long enough that each
+    antenna's N_ant - 1 baselines are seen at two hour angles. What keeps a solve from absorbing a spiral
+    is that the gains are antenna-based (N_ant - 1 phases against N_ant (N_ant - 1) / 2 baselines per
+    integration) and that a spiral's visibilities, fixed on the sky, are not the product of antenna
+    factors (docs/calibration.md gives the measured fraction absorbed).
+    """
+
+    solve: str = option("none", "antenna gains to solve against the axisymmetric model before the scan: 'none', "
+                                "'phase' or 'amplitude+phase' (needs data that record antennas and times: "
+                                "Measurement Sets, spiralbayes HDF5 files)")
+    interval_s: float = option(120.0, "solution interval [s]: one gain per antenna per interval (intervals restart "
+                                      "after a gap in time longer than one interval)")
+    min_snr: float = option(5.0, "visibilities whose model S/N |M| sqrt(w) is below this are not used in the solve")
+    n_iterations: int = option(2, "self-calibration rounds: solve against the current frank fit, refit frank to the "
+                                  "corrected data, repeat")
+    refant: int | None = option(None, "reference antenna (index) whose phase is zero in every interval it is in; "
+                                      "-1: the lowest-indexed antenna solved in each interval", toml=-1)
+    keep_position: bool = option(True, "remove from each interval's phases their part linear in the antennas' uv "
+                                       "positions (an image shift), so that the gains cannot move the disc or absorb "
+                                       "the centroid offset of a spiral")
+    amp_iterations: int = option(3, "amplitude iterations of each solve (1: the first-order estimate)", config=False)
+
+    def __post_init__(self):
+        if self.solve not in SOLVE_MODES:
+            raise InputError(f"solve = {self.solve!r} must be one of {', '.join(repr(m) for m in SOLVE_MODES)}")
+        if not (is_finite_number(self.interval_s) and self.interval_s > 0):
+            raise InputError(f"interval_s = {self.interval_s!r} must be a positive time [s], e.g. 120")
+        if not (is_finite_number(self.min_snr) and self.min_snr > 0):
+            raise InputError(f"min_snr = {self.min_snr!r} must be a positive signal-to-noise ratio, e.g. 5")
+        if not is_integer(self.n_iterations) or self.n_iterations < 1:
+            raise InputError(f"n_iterations = {self.n_iterations!r} must be an integer >= 1")
+        if self.refant is not None and (not is_integer(self.refant) or self.refant < 0):
+            raise InputError(f"refant = {self.refant!r} must be an antenna index >= 0 (or -1 in a configuration "
+                             "file: automatic)")
+        if not is_integer(self.amp_iterations) or self.amp_iterations < 1:
+            raise InputError(f"amp_iterations = {self.amp_iterations!r} must be an integer >= 1")
+
+    @property
+    def enabled(self) -> bool:
+        """Whether any gains are solved."""
+        return self.solve != "none"
