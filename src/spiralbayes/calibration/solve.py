@@ -13,9 +13,9 @@ phase of the reference antenna (``refant``, else the lowest-indexed antenna solv
 to zero. With ``keep_position`` (the default) the part of each interval's phases linear in the antennas'
 uv positions is removed first: it shifts the image, which the disc's geometry (``dRA``, ``dDec``) and not the
 gains should describe, and it is the part of an asymmetric structure such as a spiral (its centroid
-offset) that antenna phases absorb most readily. Antennas without a solution in an interval (all their baselines below ``min_snr``, or absent)
-have ``NaN`` gains there and their rows are left uncorrected by :meth:`GainSolution.apply` (weak rows
-carry little of the model and little of its error).
+offset) that antenna phases absorb most readily. Antennas without a solution in an interval (all their
+baselines below ``min_snr``, or absent) have ``NaN`` gains there and their rows are left uncorrected by
+:meth:`GainSolution.apply` (weak rows carry little of the model and little of its error).
 
 Units: phases [deg]; amplitudes fractional (1 = no error); times [s].
 """
