@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import logging
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -78,6 +78,8 @@ class GainSolution(ResultMixin):
     n_used : int
         Visibilities used in the solve (model S/N at least ``min_snr``).
     min_snr : float
+    provenance : dict
+        What the solution was solved from (the pipeline records the data's hash and the settings).
     """
 
     KIND = "gain_solution"
@@ -98,6 +100,7 @@ class GainSolution(ResultMixin):
     amp_rms: float
     n_used: int
     min_snr: float
+    provenance: dict = field(default_factory=dict)
 
     @property
     def n_intervals(self) -> int:

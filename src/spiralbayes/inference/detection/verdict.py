@@ -265,7 +265,9 @@ class Verdict(ResultMixin):
     handed, compact candidate when the global peak fails test 2 (:func:`.best_handed_candidate`);
     ``test3_spiral_model`` which spiral hypothesis test 3 scored ("spiral", or "spiral + compact peak
     at the planet" from :func:`.apply_planet_peak`);
-    ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass_range`).
+    ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass_range`);
+    ``calibration`` what was done to the data's calibration before the scan (set by the pipeline, e.g.
+    ``antenna gains solved (phase, 120 s intervals, 9.8 deg rms)``).
     """
 
     detected: bool
@@ -291,6 +293,7 @@ class Verdict(ResultMixin):
     test3_spiral_model: str | None = None
     planet_peak: dict | None = None
     mass_range: dict | None = None
+    calibration: str | None = None
 
     KIND = "spiralbayes.Verdict"
     WHAT = "verdict"
@@ -331,8 +334,8 @@ class Verdict(ResultMixin):
         text += self._test3_sentence()
         if self.candidate is not None:
             text += self._candidate_sentence()
-        return text + (" A planet-driven spiral is detected." if self.detected
-                       else " No planet-driven spiral is claimed.")
+        text += " A planet-driven spiral is detected." if self.detected else " No planet-driven spiral is claimed."
+        return text + (f" The data were corrected first: {self.calibration}." if self.calibration else "")
 
     def _mass_sentence(self) -> str:
         m = self.mass_range
