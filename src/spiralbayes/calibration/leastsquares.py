@@ -7,7 +7,9 @@ model ``M`` of them is ``r = V_obs / M = a_p a_q exp(i (phi_p - phi_q))`` plus n
 ``1 / (|M|^2 w)`` on each of Re r and Im r. Per interval and per connected set of antennas:
 
 * phase: ``arg r_pq = phi_p - phi_q`` with the set's first antenna fixed at 0, solved for the
-  increment on the wrapped residual and iterated, so that tens of degrees are solved in full;
+  increment on the wrapped residual and iterated, so that tens of degrees are solved in full; optional
+  further Gauss-Newton steps on ``Im(r_pq exp(-i (phi_p - phi_q)))`` reach the maximum-likelihood
+  solution of ``sum w |V - g_p conj(g_q) M|^2`` (the solver's; the diagnostic keeps the angle);
 * position (``keep_position``): phases ``2 pi (U_p dl + V_p dm)``, linear in the antennas' uv positions
   ``U_p`` (from the baselines ``u_pq = U_p - U_q``), shift the whole image; they are projected out, so that
   the gains cannot move the disc or absorb the centroid offset of an asymmetric structure;
@@ -103,7 +105,7 @@ def interval_labels(time, interval_s: float | None, n: int) -> np.ndarray:
 
 
 def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min_snr: float, *,
-                 amplitude: bool = True, amp_iterations: int = 1,
+                 amplitude: bool = True, amp_iterations: int = 1, ml_iterations: int = 0,
                  keep_position: bool = False) -> tuple[list[GroupSolution], np.ndarray]:
     """Solve the antenna gains of every interval's connected sets of three or more antennas.
 
@@ -121,6 +123,11 @@ def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min
         Also solve the amplitudes.
     amp_iterations : int
         Amplitude iterations (1: the first-order estimate from unit amplitudes).
+    ml_iterations : int
+        Phase iterations after the wrapped-angle ones that take the residual's imaginary part
+        ``Im(r exp(-i (phi_p - phi_q)))`` instead of its angle: Gauss-Newton steps on
+        ``sum w |V - exp(i (phi_p - phi_q)) M|^2``, whose fixed point is the maximum-likelihood phase
+        solution (CASA gaincal's); the angle's is the same at high S/N and biased where ``|r|`` is noisy.
     keep_position : bool
         Remove from each set's phases their part linear in the antennas' uv positions (an image shift),
         after the mean: the phases then have mean zero and no gradient, and ``antennas[0]`` is no longer
@@ -149,15 +156,27 @@ def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min
         if n_ant < 3:
             continue
         q, p = idx[: rows.size], idx[rows.size:]  # p = antenna2 carries g, q = antenna1 conj(g)
-        phi, cov_phi = _solve_phase(ratio[rows], wt[rows], p, q, n_ant)
+        r, w = ratio[rows], wt[rows]
+        phi, cov_phi = _solve_phase(r, w, p, q, n_ant, ml_iterations=ml_iterations)
         if phi is None:
             continue
+        amp = cov_amp = None
+        if amplitude and ml_iterations:
+            # joint maximum likelihood: the phases weighted by the amplitudes found, in turn
+            for _ in range(max(int(amp_iterations), 1)):
+                amp, cov_amp = _solve_amp(r * np.exp(-1j * (phi[p] - phi[q])), w, p, q, n_ant, amp_iterations)
+                if amp is None:
+                    break
+                phi, cov_phi = _solve_phase(r, w, p, q, n_ant, n_iter=0, ml_iterations=ml_iterations, start=phi,
+                                            both=amp[p] * amp[q])
+                if phi is None:
+                    break
+            if amp is None or phi is None:
+                continue
         if keep_position:
             phi, cov_phi = _without_shift(phi, cov_phi, vis.u[index[rows]], vis.v[index[rows]], p, q, n_ant)
-        amp = cov_amp = None
         if amplitude:
-            amp, cov_amp = _solve_amp(ratio[rows] * np.exp(-1j * (phi[p] - phi[q])), wt[rows], p, q, n_ant,
-                                      amp_iterations)
+            amp, cov_amp = _solve_amp(r * np.exp(-1j * (phi[p] - phi[q])), w, p, q, n_ant, amp_iterations)
             if amp is None:
                 continue
         out.append(GroupSolution(int(interval[rows[0]]), index[rows], ants, phi, cov_phi, amp, cov_amp))
@@ -203,15 +222,23 @@ def _weighted_solve(A, y, wt):
     return cov @ (A.T @ (wt.reshape(wt.shape + (1,) * (y.ndim - 1)) * y)), cov
 
 
-def _solve_phase(ratio, wt, p, q, n_ant: int, n_iter: int = PHASE_ITERATIONS):
-    """Antenna phases [rad] (antenna 0 of the set fixed at 0) and their covariance."""
+def _solve_phase(ratio, wt, p, q, n_ant: int, n_iter: int = PHASE_ITERATIONS, ml_iterations: int = 0,
+                 start=None, both=None):
+    """Antenna phases [rad] (antenna 0 of the set fixed at 0) and their covariance.
+
+    ``start``: phases to start from; ``both``: the amplitude products ``a_p a_q`` of the rows (1), which
+    weight the Gauss-Newton steps (``w |M|^2 (a_p a_q)^2``, residual ``Im(r e^{-i theta}) / (a_p a_q)``)."""
     A = _design(p, q, n_ant, -1.0)[:, 1:]
-    phi = np.zeros(n_ant - 1)
+    phi = np.zeros(n_ant - 1) if start is None else start[1:] - start[0]
+    both = np.ones(ratio.size) if both is None else both
     cov = None
-    for _ in range(n_iter):
-        model = A @ phi
-        resid = np.angle(ratio * np.exp(-1j * model))  # wrapped: solve the increment
-        step, cov = _weighted_solve(A, resid, wt)
+    for k in range(n_iter + ml_iterations):
+        rotated = ratio * np.exp(-1j * (A @ phi))
+        # wrapped angle first (solves tens of degrees), then Gauss-Newton on the complex residual
+        if k < n_iter:
+            step, cov = _weighted_solve(A, np.angle(rotated), wt)
+        else:
+            step, cov = _weighted_solve(A, rotated.imag / both, wt * both ** 2)
         if step is None:
             return None, None
         phi = phi + step

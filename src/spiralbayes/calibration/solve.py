@@ -40,6 +40,9 @@ __all__ = ["GainSolution", "solve_gains"]
 log = logging.getLogger(__name__)
 
 SOLVING_MODES = ("phase", "amplitude+phase")
+ML_ITERATIONS = 4
+"""Gauss-Newton phase steps on the complex residual after the wrapped-angle ones (:func:`.solve_groups`):
+the solution is then the maximum-likelihood one, as CASA's gaincal finds."""
 
 
 @dataclass(repr=False)
@@ -196,7 +199,8 @@ def solve_gains(vis: Visibilities, model, *, settings: CalibrationSettings | Non
     vis = vis.standardised()
     M = model_visibilities(vis, model)
     groups, use = solve_groups(vis, M, s.interval_s, s.min_snr, amplitude=mode != "phase",
-                               amp_iterations=s.amp_iterations, keep_position=s.keep_position)
+                               amp_iterations=s.amp_iterations, ml_iterations=ML_ITERATIONS,
+                               keep_position=s.keep_position)
     antennas = np.unique(np.concatenate([vis.antenna1, vis.antenna2]))
     labels = interval_labels(vis.time, s.interval_s, vis.n)
     solved_labels = np.unique([g.interval for g in groups])
