@@ -8,8 +8,8 @@ dividing out gains solved against the axisymmetric model alone. Noise-free data 
 absorbs: measured 2.0 % (phase) and 3.6 % (amplitude + phase) at the default 120-s interval (8.3 % and
 9.9 % without ``keep_position``; at 80 au 5.2 % and 9.0 %); the tests allow 5 % and 7 %. The fraction
 does not depend on the interval (60-300 s give the same): over the fiducial 10- and 30-minute tracks the
-baselines barely rotate, so what the antenna gains can absorb is the same in every interval. With the spiral in the model the data are the
-model and nothing is absorbed.
+baselines barely rotate, so what the antenna gains can absorb is the same in every interval. With the
+spiral in the model the data are the model and nothing is absorbed.
 """
 
 from __future__ import annotations

@@ -205,21 +205,41 @@ def _solution_groups(interval: np.ndarray, a1: np.ndarray, a2: np.ndarray):
             yield rows[row_label == c]
 
 
-def _design(p, q, n_ant: int, sign: float) -> np.ndarray:
-    A = np.zeros((p.size, n_ant))
-    np.add.at(A, (np.arange(p.size), p), 1.0)
-    np.add.at(A, (np.arange(p.size), q), sign)
-    return A
+class _Design:
+    """The design matrix of antenna terms, ``+1`` at antenna ``p`` and ``sign`` at ``q`` in each row,
+    without column ``drop`` (the reference) when given; two non-zeros a row, so its normal equations
+    are sums over rows (``np.bincount``) rather than dense products."""
 
+    def __init__(self, p, q, n_ant: int, sign: float, drop: int | None = None):
+        self.p, self.q, self.n, self.sign, self.drop = p, q, n_ant, sign, drop
 
-def _weighted_solve(A, y, wt):
-    """Least-squares solution and its covariance, or (None, None) when singular."""
-    normal = A.T @ (wt[:, None] * A)
-    try:
-        cov = np.linalg.inv(normal)
-    except np.linalg.LinAlgError:
-        return None, None
-    return cov @ (A.T @ (wt.reshape(wt.shape + (1,) * (y.ndim - 1)) * y)), cov
+    def dot(self, x_kept: np.ndarray) -> np.ndarray:
+        """``A @ x`` for the kept columns' values ``x_kept``."""
+        x = self._full(x_kept)
+        return x[self.p] + self.sign * x[self.q]
+
+    def _full(self, x_kept):
+        if self.drop is None:
+            return x_kept
+        return np.insert(x_kept, self.drop, 0.0, axis=0)
+
+    def solve(self, y: np.ndarray, wt: np.ndarray):
+        """Weighted least-squares solution of ``A x = y`` (y of shape (rows,) or (rows, k)) and the
+        covariance ``(A^T W A)^-1``, or (None, None) when singular."""
+        n, p, q, s = self.n, self.p, self.q, self.sign
+        normal = (np.bincount(p * n + p, wt, n * n) + np.bincount(q * n + q, wt, n * n)
+                  + s * np.bincount(p * n + q, wt, n * n) + s * np.bincount(q * n + p, wt, n * n)).reshape(n, n)
+        y2 = y.reshape(y.shape[0], -1)
+        rhs = np.stack([np.bincount(p, wt * col, n) + s * np.bincount(q, wt * col, n) for col in y2.T], axis=1)
+        if self.drop is not None:
+            keep = np.arange(n) != self.drop
+            normal, rhs = normal[np.ix_(keep, keep)], rhs[keep]
+        try:
+            cov = np.linalg.inv(normal)
+        except np.linalg.LinAlgError:
+            return None, None
+        x = cov @ rhs
+        return (x[:, 0] if y.ndim == 1 else x), cov
 
 
 def _solve_phase(ratio, wt, p, q, n_ant: int, n_iter: int = PHASE_ITERATIONS, ml_iterations: int = 0,
@@ -228,17 +248,17 @@ def _solve_phase(ratio, wt, p, q, n_ant: int, n_iter: int = PHASE_ITERATIONS, ml
 
     ``start``: phases to start from; ``both``: the amplitude products ``a_p a_q`` of the rows (1), which
     weight the Gauss-Newton steps (``w |M|^2 (a_p a_q)^2``, residual ``Im(r e^{-i theta}) / (a_p a_q)``)."""
-    A = _design(p, q, n_ant, -1.0)[:, 1:]
+    A = _Design(p, q, n_ant, -1.0, drop=0)
     phi = np.zeros(n_ant - 1) if start is None else start[1:] - start[0]
     both = np.ones(ratio.size) if both is None else both
     cov = None
     for k in range(n_iter + ml_iterations):
-        rotated = ratio * np.exp(-1j * (A @ phi))
+        rotated = ratio * np.exp(-1j * A.dot(phi))
         # wrapped angle first (solves tens of degrees), then Gauss-Newton on the complex residual
         if k < n_iter:
-            step, cov = _weighted_solve(A, np.angle(rotated), wt)
+            step, cov = A.solve(np.angle(rotated), wt)
         else:
-            step, cov = _weighted_solve(A, rotated.imag / both, wt * both ** 2)
+            step, cov = A.solve(rotated.imag / both, wt * both ** 2)
         if step is None:
             return None, None
         phi = phi + step
@@ -250,8 +270,7 @@ def _solve_phase(ratio, wt, p, q, n_ant: int, n_iter: int = PHASE_ITERATIONS, ml
 def _antenna_uv(u, v, p, q, n_ant: int) -> np.ndarray:
     """Antenna positions ``(n_ant, 2)`` [lambda], mean zero, from the baselines ``u = U_p - U_q`` (the
     interval's mean where it spans several times)."""
-    A = _design(p, q, n_ant, -1.0)[:, 1:]
-    pos, _ = _weighted_solve(A, np.column_stack([u, v]), np.ones(u.size))
+    pos, _ = _Design(p, q, n_ant, -1.0, drop=0).solve(np.column_stack([u, v]), np.ones(u.size))
     pos = np.vstack([[0.0, 0.0], pos])
     return pos - pos.mean(axis=0)
 
@@ -270,12 +289,12 @@ def _without_shift(phi, cov, u, v, p, q, n_ant: int):
 
 def _solve_amp(phased_ratio, wt, p, q, n_ant: int, n_iter: int):
     """Antenna amplitudes and the covariance of their fractional errors from the phase-corrected ratios."""
-    A = _design(p, q, n_ant, 1.0)
+    A = _Design(p, q, n_ant, 1.0)
     amp = np.ones(n_ant)
     cov = None
     for _ in range(max(int(n_iter), 1)):
         both = amp[p] * amp[q]
-        step, cov = _weighted_solve(A, (phased_ratio / both).real - 1.0, wt * both ** 2)
+        step, cov = A.solve((phased_ratio / both).real - 1.0, wt * both ** 2)
         if step is None:
             return None, None
         amp = amp * (1.0 + step)
