@@ -32,7 +32,7 @@ class CalibrationSettings:
                                 "Measurement Sets, spiralbayes HDF5 files)")
     interval_s: float = option(120.0, "solution interval [s]: one gain per antenna per interval (intervals restart "
                                       "after a gap in time longer than one interval)")
-    min_snr: float = option(5.0, "visibilities whose model S/N |M| sqrt(w) is below this are not used in the solve")
+    min_snr: float = option(5.0, "visibilities whose model S/N abs(M) sqrt(w) is below this are not used in the solve")
     n_iterations: int = option(2, "self-calibration rounds: solve against the current frank fit, refit frank to the "
                                   "corrected data, repeat")
     refant: int | None = option(None, "reference antenna (index) whose phase is zero in every interval it is in; "
