@@ -5,7 +5,7 @@ the default disc with 10 deg rms antenna phases and 5 % amplitudes (300-s cohere
 process, in this order:
 
 * ``solve_gains`` against the true axisymmetric model, ``phase`` and ``amplitude+phase`` at the default
-  120-s interval (median of ``--repeat`` runs);
+  60-s interval (median of ``--repeat`` runs);
 * the frank fit (paper's hyperparameters, fixed geometry) and one self-calibration round
   (``selfcal(n_iterations=1)`` from that fit: a solve and a frank refit to the corrected data);
 * the scan of ``--templates`` templates of the default bank (tau0 = 3, beta = 10, H/r = 0.07, every

@@ -49,19 +49,19 @@ def test_scan_solves_the_gains_and_says_so(tmp_path, capsys):
     assert main(["-q", "scan", config]) == 0
     out = tmp_path / "out"
     solution = GainSolution.load(out / "gains.h5")
-    assert solution.mode == "phase" and solution.n_intervals == 4  # 7 one-minute integrations in 120-s intervals
+    assert solution.mode == "phase" and solution.n_intervals == 7  # 7 one-minute integrations, 60-s intervals
     assert solution.phase_rms_deg == pytest.approx(15.0, rel=0.35)
     assert (out / "gains.png").exists()
     text = (out / "verdict.txt").read_text()
     assert f"The data were corrected first: {solution.note()}." in text
-    assert "antenna gains solved (phase, 120 s intervals, " in text
+    assert "antenna gains solved (phase, 60 s intervals, " in text
     assert json.loads((out / "verdict.json").read_text())["calibration"] == solution.note()
     # other [calibration] settings: the saved solution is refused by the commands that reuse it, naming them
     capsys.readouterr()
-    other = _config(tmp_path, "obs.h5", 'solve = "phase"\nn_iterations = 1\ninterval_s = 60.0')
+    other = _config(tmp_path, "obs.h5", 'solve = "phase"\nn_iterations = 1\ninterval_s = 120.0')
     assert main(["-q", "limits", other]) == 2
     err = capsys.readouterr().err
-    assert "[calibration] settings (interval_s: 120.0 -> 60.0)" in err and len(err.strip().splitlines()) == 1
+    assert "[calibration] settings (interval_s: 60.0 -> 120.0)" in err and len(err.strip().splitlines()) == 1
 
 
 def test_data_without_antennas_are_refused_naming_the_option(tmp_path, capsys):

@@ -5,7 +5,7 @@ phi_p = 0.7 rad in the fiducial observation of the default disc, with no gain er
 the spiral's own Δχ² against the true axisymmetric disc, ``Σ w |V - V_A|^2 - Σ w |V - V_A - ΔV|^2``
 (what the scan computes for the true template at the true position and amplitude 1), before and after
 dividing out gains solved against the axisymmetric model alone. Noise-free data isolate what the solve
-absorbs: measured 2.0 % (phase) and 3.6 % (amplitude + phase) at the default 120-s interval (8.3 % and
+absorbs: measured 2.0 % (phase) and 3.6 % (amplitude + phase) at the default 60-s interval (8.3 % and
 9.9 % without ``keep_position``; at 80 au 5.2 % and 9.0 %); the tests allow 5 % and 7 %. The fraction
 does not depend on the interval (60-300 s give the same): over the fiducial 10- and 30-minute tracks the
 baselines barely rotate, so what the antenna gains can absorb is the same in every interval. With the

@@ -154,7 +154,7 @@ def test_summary_save_and_load(fiducial, tmp_path):
     _, model, _, vis = fiducial
     sol = solve_gains(vis, model, mode="phase")
     assert sol.interval_s == CalibrationSettings().interval_s
-    assert sol.note().startswith("antenna gains solved (phase, 120 s intervals, ")
+    assert sol.note().startswith("antenna gains solved (phase, 60 s intervals, ")
     assert "\n" not in sol.summary()
     back = GainSolution.load(sol.save(tmp_path / "gains.h5"))
     np.testing.assert_array_equal(back.gains, sol.gains)

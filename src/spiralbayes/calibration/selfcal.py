@@ -11,8 +11,8 @@ The prior that keeps the solve from absorbing a spiral:
 * the gains are antenna-based: ``N_ant - 1`` phases (and ``N_ant`` amplitudes) per interval against
   ``N_ant (N_ant - 1) / 2`` baselines per integration, and a spiral fixed on the sky does not factor
   into antenna terms;
-* solution intervals (``interval_s``, default 120 s) span several integrations, so each antenna's
-  gain must fit its baselines at several hour angles at once;
+* the phases linear in the antennas' uv positions (an image shift, the part of an asymmetric
+  structure that antenna phases absorb most readily) are kept out of the solution (``keep_position``);
 * a candidate spiral, when known, is part of the model solved against (``spiral=``), so the solve
   does not treat it as a gain error.
 

@@ -145,7 +145,7 @@ class GainSolution(ResultMixin):
         return corrected.with_weights(vis.weights * np.abs(g1 * g2) ** 2, f"scaled by |g1 g2|^2 ({self.mode} solve)")
 
     def describe(self) -> str:
-        """``phase, 120 s intervals, 9.8 deg rms`` (and the amplitude rms when solved)."""
+        """``phase, 60 s intervals, 9.8 deg rms`` (and the amplitude rms when solved)."""
         interval = f"{self.interval_s:g} s intervals" if self.interval_s else "one interval per integration"
         amp = f", amplitude {100 * self.amp_rms:.2g} % rms" if self.mode != "phase" else ""
         return f"{self.mode}, {interval}, {self.phase_rms_deg:.2g} deg rms{amp}"
