@@ -33,6 +33,8 @@ n_r_p = 3
 n_phi_p = 12
 [alternatives]
 fit = false
+[limits]
+completeness = false
 [output]
 dir = "{tmp_path / 'out'}"
 plots = true
@@ -56,6 +58,11 @@ def test_scan_solves_the_gains_and_says_so(tmp_path, capsys):
     assert f"The data were corrected first: {solution.note()}." in text
     assert "antenna gains solved (phase, 60 s intervals, " in text
     assert json.loads((out / "verdict.json").read_text())["calibration"] == solution.note()
+    # limits reuse the scan and the saved solution, and say so first
+    assert main(["-q", "limits", config]) == 0
+    summary = (out / "limits_summary.txt").read_text().splitlines()
+    assert summary[0] == f"The data were corrected first: {solution.note()}."
+    assert solution.note() in (out / "table3.md").read_text()
     # other [calibration] settings: the saved solution is refused by the commands that reuse it, naming them
     capsys.readouterr()
     other = _config(tmp_path, "obs.h5", 'solve = "phase"\nn_iterations = 1\ninterval_s = 120.0')

@@ -11,8 +11,10 @@ model ``M`` of them is ``r = V_obs / M = a_p a_q exp(i (phi_p - phi_q))`` plus n
   further Gauss-Newton steps on ``Im(r_pq exp(-i (phi_p - phi_q)))`` reach the maximum-likelihood
   solution of ``sum w |V - g_p conj(g_q) M|^2`` (the solver's; the diagnostic keeps the angle);
 * position (``keep_position``): phases ``2 pi (U_p dl + V_p dm)``, linear in the antennas' uv positions
-  ``U_p`` (from the baselines ``u_pq = U_p - U_q``), shift the whole image; they are projected out, so that
-  the gains cannot move the disc or absorb the centroid offset of an asymmetric structure;
+  ``U_p`` (from the baselines ``u_pq = U_p - U_q``), shift the whole image. Each set's shift is fitted
+  and their mean over the observation is removed from every set: a shift constant in time (the disc's
+  offset, or the centroid offset of an asymmetric structure such as a spiral, which the gains would
+  otherwise absorb) is left to the sky model, shifts that vary between intervals to the gains;
 * amplitude: ``Re(r_pq exp(-i (phi_p - phi_q))) / (a_p a_q) - 1 = alpha_p + alpha_q`` to first order in
   the fractional corrections ``alpha`` (the real part of the phase-corrected ratio has unbiased noise,
   unlike ``|r|``); each iteration multiplies the amplitudes by ``1 + alpha``. One iteration from
@@ -129,9 +131,8 @@ def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min
         ``sum w |V - exp(i (phi_p - phi_q)) M|^2``, whose fixed point is the maximum-likelihood phase
         solution (CASA gaincal's); the angle's is the same at high S/N and biased where ``|r|`` is noisy.
     keep_position : bool
-        Remove from each set's phases their part linear in the antennas' uv positions (an image shift),
-        after the mean: the phases then have mean zero and no gradient, and ``antennas[0]`` is no longer
-        at zero.
+        Remove from every set's phases the image shift (phases linear in the antennas' uv positions)
+        that the sets imply on average over the observation; ``antennas[0]`` is then no longer at zero.
 
     Returns
     -------
@@ -149,7 +150,7 @@ def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min
     wt = snr[use] ** 2
     a1, a2 = vis.antenna1[use], vis.antenna2[use]
     interval = interval_labels(vis.time, interval_s, vis.n)[use]
-    out = []
+    solved = []
     for rows in _solution_groups(interval, a1, a2):
         ants, idx = np.unique(np.concatenate([a1[rows], a2[rows]]), return_inverse=True)
         n_ant = ants.size
@@ -160,11 +161,10 @@ def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min
         phi, cov_phi = _solve_phase(r, w, p, q, n_ant, ml_iterations=ml_iterations)
         if phi is None:
             continue
-        amp = cov_amp = None
         if amplitude and ml_iterations:
             # joint maximum likelihood: the phases weighted by the amplitudes found, in turn
             for _ in range(max(int(amp_iterations), 1)):
-                amp, cov_amp = _solve_amp(r * np.exp(-1j * (phi[p] - phi[q])), w, p, q, n_ant, amp_iterations)
+                amp, _ = _solve_amp(r * np.exp(-1j * (phi[p] - phi[q])), w, p, q, n_ant, amp_iterations)
                 if amp is None:
                     break
                 phi, cov_phi = _solve_phase(r, w, p, q, n_ant, n_iter=0, ml_iterations=ml_iterations, start=phi,
@@ -173,10 +173,15 @@ def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min
                     break
             if amp is None or phi is None:
                 continue
-        if keep_position:
-            phi, cov_phi = _without_shift(phi, cov_phi, vis.u[index[rows]], vis.v[index[rows]], p, q, n_ant)
+        solved.append((rows, ants, p, q, phi, cov_phi))
+    if keep_position and solved:
+        solved = _keep_position(solved, vis.u[index], vis.v[index])
+    out = []
+    for rows, ants, p, q, phi, cov_phi in solved:
+        amp = cov_amp = None
         if amplitude:
-            amp, cov_amp = _solve_amp(r * np.exp(-1j * (phi[p] - phi[q])), w, p, q, n_ant, amp_iterations)
+            amp, cov_amp = _solve_amp(ratio[rows] * np.exp(-1j * (phi[p] - phi[q])), wt[rows], p, q, ants.size,
+                                      amp_iterations)
             if amp is None:
                 continue
         out.append(GroupSolution(int(interval[rows[0]]), index[rows], ants, phi, cov_phi, amp, cov_amp))
@@ -275,16 +280,22 @@ def _antenna_uv(u, v, p, q, n_ant: int) -> np.ndarray:
     return pos - pos.mean(axis=0)
 
 
-def _without_shift(phi, cov, u, v, p, q, n_ant: int):
-    """Phases with their part linear in the antennas' uv positions removed, and its covariance.
+def _keep_position(solved: list, u, v) -> list:
+    """The groups' phases without the image shift that their mean over all groups implies.
 
-    Phases ``2 pi (U_p dl + V_p dm)`` shift the whole image by ``(dl, dm)``: taken out, the gains cannot
-    move the disc or absorb the centroid offset of an asymmetric structure.
+    Phases ``2 pi (U_p dl + V_p dm)`` shift the whole image by ``(dl, dm)``; each group's shift is fitted
+    to its centred phases, and the mean over the groups (weighted by their numbers of rows) is removed
+    from every group: what stays fixed over the observation is the sky's (the geometry's ``dRA``,
+    ``dDec``), what varies from interval to interval is the gains'.
     """
-    G = 2 * np.pi * _antenna_uv(u, v, p, q, n_ant)
-    centre = np.eye(n_ant) - 1.0 / n_ant
-    projector = centre - G @ np.linalg.pinv(G) @ centre  # G is centred: removes mean and gradient
-    return projector @ phi, projector @ cov @ projector.T
+    fits, n_rows = [], []
+    for rows, ants, p, q, phi, _ in solved:
+        G = 2 * np.pi * _antenna_uv(u[rows], v[rows], p, q, ants.size)  # centred
+        fits.append((G, np.linalg.pinv(G) @ (phi - phi.mean())))
+        n_rows.append(rows.size)
+    weights = np.asarray(n_rows, float) / np.sum(n_rows)
+    mean_shift = np.sum([w * shift for w, (_, shift) in zip(weights, fits)], axis=0)
+    return [(rows, ants, p, q, phi - G @ mean_shift, cov) for (rows, ants, p, q, phi, cov), (G, _) in zip(solved, fits)]
 
 
 def _solve_amp(phased_ratio, wt, p, q, n_ant: int, n_iter: int):

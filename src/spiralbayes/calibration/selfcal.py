@@ -12,7 +12,8 @@ The prior that keeps the solve from absorbing a spiral:
   ``N_ant (N_ant - 1) / 2`` baselines per integration, and a spiral fixed on the sky does not factor
   into antenna terms;
 * the phases linear in the antennas' uv positions (an image shift, the part of an asymmetric
-  structure that antenna phases absorb most readily) are kept out of the solution (``keep_position``);
+  structure that antenna phases absorb most readily), averaged over the observation, is kept out of the
+  solution (``keep_position``): a constant shift is the sky's;
 * a candidate spiral, when known, is part of the model solved against (``spiral=``), so the solve
   does not treat it as a gain error.
 

@@ -39,9 +39,10 @@ class CalibrationSettings:
                                   "corrected data, repeat")
     refant: int | None = option(None, "reference antenna (index) whose phase is zero in every interval it is in; "
                                       "-1: the lowest-indexed antenna solved in each interval", toml=-1)
-    keep_position: bool = option(True, "remove from each interval's phases their part linear in the antennas' uv "
-                                       "positions (an image shift), so that the gains cannot move the disc or absorb "
-                                       "the centroid offset of a spiral")
+    keep_position: bool = option(True, "leave to the sky model the image shift that the solved phases imply on "
+                                       "average over the observation (the disc's offset is the geometry's dRA, dDec; "
+                                       "a spiral's centroid offset is not absorbed); shifts that vary between "
+                                       "intervals stay in the gains")
     amp_iterations: int = option(3, "amplitude iterations of each solve (1: the first-order estimate)", config=False)
 
     def __post_init__(self):

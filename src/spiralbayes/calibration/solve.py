@@ -10,10 +10,12 @@ gain tables (``gaincal``), and :meth:`GainSolution.apply` divides them out as ``
 The solve is weighted linear least squares per interval (:mod:`.leastsquares`), iterated to convergence
 of the phases (and amplitudes). A phase common to every antenna of an interval cannot be measured: the
 phase of the reference antenna (``refant``, else the lowest-indexed antenna solved in the interval) is set
-to zero. With ``keep_position`` (the default) the part of each interval's phases linear in the antennas'
-uv positions is removed first: it shifts the image, which the disc's geometry (``dRA``, ``dDec``) and not the
-gains should describe, and it is the part of an asymmetric structure such as a spiral (its centroid
-offset) that antenna phases absorb most readily. Antennas without a solution in an interval (all their
+to zero. With ``keep_position`` (the default) the image shift that the phases imply on average over the
+observation (phases linear in the antennas' uv positions) is removed from them: a shift constant in time
+is the sky's (the geometry's ``dRA``, ``dDec``), and it is the part of an asymmetric structure such as a
+spiral (its centroid offset) that antenna phases absorb most readily; a calibration error of that form
+stays in the data as an offset of the disc, which the geometry alternative of test 3 and its refit
+describe. Antennas without a solution in an interval (all their
 baselines below ``min_snr``, or absent) have ``NaN`` gains there and their rows are left uncorrected by
 :meth:`GainSolution.apply` (weak rows carry little of the model and little of its error).
 
