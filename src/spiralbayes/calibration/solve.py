@@ -8,16 +8,19 @@ gain tables (``gaincal``), and :meth:`GainSolution.apply` divides them out as ``
 ``V / (g[antenna2] conj(g[antenna1]))`` with the weights multiplied by ``|g[antenna1] g[antenna2]|^2``.
 
 The solve is weighted linear least squares per interval (:mod:`.leastsquares`), iterated to convergence
-of the phases (and amplitudes). A phase common to every antenna of an interval cannot be measured: the
-phase of the reference antenna (``refant``, else the lowest-indexed antenna solved in the interval) is set
-to zero. With ``keep_position`` (the default) the image shift that the phases imply on average over the
+of the phases (and amplitudes), then Gauss-Newton steps on the complex residual: the maximum-likelihood
+gains of ``sum w |V - g_p conj(g_q) M|^2``, as CASA's gaincal finds them. A phase common to every
+antenna of an interval cannot be measured: the phase of the reference antenna (``refant``, else the
+lowest-indexed antenna solved in the interval) is set to zero.
+
+With ``keep_position`` (the default) the image shift that the phases imply on average over the
 observation (phases linear in the antennas' uv positions) is removed from them: a shift constant in time
 is the sky's (the geometry's ``dRA``, ``dDec``), and it is the part of an asymmetric structure such as a
 spiral (its centroid offset) that antenna phases absorb most readily; a calibration error of that form
 stays in the data as an offset of the disc, which the geometry alternative of test 3 and its refit
-describe. Antennas without a solution in an interval (all their
-baselines below ``min_snr``, or absent) have ``NaN`` gains there and their rows are left uncorrected by
-:meth:`GainSolution.apply` (weak rows carry little of the model and little of its error).
+describe. Antennas without a solution in an interval (all their baselines below ``min_snr``, or
+absent) have ``NaN`` gains there and their rows are left uncorrected by :meth:`GainSolution.apply`
+(weak rows carry little of the model and little of its error).
 
 Units: phases [deg]; amplitudes fractional (1 = no error); times [s].
 """
@@ -56,7 +59,7 @@ class GainSolution(ResultMixin):
     mode : str
         ``"phase"`` (amplitudes fixed at 1) or ``"amplitude+phase"``.
     interval_s : float
-        Solution interval [s] (0: one interval per distinct time, or no times).
+        Solution interval [s] (data without times are one interval).
     time : ndarray, shape (n_interval,)
         Mean time of each interval's rows [s] (0 without times).
     time_range : ndarray, shape (n_interval, 2)
@@ -148,7 +151,7 @@ class GainSolution(ResultMixin):
 
     def describe(self) -> str:
         """``phase, 60 s intervals, 9.8 deg rms`` (and the amplitude rms when solved)."""
-        interval = f"{self.interval_s:g} s intervals" if self.interval_s else "one interval per integration"
+        interval = f"{self.interval_s:g} s intervals"
         amp = f", amplitude {100 * self.amp_rms:.2g} % rms" if self.mode != "phase" else ""
         return f"{self.mode}, {interval}, {self.phase_rms_deg:.2g} deg rms{amp}"
 
