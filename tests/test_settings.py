@@ -5,6 +5,7 @@ import dataclasses
 import pytest
 
 from spiralbayes.axisymmetric import FrankSettings, fit_axisymmetric
+from spiralbayes.calibration import CalibrationSettings
 from spiralbayes.config import SCHEMA, SECTION_SETTINGS, default_config
 from spiralbayes.exceptions import InputError
 from spiralbayes.inference.detection import AlternativesSettings, DetectionSettings, detect, fit_alternatives
@@ -20,7 +21,7 @@ from spiralbayes.inference.posterior import PriorSettings, SamplingSettings, sam
 from spiralbayes.settings import DEFAULT_MSTAR_MSUN, config_options, from_config, with_overrides
 
 SECTIONS = [("sample", SamplingSettings), ("limits", LimitSettings), ("alternatives", AlternativesSettings),
-            ("frank", FrankSettings), ("priors", PriorSettings)]
+            ("frank", FrankSettings), ("priors", PriorSettings), ("calibration", CalibrationSettings)]
 
 
 def test_every_settings_section_is_pinned_here():

@@ -16,7 +16,8 @@ import logging
 
 from . import exceptions
 from ._version import __version__
-from .calibration import CalibrationDiagnostic, diagnose_calibration
+from .calibration import (CalibrationDiagnostic, CalibrationSettings, GainSolution, diagnose_calibration, selfcal,
+                          solve_gains)
 from .axisymmetric import AxisymmetricModel, FrankSettings, fit_axisymmetric
 from .geometry import DiscGeometry
 from .inference.detection.alternatives import AlternativesResult, fit_alternatives
@@ -59,8 +60,10 @@ def __getattr__(name):
 # importable, e.g. ``spiralbayes.POSTERIOR``.
 DATA = ["Visibilities", "DiscGeometry", "load_visibilities", "save_visibilities", "bin_deprojected",
         "estimate_weights", "PRESETS", "DiscModel", "GainErrors", "simulate_observation", "uv_coverage",
-        "CalibrationDiagnostic", "diagnose_calibration"]
-"""Data: visibilities, disc geometry, files, synthetic observations (with gain errors), calibration checks."""
+        "CalibrationDiagnostic", "diagnose_calibration", "CalibrationSettings", "GainSolution", "solve_gains",
+        "selfcal"]
+"""Data: visibilities, disc geometry, files, synthetic observations (with gain errors), calibration checks and
+antenna gain solves."""
 MODELS = ["AxisymmetricModel", "FrankSettings", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank",
           "compromise_bank", "variant_bank", "make_template"]
 """Models: the axisymmetric (frank) profile and the spiral templates."""

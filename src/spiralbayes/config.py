@@ -5,7 +5,8 @@ Every option has a default (from Stevenson et al. 2024 where the paper sets one)
 description with units; unknown sections or keys are rejected with the list of valid ones, and
 the configuration actually used is saved beside every output. ``spiralbayes scan
 --print-config`` (or ``sample --print-config``) writes the documented default file. The same file
-drives every command: ``scan`` reads ``[data]`` to ``[alternatives]``, ``sample`` adds ``[sample]``
+drives every command: ``scan`` reads ``[data]`` to ``[alternatives]`` (with ``[calibration] solve``
+set, it solves antenna gains after the frank fit and searches the corrected data), ``sample`` adds ``[sample]``
 and ``[priors]``, ``limits`` adds ``[limits]`` (the last two reuse the scan's outputs when they
 are in ``[output] dir``); ``compare`` runs
 the scan and the image-plane comparisons of ``[compare]`` (needs CASA). Relative paths — inputs and
@@ -30,6 +31,7 @@ from pathlib import Path
 from ._compat import tomllib
 
 from .axisymmetric.settings import FrankSettings
+from .calibration.settings import CalibrationSettings
 from .exceptions import ConfigError, MissingFileError
 from .inference.detection.settings import AlternativesSettings
 from .inference.limits.settings import LimitSettings
@@ -40,9 +42,9 @@ from .settings import DEFAULT_DISTANCE_PC, MAX_DISTANCE_PC, MIN_DISTANCE_PC, con
 __all__ = ["CHECKS", "PATH_KEYS", "RENAMED", "SCHEMA", "SECTION_SETTINGS", "default_config", "describe_config",
            "geometry_given", "load_config", "merge_config", "merge_section", "read_toml", "resolve_paths"]
 
-# section -> key -> (default, description). The [frank], [grid], [scan], [alternatives], [sample], [priors]
-# and [limits] options are the fields of their settings dataclasses: each default is written once, where
-# the code uses it.
+# section -> key -> (default, description). The [frank], [calibration], [grid], [scan], [alternatives], [sample],
+# [priors] and [limits] options are the fields of their settings dataclasses: each default is written once,
+# where the code uses it.
 SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     "data": {
         "path": ("", "visibility file: uvtable .txt/.npz, spiralbayes .h5, or a Measurement Set directory"),
@@ -65,6 +67,7 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         **config_options(FrankSettings),
         "model": ("", "a saved AxisymmetricModel (.h5) to use instead of fitting frank (empty: fit)"),
     },
+    "calibration": config_options(CalibrationSettings),
     "templates": {
         "bank": ("default", "'default' (the built-in bank robust to the spiral's morphology: the paper's 64 templates "
                             "for H/r = 0.05, 0.07, 0.10 in the compromise, hydro and wakeflow morphologies, 576 "
@@ -122,11 +125,13 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
     },
 }
 """section -> option -> ``(default, description)`` of every configuration option; the options of the
-sections in :data:`SECTION_SETTINGS` come from the fields of their settings dataclasses, the ``[grid]``
+sections in :data:`SECTION_SETTINGS` (``[frank]``, ``[calibration]``, ``[alternatives]``, ``[sample]``,
+``[priors]``, ``[limits]``) come from the fields of their settings dataclasses, the ``[grid]``
 and ``[scan]`` options (but ``scheduler``) from :class:`~spiralbayes.inference.scan.settings.ScanSettings`."""
 
 SECTION_SETTINGS: dict[str, type] = {
     "frank": FrankSettings,
+    "calibration": CalibrationSettings,
     "alternatives": AlternativesSettings,
     "sample": SamplingSettings,
     "priors": PriorSettings,

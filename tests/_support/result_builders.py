@@ -109,7 +109,20 @@ def verdict() -> Verdict:
     return detect(scan_result(), alternatives=alternatives_result())
 
 
+def gain_solution():
+    from spiralbayes.calibration import GainSolution  # absent from the code before the renames
+
+    rng = np.random.default_rng(5)
+    gains = np.exp(1j * rng.normal(0.0, 0.2, (3, 4)))
+    gains[:, 0], gains[1, 3] = 1.0, np.nan
+    sigma = np.full((3, 4), 1.5)
+    return GainSolution("phase", 120.0, np.array([60.0, 180.0, 300.0]), np.array([[0, 60], [120, 240], [240, 360.0]]),
+                        np.arange(4), gains, np.zeros(3, dtype=np.int64), sigma, np.full((3, 4), np.nan),
+                        np.array([3.0, 9.0, 11.0, np.nan]), np.zeros(4), 10.2, 0.0, 500, 5.0)
+
+
 BUILDERS = {"ScanResult": scan_result, "Verdict": verdict, "AlternativesResult": alternatives_result,
             "ExclusionLimits": exclusion_limits, "CompletenessResult": completeness_result, "Forecast": forecast,
             "TemplateRun": lambda: _template_run("wake_R", 1), "NullRun": null_run,
-            "PosteriorResult": posterior_result, "PlantedExclusion": planted_exclusion}
+            "PosteriorResult": posterior_result, "PlantedExclusion": planted_exclusion,
+            "GainSolution": gain_solution}

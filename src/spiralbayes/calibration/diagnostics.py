@@ -4,8 +4,8 @@ Gain errors multiply a visibility row of ``antenna1 = q``, ``antenna2 = p`` (bas
 ``position[p] - position[q]``, CASA's ``ANTENNA1 = p``) by ``g_p conj(g_q)``
 (:mod:`spiralbayes.simulate.gains`); an axisymmetric model ``M`` fitted to the data leaves the
 ratio ``r = V_obs / M = a_p a_q exp(i (phi_p - phi_q))`` plus noise. Where the visibilities record
-their antennas and times, the phases and the log amplitudes of ``r`` are solved per solution
-interval by weighted linear least squares:
+their antennas and times, the phases and the amplitudes of ``r`` are solved per solution
+interval by weighted linear least squares (:mod:`.leastsquares`, shared with :func:`.solve_gains`):
 
 * phase: ``arg r_pq = phi_p - phi_q`` (antenna 0 of each interval as the reference), iterated
   on the wrapped residual so that tens of degrees are solved in full;
@@ -36,6 +36,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..visibilities import Visibilities
+from .leastsquares import model_visibilities, solve_groups
+from .settings import CalibrationSettings
 
 __all__ = ["CalibrationDiagnostic", "diagnose_calibration", "PHASE_WARN_DEG", "AMP_WARN", "CHI2_WARN"]
 
@@ -101,7 +103,8 @@ class CalibrationDiagnostic:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
-def diagnose_calibration(vis: Visibilities, model, *, interval_s: float | None = None, min_snr: float = 5.0,
+def diagnose_calibration(vis: Visibilities, model, *, interval_s: float | None = None,
+                         min_snr: float = CalibrationSettings.min_snr,
                          n_bins: int = 10) -> CalibrationDiagnostic:
     """Measure residual antenna-based gain errors from the residuals ``V_obs - model``.
 
@@ -127,7 +130,7 @@ def diagnose_calibration(vis: Visibilities, model, *, interval_s: float | None =
     CalibrationDiagnostic
     """
     vis = vis.standardised()
-    M = _model_visibilities(vis, model)
+    M = model_visibilities(vis, model)
     if not (np.isfinite(min_snr) and min_snr > 0):
         raise InputError(f"min_snr must be a positive signal-to-noise ratio, got {min_snr!r}")
     if interval_s is not None and not (np.isfinite(interval_s) and interval_s > 0):
@@ -151,15 +154,6 @@ def diagnose_calibration(vis: Visibilities, model, *, interval_s: float | None =
     return result
 
 
-def _model_visibilities(vis: Visibilities, model) -> np.ndarray:
-    M = model.visibilities(vis.u, vis.v) if hasattr(model, "visibilities") else model
-    M = np.asarray(M, dtype=complex).ravel()
-    if M.shape != (vis.n,):
-        raise InputError(f"model has {M.size} visibilities for {vis.n} data points: give the model at the data's "
-                         "baselines (model.visibilities(vis.u, vis.v)) or the model object")
-    return M
-
-
 def _reduced_chi2(vis: Visibilities, M: np.ndarray, n_bins: int) -> tuple[float, dict]:
     if int(n_bins) < 1:
         raise InputError(f"n_bins must be a positive number of annuli, got {n_bins!r}")
@@ -172,117 +166,21 @@ def _reduced_chi2(vis: Visibilities, M: np.ndarray, n_bins: int) -> tuple[float,
     return float(terms.mean()), bins
 
 
-def _intervals(vis: Visibilities, interval_s: float | None) -> np.ndarray:
-    if vis.time is None:
-        return np.zeros(vis.n, dtype=np.int64)
-    if interval_s is None:
-        return np.unique(vis.time, return_inverse=True)[1].ravel()
-    # intervals restart after each gap longer than an interval (a new block of the observation)
-    times, row = np.unique(vis.time, return_inverse=True)
-    block = np.concatenate([[0], np.cumsum(np.diff(times) > interval_s)])
-    start = times[np.searchsorted(block, block)]  # first time of each time's block
-    label = np.unique(np.column_stack([block, np.floor((times - start) / interval_s)]), axis=0,
-                      return_inverse=True)[1].ravel()
-    return label[row.ravel()]
-
-
 def _solve_gains(vis: Visibilities, M: np.ndarray, interval_s, min_snr: float):
-    snr = np.abs(M) * np.sqrt(vis.weights)
-    use = snr >= min_snr
-    if use.sum() < 3:
-        raise InputError(f"only {int(use.sum())} visibilities have model S/N >= min_snr = {min_snr}: "
-                         "lower min_snr or check that the model matches the data")
-    ratio = vis.V[use] / M[use]
-    wt = snr[use] ** 2
-    assert vis.antenna1 is not None and vis.antenna2 is not None  # called only when vis.has_antennas
-    a1, a2 = vis.antenna1[use], vis.antenna2[use]
-    interval = _intervals(vis, interval_s)[use]
+    groups, use = solve_groups(vis, M, interval_s, min_snr, amplitude=True, amp_iterations=1)
     sq_phase, sq_amp, n_values = 0.0, 0.0, 0
     per_antenna: dict[int, list] = {}
-    n_int = 0
-    for rows in _solution_groups(interval, a1, a2):
-        ants, idx = np.unique(np.concatenate([a1[rows], a2[rows]]), return_inverse=True)
-        n_ant = ants.size
-        if n_ant < 3:
-            continue
-        q, p = idx[: rows.size], idx[rows.size:]  # p = antenna2 carries g, q = antenna1 conj(g)
-        phi, cov_phi = _solve_phase(ratio[rows], wt[rows], p, q, n_ant)
-        if phi is None:
-            continue
-        alpha, cov_alpha = _solve_amp(ratio[rows] * np.exp(-1j * (phi[p] - phi[q])), wt[rows], p, q, n_ant)
-        if alpha is None:
-            continue
+    for g in groups:
+        n_ant = g.antennas.size
         centre = np.eye(n_ant) - 1.0 / n_ant
-        c_phi, c_alpha = centre @ phi, centre @ alpha
+        c_phi, c_alpha = centre @ g.phase, centre @ (g.amp - 1.0)
         # mean square of the centred solutions minus their noise, per antenna
-        sq_phase += np.sum(c_phi ** 2) - np.trace(centre @ cov_phi @ centre)
-        sq_amp += np.sum(c_alpha ** 2) - np.trace(centre @ cov_alpha @ centre)
+        sq_phase += np.sum(c_phi ** 2) - np.trace(centre @ g.cov_phase @ centre)
+        sq_amp += np.sum(c_alpha ** 2) - np.trace(centre @ g.cov_amp @ centre)
         n_values += n_ant - 1  # centring removes one degree of freedom
-        n_int += 1
-        for a, value in zip(ants, c_phi):
+        for a, value in zip(g.antennas, c_phi):
             per_antenna.setdefault(int(a), []).append(value)
-    if n_int == 0:
-        raise InputError("no solution interval has three or more antennas with enough S/N: "
-                         "lengthen interval_s or lower min_snr")
     phase = float(np.degrees(np.sqrt(max(sq_phase, 0.0) / n_values)))
     amp = float(np.sqrt(max(sq_amp, 0.0) / n_values))
     rms = {a: float(np.degrees(np.sqrt(np.mean(np.square(v))))) for a, v in sorted(per_antenna.items())}
-    return phase, amp, rms, n_int, int(use.sum())
-
-
-def _solution_groups(interval: np.ndarray, a1: np.ndarray, a2: np.ndarray):
-    """Row indices of each interval's connected sets of antennas (each needs its own reference)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    order = np.argsort(interval, kind="stable")
-    starts = np.flatnonzero(np.diff(interval[order])) + 1
-    for rows in np.split(order, starts):
-        ants, idx = np.unique(np.concatenate([a1[rows], a2[rows]]), return_inverse=True)
-        graph = coo_matrix((np.ones(rows.size), (idx[: rows.size], idx[rows.size:])), shape=(ants.size,) * 2)
-        n_comp, label = connected_components(graph, directed=False)
-        if n_comp == 1:
-            yield rows
-            continue
-        row_label = label[idx[: rows.size]]
-        for c in range(n_comp):
-            yield rows[row_label == c]
-
-
-def _design(p, q, n_ant: int, sign: float) -> np.ndarray:
-    A = np.zeros((p.size, n_ant))
-    np.add.at(A, (np.arange(p.size), p), 1.0)
-    np.add.at(A, (np.arange(p.size), q), sign)
-    return A
-
-
-def _weighted_solve(A, y, wt):
-    """Least-squares solution and its covariance, or (None, None) when singular."""
-    normal = A.T @ (wt[:, None] * A)
-    try:
-        cov = np.linalg.inv(normal)
-    except np.linalg.LinAlgError:
-        return None, None
-    return cov @ (A.T @ (wt * y)), cov
-
-
-def _solve_phase(ratio, wt, p, q, n_ant: int, n_iter: int = 4):
-    """Antenna phases [rad] (antenna 0 of the interval fixed at 0) and their covariance."""
-    A = _design(p, q, n_ant, -1.0)[:, 1:]
-    phi = np.zeros(n_ant - 1)
-    cov = None
-    for _ in range(n_iter):
-        model = A @ phi
-        resid = np.angle(ratio * np.exp(-1j * model))  # wrapped: solve the increment
-        step, cov = _weighted_solve(A, resid, wt)
-        if step is None:
-            return None, None
-        phi = phi + step
-    full = np.zeros((n_ant, n_ant))
-    full[1:, 1:] = cov
-    return np.concatenate([[0.0], phi]), full
-
-
-def _solve_amp(phased_ratio, wt, p, q, n_ant: int):
-    """Fractional antenna amplitude errors and their covariance from the phase-corrected ratios."""
-    return _weighted_solve(_design(p, q, n_ant, 1.0), phased_ratio.real - 1.0, wt)
+    return phase, amp, rms, len(groups), int(use.sum())

@@ -16,6 +16,7 @@ from ..inference.scan.run import scan
 from ..simulate import DiscModel, simulate_observation
 from ..templates import default_bank, make_template
 from .._hdf5 import require_file
+from .calibrate import calibration_settings, reusable_gains
 from .inputs import load_data, load_templates
 from .outputs import _write_text, save_figure
 from .scan_command import run_scan_config, scan_settings
@@ -46,12 +47,14 @@ def _slug(text: str) -> str:
 
 def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict | None = None, name: str = "disc",
                distance: float | None = None, progress: bool = True, plots: bool = True,
-               verdict=None) -> LimitsRun:
+               verdict=None, calibration: str | None = None) -> LimitsRun:
     """Exclusion limits, completeness (optional), Table 3 (ECSV and Markdown), HDF5 and plots in ``out_dir``.
 
     ``verdict`` (the scan's detection verdict or its dict, ``verdict.json``): radii near its planet or
     candidate and near its significant asymmetry models are flagged, not excluded
-    (:func:`~spiralbayes.inference.limits.compute_limits`'s ``planets``)."""
+    (:func:`~spiralbayes.inference.limits.compute_limits`'s ``planets``). ``calibration``: what was done to
+    the data's calibration before the scan (e.g. ``GainSolution.note()``), said first in the summary and
+    in Table 3's notes."""
     from ..inference.limits.recovery import completeness, injection_engine
     from ..inference.limits.exclusion import compute_limits
     from ..inference.limits.settings import LimitSettings
@@ -85,11 +88,14 @@ def run_limits(vis, axisym, templates, result, out_dir, *, limits_config: dict |
         table3.meta["notes"] = list(table3.meta["notes"]) + [
             f"Minimum detectable mass, {label}: 50 %: {_det(c, 0.5)}; 90 %: {_det(c, 0.9)}"
             for label, c in first.items()]
+    note = f"The data were corrected first: {calibration}." if calibration else None
+    if note:
+        table3.meta["notes"] = [note] + list(table3.meta.get("notes", []))
     table = markdown_table(table3)
     files += write_table(table3, out_dir / "table3")
     several = len(limits.families) > 1  # then the first line is the limit that holds for every family
     files.append(_write_text(out_dir / "limits_summary.txt",
-                             "\n".join(([limits.summary()] if several else [])
+                             "\n".join(([note] if note else []) + ([limits.summary()] if several else [])
                                        + [limits.summary(f) for f in limits.families]) + "\n"))
     if plots:
         if several:
@@ -124,24 +130,25 @@ def run_limits_config(config: dict, *, progress: bool = True) -> LimitsRun:
     exists the scan is run first.
     """
     out_dir = Path(config["output"]["dir"])
+    calibration_settings(config)
     templates = load_templates(config["templates"])
     settings = scan_settings(config)
     scan_file, model_file = out_dir / "scan.h5", out_dir / "axisymmetric.h5"
     if scan_file.exists() or model_file.exists():  # reused only when made from these inputs, else refused
-        vis = load_data(config["data"])
+        vis, gains = reusable_gains(config, load_data(config["data"]), out_dir, required=True)
         axisym = reusable_axisymmetric(require_file(model_file, "axisymmetric model", "run 'spiralbayes scan' with "
                                                     "this configuration first"), vis, config)
         result = reusable_scan(require_file(scan_file, "scan"), vis, axisym, templates, settings.planet_radii(axisym),
                                settings.n_phi_p)
     else:
         _, result, _ = run_scan_config(config, progress=progress)
-        vis = load_data(config["data"])
+        vis, gains = reusable_gains(config, load_data(config["data"]), out_dir, required=True)
         axisym = AxisymmetricModel.load(model_file)
     _write_text(out_dir / "config_used_limits.toml", describe_config(config))
     name = config["limits"]["name"] or Path(config["data"]["path"]).stem
     return run_limits(vis, axisym, templates, result, out_dir, limits_config=config["limits"], name=name,
                       distance=config["geometry"]["distance"], progress=progress, plots=config["output"]["plots"],
-                      verdict=scan_verdict(out_dir))
+                      verdict=scan_verdict(out_dir), calibration=None if gains is None else gains.note())
 
 
 def scan_verdict(out_dir) -> dict | None:

@@ -14,6 +14,7 @@ from ..inference.posterior.sampler import sample_posterior
 from ..inference.posterior.settings import PriorSettings, SamplingSettings
 from ..plotting.posterior import plot_corner, plot_hypotheses, plot_template_probabilities
 from ..settings import from_config
+from .calibrate import calibration_settings, reusable_gains, run_calibration
 from .reuse import reusable_axisymmetric, reusable_scan
 from .inputs import _geometry, load_axisymmetric, load_data, load_templates
 from .outputs import _save_figure, _write_text
@@ -30,7 +31,9 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     of the same configuration, else a new frank fit; the scan (walker starts, template pruning) is
     ``[sample] scan``, else ``OUTPUT/scan.h5`` when present. Saved files are reused only when
     made from these data, geometry and frank settings (:mod:`.reuse`); otherwise the run is refused
-    before any sampling, naming what differs. Writes, in ``[output] dir``:
+    before any sampling, naming what differs. With ``[calibration] solve`` set the posterior is of the
+    corrected data: ``OUTPUT/gains.h5`` is applied when it was solved from these data with these
+    settings, else the gains are solved here (:mod:`.calibrate`). Writes, in ``[output] dir``:
     ``chains/<run_name>.h5`` (the chains), ``<run_name>_posterior.h5`` (the result),
     ``<run_name>_summary.json`` (with the verdict: P(planet | data), the Bayes factor),
     ``<run_name>_corner.png`` (r_p in au at ``[geometry] distance``), ``<run_name>_hypotheses.png``,
@@ -43,12 +46,16 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     # the settings are built (and checked) before any data are read
     sampling = from_config(SamplingSettings, s, run_name=run_name)
     prior_settings = from_config(PriorSettings, config["priors"])
+    calibration_settings(config)
     vis = load_data(config["data"], _geometry(config))
+    vis, gains = reusable_gains(config, vis, out_dir)
     scanned = out_dir / "axisymmetric.h5"
     if not config["frank"]["model"] and scanned.exists():
         axisym = reusable_axisymmetric(scanned, vis, config)
     else:
         axisym = load_axisymmetric(config, vis, progress=progress)
+    if gains is None:  # no saved solution: solve now (a no-op with [calibration] solve = "none")
+        vis, axisym, gains = run_calibration(config, vis, axisym, out_dir, progress=progress)
     templates = load_templates(config["templates"])
     scan_path = s["scan"] or (out_dir / "scan.h5" if (out_dir / "scan.h5").exists() else "")
     scan_result = reusable_scan(scan_path, vis, axisym) if scan_path else None

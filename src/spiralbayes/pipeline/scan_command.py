@@ -17,6 +17,7 @@ from ..inference.detection.verdict import DELTA_BIC_THRESHOLD
 from ..inference.scan.run import ScanResult, scan
 from ..inference.scan.settings import ScanSettings
 from ..settings import from_config
+from .calibrate import calibration_settings, check_calibration_input, run_calibration
 from .inputs import _geometry, load_axisymmetric, load_data, load_templates
 from .outputs import _write_text, check_output_folder, write_scan_outputs
 
@@ -27,13 +28,15 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class ScanRun:
-    """What :func:`run_scan` produced: the verdict, scan, alternatives, geometry follow-up, files."""
+    """What :func:`run_scan` produced: the verdict, scan, alternatives, geometry follow-up, files, and the
+    antenna gain solution (None unless ``[calibration] solve`` asked for one)."""
 
     verdict: object
     scan: object
     alternatives: object
     follow_up: GeometryFollowUp | None
     files: list
+    gains: object = None
 
 
 def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool = False):
@@ -56,20 +59,25 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
     geometry alternative significant (ΔBIC > 10), frank is refitted at the fitted geometry and the
     scan, alternatives and verdict are repeated there
     (:func:`~spiralbayes.inference.detection.follow_up.rescan_at_fitted_geometry`), with their outputs and
-    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``. An ``[output] dir`` holding a scan of other
+    ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``. With ``[calibration] solve`` set, antenna gains are
+    solved after the frank fit (:mod:`.calibrate`; ``OUTPUT/gains.h5``) and everything after runs on the
+    corrected data with frank's fit to them; the verdict says so. An ``[output] dir`` holding a scan of other
     data is refused before frank and the scan run, unless ``overwrite``
     (:func:`~spiralbayes.pipeline.outputs.check_output_folder`).
     """
     out_dir = Path(config["output"]["dir"])
     settings = scan_settings(config)
+    calibration_settings(config)  # checked before any data are read
     checkpoint = out_dir / "scan_checkpoint.h5" if settings.checkpoint else None
     if checkpoint is not None and checkpoint.exists():
         ScanResult.load(checkpoint)  # a truncated or foreign file fails now, not after the frank fit
     scheduler = config["scan"]["scheduler"] or None
     check_dask_address(scheduler or "")
     vis = load_data(config["data"], _geometry(config))
+    check_calibration_input(config, vis)
     check_output_folder(out_dir, data_hash(vis.u, vis.v, vis.V, vis.weights), overwrite)
     axisym = load_axisymmetric(config, vis, progress=progress)
+    vis, axisym, gains = run_calibration(config, vis, axisym, out_dir, progress=progress)
     templates = load_templates(config["templates"])
     out_dir.mkdir(parents=True, exist_ok=True)
     amplitude = settings.free_amplitude
@@ -81,6 +89,8 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
     detect_kwargs = {"alternative_threshold": a["threshold"], "mstar": config["limits"]["mstar"]}
     verdict = detect_with_planet_peak(result, vis, axisym, templates, axisym.geometry, amplitude, alternatives=alts,
                                       **detect_kwargs)
+    if gains is not None:
+        verdict.calibration = gains.note()
     plots = config["output"]["plots"]
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
                                axisymmetric=axisym, templates=templates)
@@ -94,12 +104,16 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
         follow = rescan_at_fitted_geometry(vis, axisym, templates, alts, settings=settings, scan_result=result,
                                            scheduler=scheduler, progress=progress, alternative_kwargs=alt_kwargs,
                                            detect_kwargs=detect_kwargs)
+        if gains is not None:
+            follow.verdict.calibration = gains.note()
         sub = out_dir / "refit_geometry"
         files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude,
                                     alternatives=follow.alternatives,
                                     vis=vis, axisymmetric=follow.axisymmetric, templates=templates)
         files.append(follow.axisymmetric.save(sub / "axisymmetric.h5"))
-    return ScanRun(verdict, result, alts, follow, files)
+    if gains is not None:
+        files.append(out_dir / "gains.h5")
+    return ScanRun(verdict, result, alts, follow, files, gains)
 
 
 def scan_settings(config: dict) -> ScanSettings:

@@ -5,6 +5,7 @@ In a notebook the Figure displays itself; elsewhere call ``fig.savefig(path)``.
 
 from .alternatives import plot_residual_comparison
 from .axisymmetric import plot_binned_visibilities, plot_profile
+from .calibration import plot_gain_phases
 from .limits import plot_completeness, plot_excluded_fraction, plot_mass_radius
 from .posterior import plot_corner, plot_hypotheses, plot_template_probabilities, plot_trace
 from .scan import plot_chi2_vs_rp, plot_heatmap, plot_heatmap_pair, plot_template_grid_heatmaps
@@ -17,6 +18,7 @@ __all__ = [
     "plot_completeness",
     "plot_corner",
     "plot_excluded_fraction",
+    "plot_gain_phases",
     "plot_heatmap",
     "plot_heatmap_pair",
     "plot_hypotheses",

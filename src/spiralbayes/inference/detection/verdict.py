@@ -306,6 +306,9 @@ class Verdict(ResultMixin):
         the compact-peak score of test 3; the masses [M_th] within a ΔBIC band of the best.
     test3_spiral_model : str or None
         Which spiral hypothesis test 3 scored.
+    calibration : str or None
+        What was done to the data's calibration before the scan (set by the pipeline, e.g.
+        ``antenna gains solved (phase, 60 s intervals, 9.8 deg rms)``).
     """
 
     detected: bool
@@ -331,6 +334,7 @@ class Verdict(ResultMixin):
     test3_spiral_model: str | None = None
     planet_peak: dict | None = None
     mass_range: dict | None = None
+    calibration: str | None = None
 
     KIND = "spiralbayes.Verdict"
     WHAT = "verdict"
@@ -371,8 +375,8 @@ class Verdict(ResultMixin):
         text += self._test3_sentence()
         if self.candidate is not None:
             text += self._candidate_sentence()
-        return text + (" A planet-driven spiral is detected." if self.detected
-                       else " No planet-driven spiral is claimed.")
+        text += " A planet-driven spiral is detected." if self.detected else " No planet-driven spiral is claimed."
+        return text + (f" The data were corrected first: {self.calibration}." if self.calibration else "")
 
     def _mass_sentence(self) -> str:
         m = self.mass_range

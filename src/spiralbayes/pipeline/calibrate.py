@@ -1,0 +1,106 @@
+"""``[calibration]`` in the pipeline: solve antenna gains after the frank fit, or reuse the solution a scan saved.
+
+With ``[calibration] solve`` other than ``"none"``, ``spiralbayes scan`` self-calibrates after the frank
+fit (:func:`spiralbayes.calibration.selfcal`: gain solves alternated with frank fits) and scans, judges,
+bounds and samples the corrected data with the frank fit to them. The solution is saved as
+``OUTPUT/gains.h5`` (with ``gains.png``); ``sample`` and ``limits`` apply it to the data they read, and
+reuse it only when it was solved from these data with these settings (otherwise
+:class:`~spiralbayes.exceptions.ResumeMismatchError` names what differs). The corrected data's hash is
+what the scan's checkpoint and the reused frank model and scan are keyed on, so a change of the
+calibration settings never resumes or reuses work done on differently corrected data.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from .._provenance import data_hash
+from ..axisymmetric import FrankSettings
+from ..calibration import CalibrationSettings, GainSolution, selfcal
+from ..exceptions import InputError, ResumeMismatchError
+from ..settings import from_config
+from .outputs import save_figure
+
+__all__ = ["GAINS_FILE", "calibration_settings", "check_calibration_input", "reusable_gains", "run_calibration"]
+
+log = logging.getLogger(__name__)
+
+GAINS_FILE = "gains.h5"
+"""The gain solution's file name in ``[output] dir``."""
+
+
+def calibration_settings(config: dict) -> CalibrationSettings:
+    """The :class:`~spiralbayes.calibration.CalibrationSettings` of a merged configuration."""
+    return from_config(CalibrationSettings, config.get("calibration", {}))
+
+
+def check_calibration_input(config: dict, vis) -> None:
+    """Refuse a gain solve on data that record no antennas, before any fit runs."""
+    s = calibration_settings(config)
+    if s.enabled and not vis.has_antennas:
+        raise InputError(f"[calibration] solve = {s.solve!r} needs visibilities that record their antennas and times "
+                         f"(a Measurement Set or a spiralbayes .h5 file); {config['data']['path']} does not: set "
+                         "[calibration] solve = 'none' (and self-calibrate with CASA first), or give a Measurement Set")
+
+
+def _solution_key(vis, s: CalibrationSettings) -> dict:
+    return {"data": data_hash(vis.u, vis.v, vis.V, vis.weights), "settings": {
+        k: getattr(s, k) for k in ("solve", "interval_s", "min_snr", "n_iterations", "refant", "keep_position",
+                                   "amp_iterations")}}
+
+
+def run_calibration(config: dict, vis, axisymmetric, out_dir, *, progress: bool = True):
+    """Self-calibrate ``vis`` starting from ``axisymmetric`` and save the solution in ``out_dir``.
+
+    Returns ``(corrected visibilities, frank fit to them, GainSolution)``; with ``solve = "none"``
+    ``(vis, axisymmetric, None)``.
+    """
+    s = calibration_settings(config)
+    if not s.enabled:
+        return vis, axisymmetric, None
+    check_calibration_input(config, vis)
+    frank = from_config(FrankSettings, config["frank"])
+    result = selfcal(vis, axisymmetric.geometry, settings=s, model=axisymmetric, frank=frank, progress=progress)
+    model = result.model.nonnegative() if config["frank"]["nonnegative"] else result.model
+    solution = result.solution
+    solution.provenance = {"solved_from": _solution_key(vis, s), "phase_rms_deg_by_round": result.phase_rms_deg}
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    solution.save(out_dir / GAINS_FILE)
+    if config["output"].get("plots", True):
+        from ..plotting.calibration import plot_gain_phases
+
+        save_figure(plot_gain_phases(solution), out_dir / "gains.png")
+    log.info("%s", result.summary())
+    return result.corrected, model, solution
+
+
+def reusable_gains(config: dict, vis, out_dir, *, required: bool = False):
+    """``(corrected vis, GainSolution)`` from ``OUTPUT/gains.h5`` when it was solved from ``vis`` with this
+    configuration's ``[calibration]`` settings; ``(vis, None)`` when calibration is off, or when the file is
+    absent and not ``required``. A file for other data or settings raises ResumeMismatchError."""
+    s = calibration_settings(config)
+    path = Path(out_dir) / GAINS_FILE
+    if not s.enabled:
+        return vis, None
+    check_calibration_input(config, vis)
+    if not path.exists():
+        if required:
+            raise ResumeMismatchError(f"[calibration] solve = {s.solve!r} but {path} is missing: run 'spiralbayes "
+                                      "scan' with this configuration first (it solves and saves the gains)")
+        return vis, None
+    solution = GainSolution.load(path)
+    have, want = (solution.provenance or {}).get("solved_from", {}), _solution_key(vis, s)
+    diffs = []
+    if have.get("data") != want["data"]:
+        diffs.append("the data (u, v, V or weights)")
+    changed = [f"{k}: {have.get('settings', {}).get(k)!r} -> {v!r}" for k, v in want["settings"].items()
+               if have.get("settings", {}).get(k) != v]
+    if changed:
+        diffs.append(f"[calibration] settings ({', '.join(changed)})")
+    if diffs:
+        raise ResumeMismatchError(f"{path} was solved for other inputs — {'; '.join(diffs)}: run 'spiralbayes scan' "
+                                  "with this configuration first (it solves the gains again), or use another "
+                                  "[output] dir")
+    return solution.apply(vis), solution

@@ -1,0 +1,87 @@
+"""``[calibration] solve`` through the command line: simulate with gain errors, scan, and the files it leaves."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from spiralbayes.calibration import GainSolution
+from spiralbayes.cli import main
+from spiralbayes.templates import TemplateBank, make_template
+
+
+def _config(tmp_path, data: str, calibration: str) -> str:
+    right = make_template(3.0, 0.3, 10.0, "R", n_x=60, n_phi=180)
+    TemplateBank([right, right.mirror()]).save(tmp_path / "bank.h5")
+    path = tmp_path / "run.toml"
+    path.write_text(f"""
+[data]
+path = "{data}"
+[geometry]
+inc = 30.0
+PA = 60.0
+[calibration]
+{calibration}
+[templates]
+bank = "{tmp_path / 'bank.h5'}"
+[grid]
+r_p_min = 0.2
+r_p_max = 0.6
+n_r_p = 3
+n_phi_p = 12
+[alternatives]
+fit = false
+[limits]
+completeness = false
+[output]
+dir = "{tmp_path / 'out'}"
+plots = true
+""")
+    return str(path)
+
+
+def test_scan_solves_the_gains_and_says_so(tmp_path, capsys):
+    """The Taurus set-up (6.3k visibilities, 43 antennas, 7 integrations) with 15 deg antenna phases."""
+    data = tmp_path / "obs.h5"
+    assert main(["-q", "simulate", "--preset", "taurus", "--out", str(data), "--seed", "4", "--phase-rms", "15",
+                 "--gain-coherence", "600"]) == 0
+    config = _config(tmp_path, "obs.h5", 'solve = "phase"\nn_iterations = 1')
+    assert main(["-q", "scan", config]) == 0
+    out = tmp_path / "out"
+    solution = GainSolution.load(out / "gains.h5")
+    assert solution.mode == "phase" and solution.n_intervals == 7  # 7 one-minute integrations, 60-s intervals
+    assert solution.phase_rms_deg == pytest.approx(15.0, rel=0.35)
+    assert (out / "gains.png").exists()
+    text = (out / "verdict.txt").read_text()
+    assert f"The data were corrected first: {solution.note()}." in text
+    assert "antenna gains solved (phase, 60 s intervals, " in text
+    assert json.loads((out / "verdict.json").read_text())["calibration"] == solution.note()
+    # limits reuse the scan and the saved solution, and say so first
+    assert main(["-q", "limits", config]) == 0
+    summary = (out / "limits_summary.txt").read_text().splitlines()
+    assert summary[0] == f"The data were corrected first: {solution.note()}."
+    assert solution.note() in (out / "table3.md").read_text()
+    # other [calibration] settings: the saved solution is refused by the commands that reuse it, naming them
+    capsys.readouterr()
+    other = _config(tmp_path, "obs.h5", 'solve = "phase"\nn_iterations = 1\ninterval_s = 120.0')
+    assert main(["-q", "limits", other]) == 2
+    err = capsys.readouterr().err
+    assert "[calibration] settings (interval_s: 60.0 -> 120.0)" in err and len(err.strip().splitlines()) == 1
+
+
+def test_data_without_antennas_are_refused_naming_the_option(tmp_path, capsys):
+    data = tmp_path / "obs.txt"  # a uvtable keeps no antennas
+    assert main(["-q", "simulate", "--preset", "taurus", "--out", str(data), "--seed", "1"]) == 0
+    assert main(["-q", "scan", _config(tmp_path, "obs.txt", 'solve = "amplitude+phase"')]) == 2
+    err = capsys.readouterr().err
+    assert "[calibration] solve = 'amplitude+phase' needs visibilities that record their antennas" in err
+    assert not (tmp_path / "out" / "axisymmetric.h5").exists()
+
+
+def test_a_bad_value_is_refused_when_the_file_is_read(tmp_path, capsys):
+    assert main(["-q", "scan", _config(tmp_path, "nothing.h5", 'solve = "gains"')]) == 2
+    err = capsys.readouterr().err
+    assert "calibration.solve = 'gains' must be one of 'none', 'phase', 'amplitude+phase'" in err
+    assert np.all([not p.exists() for p in (tmp_path / "out",)])
