@@ -24,6 +24,15 @@ of Kass & Raftery 1995, the threshold test 1 uses against the axisymmetric model
 against the same axisymmetric model and data, so their difference is ``BIC_alt − BIC_spiral``.
 When it fails the verdict names the alternative.
 
+Given the scanned data too (``vis``, ``axisymmetric``, ``templates``, as the pipeline runs it) test 3
+is the **nested** question (:mod:`.nested`): once the best alternatives (``nested_alternatives``,
+each on its own) are in the model, fitted jointly with the spiral, does the spiral still lower the
+BIC by more than ``nested_threshold``? Then "which single model is best" (the comparison above,
+with the planet's compact peak, :mod:`.planet_peak`) is kept as information. An alternative that
+is significant on its own and survives the joint fit is named as also present. With a calibration
+diagnostic that warns (:func:`spiralbayes.calibration.diagnose_calibration`) and no spiral claimed,
+the verdict names calibration errors, not a disc asymmetry, as the explanation.
+
 When the global peak fails test 2, :func:`detect` also looks for the best *handed, compact*
 candidate — the highest local maximum of any template that passes test 1 and whose mirror ratio
 and local peak area pass test 2 — so that a planet behind a false peak (e.g. from a phase-centre
@@ -41,6 +50,7 @@ template of the best one's hand whose best Δχ² near the best instance is with
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections import deque
 from dataclasses import dataclass
@@ -53,6 +63,7 @@ from ...results import ResultMixin, fields_dict
 from ...settings import with_overrides
 from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, AlternativesSettings, DetectionSettings
 from .planet_peak import rescore_with_planet_peak
+from .nested import nested_test
 from ...units import M_JUP, M_SUN
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "detect_with_planet_peak", "handedness_ratio", "localisation",
@@ -266,6 +277,15 @@ class Verdict(ResultMixin):
     ``test3_spiral_model`` which spiral hypothesis test 3 scored ("spiral", or "spiral + compact peak
     at the planet" from :func:`.apply_planet_peak`);
     ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass_range`).
+
+    With the scanned data, test 3 is the nested test (:mod:`.nested`): ``test3_method`` is
+    "nested" (else "best model"), ``nested_delta_bic`` the smallest ``BIC(alt) − BIC(alt + spiral)``
+    over the alternatives tried, ``nested`` each joint fit (:class:`~.nested.NestedFit` as dicts),
+    ``also_present`` the phrase naming an alternative that is significant and survives the joint fit;
+    ``best_alternative`` and ``delta_bic_vs_alternative`` are then information ("which single model
+    is best"). ``calibration`` holds the calibration diagnostic's numbers when one was given, and
+    ``explanation`` what the verdict names as the cause of the residual structure ("spiral",
+    "calibration", an alternative's name, or None).
     """
 
     detected: bool
@@ -291,6 +311,13 @@ class Verdict(ResultMixin):
     test3_spiral_model: str | None = None
     planet_peak: dict | None = None
     mass_range: dict | None = None
+    test3_method: str | None = None
+    nested_delta_bic: float | None = None
+    nested_threshold: float | None = None
+    nested: list | None = None
+    also_present: str | None = None
+    calibration: dict | None = None
+    explanation: str | None = None
 
     KIND = "spiralbayes.Verdict"
     WHAT = "verdict"
@@ -328,7 +355,8 @@ class Verdict(ResultMixin):
                      f" However {hand}, so the improvement is not attributed to a planet-driven spiral "
                      "(e.g. an arc or a geometry error).")
         text += self._mass_sentence() if self.test1_passed else ""
-        text += self._test3_sentence()
+        text += self._nested_sentence() if self.test3_method == "nested" else self._test3_sentence()
+        text += self._calibration_sentence()
         if self.candidate is not None:
             text += self._candidate_sentence()
         return text + (" A planet-driven spiral is detected." if self.detected
@@ -372,6 +400,53 @@ class Verdict(ResultMixin):
             text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
         return text
 
+    @property
+    def _calibration_warns(self) -> bool:
+        return bool(self.calibration and self.calibration.get("warning"))
+
+    def _nested_sentence(self) -> str:
+        fits = self.nested or []
+        if not fits:
+            return ""
+        f = min(fits, key=lambda x: x["delta_bic"])
+        names = " and ".join(x["label"] for x in fits)
+        stat, thr = self.nested_delta_bic, self.nested_threshold
+        text = (f" Test 3 (nested): fitted jointly with the {names} model{'s' if len(fits) > 1 else ''}, the "
+                f"spiral ({f['hypothesis']}, {f['n_spiral_params']} parameters) lowers the BIC by "
+                f"{stat:.1f} against the {f['label']} model alone")
+        text += f" (> {thr:g})." if stat > thr else f", not more than {thr:g}."
+        also = next((x for x in fits if x.get("survives")), None)
+        if self.also_present and also is not None:
+            text += (f" The data hold a spiral and {self.also_present} (the {also['label']} model: Delta BIC = "
+                     f"{also['alternative_delta_bic']:.1f} on its own, "
+                     f"{also['alternative_delta_bic_given_spiral']:.1f} with the spiral in the model).")
+            if also["alternative"] == "geometry":
+                text += (" The scan placed the templates at the unfitted geometry, so no planet is claimed at this "
+                         "position: rescan at the fitted geometry (sb.rescan_at_fitted_geometry; spiralbayes scan "
+                         "does it).")
+        elif not self.test3_passed and f["alternative_delta_bic"] > DELTA_BIC_THRESHOLD and not self._calibration_warns:
+            text += (f" The {f['label']} model explains the structure (Delta BIC = {f['alternative_delta_bic']:.1f} "
+                     "against the axisymmetric disc).")
+            if f["alternative"] == "geometry":
+                text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
+        if self.delta_bic_vs_alternative is not None:
+            peak = " + compact peak" if self.test3_spiral_model != "spiral" else ""
+            text += (f" As single models the best spiral{peak} scores Delta BIC = "
+                     f"{self.delta_bic_vs_alternative:+.1f} against the best competing model "
+                     f"({self.best_alternative_label}, Delta BIC = {self.alternative_delta_bic:.1f}); for information.")
+        return text
+
+    def _calibration_sentence(self) -> str:
+        if not self._calibration_warns or self.detected:
+            return ""
+        c = self.calibration
+        measured = ("" if c.get("phase_rms_deg") is None else
+                    f"residual antenna phase rms {c['phase_rms_deg']:.3g} deg and amplitude rms "
+                    f"{100 * c['amp_rms']:.3g} %, ")
+        return (f" Calibration: the residuals show {measured}reduced chi2 {c['reduced_chi2']:.3g}, so antenna gain "
+                "errors rather than a disc asymmetry are the likely explanation of the residual structure: "
+                "self-calibrate, or set [calibration] solve, and scan again.")
+
     def _candidate_sentence(self) -> str:
         c = self.candidate
         return (f" The best handed, compact candidate is {c['template']} at {self._where(c['r_p'], c['phi_p_deg'])} "
@@ -395,7 +470,7 @@ def _check_same_data(result, alternatives) -> None:
 
 
 def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | None = None, alternatives=None,
-           vis=None, axisymmetric=None, templates=None, **overrides) -> Verdict:
+           vis=None, axisymmetric=None, templates=None, geometry=None, calibration=None, **overrides) -> Verdict:
     """Decide whether a scan detects a planet-driven spiral.
 
     Tests 1 and 2 are the paper's (module docstring). With ``alternatives`` (an
@@ -416,8 +491,15 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
         Competing asymmetry models (:func:`spiralbayes.inference.detection.alternatives.fit_alternatives`).
     vis, axisymmetric, templates : Visibilities, AxisymmetricModel, sequence of SpiralTemplate, optional
         The scanned data, model and templates (in the scan's order). Given with ``alternatives``, test 3
-        scores the spiral with the planet's own compact peak against the arc alternative
-        (:mod:`.planet_peak`), as ``spiralbayes scan`` does; without them test 3 compares the bare spiral.
+        is the nested test (:mod:`.nested`: the best alternatives fitted jointly with the spiral), as
+        ``spiralbayes scan`` does, and the single-model comparison scores the spiral with the planet's
+        own compact peak against the arc alternative (:mod:`.planet_peak`); without them test 3 is
+        that single-model comparison with the bare spiral.
+    geometry : DiscGeometry, optional
+        Where the joint fits place the models (default: the axisymmetric model's).
+    calibration : CalibrationDiagnostic, optional
+        :func:`spiralbayes.calibration.diagnose_calibration` of the same data and model; when it
+        warns and no spiral is claimed, the verdict names calibration as the explanation.
     **overrides
         Fields of :class:`DetectionSettings` replacing those of ``settings`` (e.g.
         ``bic_threshold_value=15``, ``mstar=1.2``).
@@ -462,24 +544,81 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
         detected=bool(detected), delta_bic=best.delta_bic, test1_passed=test1,
         handedness_ratio=ratio, localisation=loc, test2_passed=test2, template=best.template,
         r_p=best.r_p, phi_p_deg=float(np.degrees(best.phi_p)), delta_chi2=best.delta_chi2,
-        threshold_6lnN=best.delta_chi2 - best.delta_bic, distance=result.distance, **extra)
+        threshold_6lnN=best.delta_chi2 - best.delta_bic, distance=result.distance,
+        test3_method=None if alternatives is None else "best model", **extra)
     data = {"vis": vis, "axisymmetric": axisymmetric, "templates": templates}
     missing = [k for k, v in data.items() if v is None]
-    if len(missing) == 3 or alternatives is None:
-        return verdict
-    if missing:
+    if len(missing) != 3 and missing:
         raise InputError(f"detect: give vis, axisymmetric and templates together (missing {', '.join(missing)}) "
-                         "so that test 3 can fit the planet's compact peak, or none of them")
-    return rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, alternatives=alternatives)
+                         "so that test 3 can fit the spiral jointly with the alternatives, or none of them")
+    if not missing and alternatives is not None:
+        verdict = rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry,
+                                           alternatives=alternatives)
+        verdict = _apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s)
+    return _explain(verdict, calibration)
+
+
+def _apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s) -> Verdict:
+    """``verdict`` with test 3 decided by the nested test (run when test 1 passes: else nothing to claim)."""
+    if not verdict.test1_passed:
+        return verdict
+    fits = nested_test(result, vis, axisymmetric, templates, alternatives, geometry, template=verdict.template,
+                       n_alternatives=s.nested_alternatives)
+    stat = min(f.delta_bic for f in fits)
+    passed = bool(stat > s.nested_threshold)
+    rows = []
+    for f in fits:
+        rows.append({**f.to_dict(), "survives": bool(f.alternative_delta_bic > s.bic_threshold_value
+                                                     and f.alternative_delta_bic_given_spiral > s.bic_threshold_value)})
+    survivors = [f for f, row in zip(fits, rows) if row["survives"]]
+    also = _also_present_phrase(survivors[0]) if passed and survivors else None
+    # the scan placed every template at the unfitted geometry: a spiral beside a real geometry error is
+    # claimed only after the rescan at the fitted geometry (follow_up), not at the positions found here
+    if passed and any(f.alternative == "geometry" for f in survivors):
+        passed = False
+    return dataclasses.replace(verdict, test3_passed=passed, test3_method="nested", nested_delta_bic=float(stat),
+                               nested_threshold=float(s.nested_threshold), nested=rows, also_present=also,
+                               detected=bool(verdict.test1_passed and verdict.test2_passed and passed))
+
+
+def _also_present_phrase(fit) -> str:
+    """How the summary names an alternative that survives beside the spiral."""
+    p = fit.params
+    if fit.alternative == "arc":
+        d = abs(p["r_c"] * np.exp(1j * np.radians(p["phi_c_deg"]))
+                - fit.r_p * np.exp(1j * np.radians(fit.phi_p_deg)))
+        near = d <= max(2 * p["sigma_r"], 0.15 * fit.r_p)
+        return "an arc-like peak at the planet" if near else "an arc/vortex elsewhere in the disc"
+    return {"lopsided": "an m = 1 lopsided asymmetry", "eccentric_ring": "an eccentric ring",
+            "m2": "an m = 2 (bar or two-armed) pattern",
+            "geometry": "a geometry error"}.get(
+        fit.alternative, fit.label)
+
+
+def _explain(verdict, calibration) -> Verdict:
+    """Record the calibration diagnostic and what the verdict names as the residual structure's cause."""
+    cal = None
+    if calibration is not None:
+        cal = {k: getattr(calibration, k) for k in ("phase_rms_deg", "amp_rms", "reduced_chi2", "warning")}
+    if verdict.detected:
+        why = "spiral"
+    elif cal is not None and cal["warning"]:
+        why = "calibration"
+    elif verdict.alternative_delta_bic is not None and verdict.alternative_delta_bic > DELTA_BIC_THRESHOLD:
+        why = verdict.best_alternative
+    else:
+        why = None
+    return dataclasses.replace(verdict, calibration=cal, explanation=why)
 
 
 def detect_with_planet_peak(result, vis, axisymmetric, templates, geometry=None, amplitude=None, *,
                             alternatives=None, **detect_kwargs) -> Verdict:
-    """:func:`detect`, then test 3 rescored with the planet's compact peak at ``geometry``
+    """:func:`detect` with the scanned data: test 3 is the nested test (:mod:`.nested`), and the
+    single-model comparison scores the spiral with the planet's compact peak at ``geometry``
     (:func:`~.planet_peak.rescore_with_planet_peak`; default: the axisymmetric model's geometry).
 
-    The peak is fitted only when there are alternatives and test 1 passes (otherwise test 3 cannot
-    change the verdict); ``detect_kwargs`` go to :func:`detect`.
+    Both fits are made only when there are alternatives and test 1 passes (otherwise test 3 cannot
+    change the verdict); ``detect_kwargs`` go to :func:`detect` (e.g. ``calibration=``).
     """
-    verdict = detect(result, amplitude, alternatives=alternatives, **detect_kwargs)
-    return rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry, alternatives=alternatives)
+    return detect(result, amplitude, alternatives=alternatives, vis=vis, axisymmetric=axisymmetric,
+                  templates=templates, geometry=geometry, **detect_kwargs)
