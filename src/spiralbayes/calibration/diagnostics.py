@@ -255,9 +255,18 @@ def _design(p, q, n_ant: int, sign: float) -> np.ndarray:
     return A
 
 
+MAX_CONDITION = 1e10
+"""Normal matrices worse conditioned than this are singular: e.g. the amplitude equations
+``alpha_p + alpha_q`` of a set of baselines whose antenna graph is bipartite (a tree, an even ring)
+leave ``+x`` on one side and ``-x`` on the other undetermined, which sparse subsets of the data
+(a few rows per integration) often are."""
+
+
 def _weighted_solve(A, y, wt):
     """Least-squares solution and its covariance, or (None, None) when singular."""
     normal = A.T @ (wt[:, None] * A)
+    if not np.linalg.cond(normal) < MAX_CONDITION:
+        return None, None
     try:
         cov = np.linalg.inv(normal)
     except np.linalg.LinAlgError:

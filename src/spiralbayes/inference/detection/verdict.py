@@ -51,6 +51,7 @@ template of the best one's hand whose best Δχ² near the best instance is with
 from __future__ import annotations
 
 import dataclasses
+import logging
 import warnings
 from collections import deque
 from dataclasses import dataclass
@@ -68,6 +69,8 @@ from ...units import M_JUP, M_SUN
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "detect_with_planet_peak", "handedness_ratio", "localisation",
            "mass_range", "mirror_index", "one_sidedness"]
+
+log = logging.getLogger(__name__)
 
 ALTERNATIVE_THRESHOLD = AlternativesSettings.threshold
 """Test 3: the spiral's BIC must be lower than the best alternative's by more than this."""
@@ -402,7 +405,7 @@ class Verdict(ResultMixin):
 
     @property
     def _calibration_warns(self) -> bool:
-        return bool(self.calibration and self.calibration.get("warning"))
+        return bool(self.calibration and self.calibration.get("explains"))
 
     def _nested_sentence(self) -> str:
         fits = self.nested or []
@@ -555,7 +558,28 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
         verdict = rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry,
                                            alternatives=alternatives)
         verdict = _apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s)
+        if calibration is not None and calibration.warning and not verdict.detected:
+            again = _rediagnose(calibration, vis, axisymmetric, geometry, alternatives)
+            return _explain(verdict, calibration, again, alternatives.best.name)
     return _explain(verdict, calibration)
+
+
+def _rediagnose(calibration, vis, axisymmetric, geometry, alternatives):
+    """The diagnostic repeated with the best significant alternative in the model: a real disc
+    asymmetry, unmodelled, also leaves antenna-like residuals, so calibration is named only when they
+    remain once the asymmetry is modelled (``calibration.warning`` None otherwise)."""
+    from ...calibration import diagnose_calibration
+
+    best = alternatives.best
+    if best.delta_bic(alternatives.n_data) <= DELTA_BIC_THRESHOLD:
+        return calibration
+    vis = vis.standardised()
+    geometry = geometry if geometry is not None else alternatives.geometry
+    model = (np.asarray(axisymmetric.visibilities(vis.u, vis.v, geometry))
+             + alternatives.model_visibilities(best.name, vis, axisymmetric))
+    again = diagnose_calibration(vis, model)
+    log.info("calibration diagnostic with the %s model: %s", best.name, again.summary())
+    return again
 
 
 def _apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s) -> Verdict:
@@ -595,14 +619,22 @@ def _also_present_phrase(fit) -> str:
         fit.alternative, fit.label)
 
 
-def _explain(verdict, calibration) -> Verdict:
-    """Record the calibration diagnostic and what the verdict names as the residual structure's cause."""
+def _explain(verdict, calibration, again=None, alternative: str | None = None) -> Verdict:
+    """Record the calibration diagnostic and what the verdict names as the residual structure's cause.
+
+    ``again`` is the diagnostic repeated with the ``alternative`` in the model (:func:`_rediagnose`);
+    calibration is the explanation when the diagnostic (repeated, if it was) still warns.
+    """
+    keys = ("phase_rms_deg", "amp_rms", "reduced_chi2", "warning")
     cal = None
     if calibration is not None:
-        cal = {k: getattr(calibration, k) for k in ("phase_rms_deg", "amp_rms", "reduced_chi2", "warning")}
+        cal = {k: getattr(calibration, k) for k in keys}
+        cal["explains"] = bool((again if again is not None else calibration).warning)
+        if again is not None and again is not calibration:
+            cal["with_alternative"] = {"model": alternative, **{k: getattr(again, k) for k in keys}}
     if verdict.detected:
         why = "spiral"
-    elif cal is not None and cal["warning"]:
+    elif cal is not None and cal["explains"]:
         why = "calibration"
     elif verdict.alternative_delta_bic is not None and verdict.alternative_delta_bic > DELTA_BIC_THRESHOLD:
         why = verdict.best_alternative
