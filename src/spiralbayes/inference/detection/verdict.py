@@ -40,7 +40,7 @@ error) is not hidden.
 Its ``localisation`` is the area of its own connected region above half its Δχ² (for the global
 peak of a map with one peak this equals the paper's measure above).
 
-The planet's mass is reported as a **range** (:func:`.mass_range`; docs/verdict.md): no template is the true
+The planet's mass is reported as a **range** (:func:`.mass.mass_range`; docs/verdict.md): no template is the true
 spiral, and templates of other morphology variants and H/r explain a real spiral almost as well as
 the best one, so its single label would claim more than the data say. The range covers every
 template of the best one's hand whose best Δχ² near the best instance is within ``mass_band``
@@ -50,8 +50,6 @@ template of the best one's hand whose best Δχ² near the best instance is with
 
 from __future__ import annotations
 
-import dataclasses
-import logging
 import warnings
 from collections import deque
 from dataclasses import dataclass
@@ -62,15 +60,14 @@ from ...exceptions import InputError
 from ...io.argument_checks import check_scan_result
 from ...results import ResultMixin, fields_dict
 from ...settings import with_overrides
-from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, AlternativesSettings, DetectionSettings
+from .settings import DELTA_BIC_THRESHOLD, AlternativesSettings, DetectionSettings
 from .planet_peak import rescore_with_planet_peak
-from .nested import nested_test
-from ...units import M_JUP, M_SUN
+from .explanation import calibration_sentence, explain, nested_sentence, rediagnose
+from .nested import apply_nested
+from .mass import mass_range
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "detect_with_planet_peak", "handedness_ratio", "localisation",
            "mass_range", "mirror_index", "one_sidedness"]
-
-log = logging.getLogger(__name__)
 
 ALTERNATIVE_THRESHOLD = AlternativesSettings.threshold
 """Test 3: the spiral's BIC must be lower than the best alternative's by more than this."""
@@ -202,63 +199,6 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = Detect
     return best
 
 
-def mass_range(result, amplitude=None, *, band: float = MASS_BAND, window: tuple = (2, 3),
-               mstar: float = DetectionSettings.mstar) -> dict | None:
-    """Planet masses of every template that explains the best instance nearly as well as the best one.
-
-    A template belongs to the range when it has the best template's hand and its largest Δχ² within
-    ``window`` = (radius, azimuth) grid steps of the best instance is at least the best Δχ² minus
-    ``band`` (all templates have the same number of parameters, so this is a ΔBIC band).
-
-    Parameters
-    ----------
-    result : ScanResult
-    amplitude : None or "free"
-    band : float
-        Width of the ΔBIC band.
-    window : (int, int)
-        Half-widths of the neighbourhood in radius and azimuth steps (azimuth periodic): templates
-        of other morphologies peak a step or two apart at the same planet.
-    mstar : float
-        Stellar mass [M_sun] for Jupiter masses.
-
-    Returns
-    -------
-    dict or None
-        ``mth`` [min, max] M_p/M_th; ``mjup`` [min, max] M_Jup (each template's own ``h_p``; None when
-        no member has one); ``band``, ``mstar``; ``members``: name, mass, h_p, variant and ΔBIC below
-        the best of each member. None when the best template has no mass.
-    """
-    if not np.isfinite(band) or band < 0:
-        raise InputError(f"mass band must be a non-negative ΔBIC, got {band!r}")
-    dchi2 = result.delta_chi2(amplitude)
-    best = result.peak(amplitude=amplitude)
-    meta = result.templates[best.template_index]
-    if meta.get("mass") is None:
-        return None
-    n_phi = len(result.phi_p)
-    rows = slice(max(best.i_rp - window[0], 0), best.i_rp + window[0] + 1)
-    cols = [(best.i_phi + d) % n_phi for d in range(-window[1], window[1] + 1)]
-    members = []
-    for t, m in enumerate(result.templates):
-        if m.get("mass") is None or m.get("hand") != meta.get("hand"):
-            continue
-        local = np.nanmax(dchi2[t, rows][:, cols])
-        if local >= best.delta_chi2 - band:
-            h_p = m.get("h_p")
-            mjup = (float(m["mass"]) * float(h_p) ** 3 * mstar * M_SUN / M_JUP
-                    if h_p is not None and np.isfinite(h_p) else None)
-            members.append({"template": m["name"], "mass": float(m["mass"]), "h_p": h_p, "variant": m.get("variant"),
-                            "mjup": mjup, "below_best": float(best.delta_chi2 - local)})
-    masses = [x["mass"] for x in members]
-    mjups = [x["mjup"] for x in members if x["mjup"] is not None]
-    return {"mth": [min(masses), max(masses)], "mjup": [min(mjups), max(mjups)] if mjups else None,
-            "band": float(band), "mstar": float(mstar),
-            "variants": sorted({str(x["variant"] or "compromise") for x in members}),
-            "h_ps": sorted({float(x["h_p"]) for x in members if x["h_p"] is not None}),
-            "members": sorted(members, key=lambda x: x["below_best"])}
-
-
 def _alternatives_summary(alternatives, spiral_delta_bic: float) -> dict:
     """Each alternative's Δχ², ΔBIC against the axisymmetric model and against the best spiral."""
     n = alternatives.n_data
@@ -279,7 +219,7 @@ class Verdict(ResultMixin):
     handed, compact candidate when the global peak fails test 2 (:func:`.best_handed_candidate`);
     ``test3_spiral_model`` which spiral hypothesis test 3 scored ("spiral", or "spiral + compact peak
     at the planet" from :func:`.apply_planet_peak`);
-    ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass_range`).
+    ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass.mass_range`).
 
     With the scanned data, test 3 is the nested test (:mod:`.nested`): ``test3_method`` is
     "nested" (else "best model"), ``nested_delta_bic`` the smallest ``BIC(alt) − BIC(alt + spiral)``
@@ -358,8 +298,8 @@ class Verdict(ResultMixin):
                      f" However {hand}, so the improvement is not attributed to a planet-driven spiral "
                      "(e.g. an arc or a geometry error).")
         text += self._mass_sentence() if self.test1_passed else ""
-        text += self._nested_sentence() if self.test3_method == "nested" else self._test3_sentence()
-        text += self._calibration_sentence()
+        text += nested_sentence(self) if self.test3_method == "nested" else self._test3_sentence()
+        text += calibration_sentence(self)
         if self.candidate is not None:
             text += self._candidate_sentence()
         return text + (" A planet-driven spiral is detected." if self.detected
@@ -402,53 +342,6 @@ class Verdict(ResultMixin):
         if self.best_alternative == "geometry" and alternative_significant:
             text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
         return text
-
-    @property
-    def _calibration_warns(self) -> bool:
-        return bool(self.calibration and self.calibration.get("explains"))
-
-    def _nested_sentence(self) -> str:
-        fits = self.nested or []
-        if not fits:
-            return ""
-        f = min(fits, key=lambda x: x["delta_bic"])
-        names = " and ".join(x["label"] for x in fits)
-        stat, thr = self.nested_delta_bic, self.nested_threshold
-        text = (f" Test 3 (nested): fitted jointly with the {names} model{'s' if len(fits) > 1 else ''}, the "
-                f"spiral ({f['hypothesis']}, {f['n_spiral_params']} parameters) lowers the BIC by "
-                f"{stat:.1f} against the {f['label']} model alone")
-        text += f" (> {thr:g})." if stat > thr else f", not more than {thr:g}."
-        also = next((x for x in fits if x.get("survives")), None)
-        if self.also_present and also is not None:
-            text += (f" The data hold a spiral and {self.also_present} (the {also['label']} model: Delta BIC = "
-                     f"{also['alternative_delta_bic']:.1f} on its own, "
-                     f"{also['alternative_delta_bic_given_spiral']:.1f} with the spiral in the model).")
-            if also["alternative"] == "geometry":
-                text += (" The scan placed the templates at the unfitted geometry, so no planet is claimed at this "
-                         "position: rescan at the fitted geometry (sb.rescan_at_fitted_geometry; spiralbayes scan "
-                         "does it).")
-        elif not self.test3_passed and f["alternative_delta_bic"] > DELTA_BIC_THRESHOLD and not self._calibration_warns:
-            text += (f" The {f['label']} model explains the structure (Delta BIC = {f['alternative_delta_bic']:.1f} "
-                     "against the axisymmetric disc).")
-            if f["alternative"] == "geometry":
-                text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
-        if self.delta_bic_vs_alternative is not None:
-            peak = " + compact peak" if self.test3_spiral_model != "spiral" else ""
-            text += (f" As single models the best spiral{peak} scores Delta BIC = "
-                     f"{self.delta_bic_vs_alternative:+.1f} against the best competing model "
-                     f"({self.best_alternative_label}, Delta BIC = {self.alternative_delta_bic:.1f}); for information.")
-        return text
-
-    def _calibration_sentence(self) -> str:
-        if not self._calibration_warns or self.detected:
-            return ""
-        c = self.calibration
-        measured = ("" if c.get("phase_rms_deg") is None else
-                    f"residual antenna phase rms {c['phase_rms_deg']:.3g} deg and amplitude rms "
-                    f"{100 * c['amp_rms']:.3g} %, ")
-        return (f" Calibration: the residuals show {measured}reduced chi2 {c['reduced_chi2']:.3g}, so antenna gain "
-                "errors rather than a disc asymmetry are the likely explanation of the residual structure: "
-                "self-calibrate, or set [calibration] solve, and scan again.")
 
     def _candidate_sentence(self) -> str:
         c = self.candidate
@@ -557,90 +450,11 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
     if not missing and alternatives is not None:
         verdict = rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry,
                                            alternatives=alternatives)
-        verdict = _apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s)
+        verdict = apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s)
         if calibration is not None and calibration.warning and not verdict.detected:
-            again = _rediagnose(calibration, vis, axisymmetric, geometry, alternatives)
-            return _explain(verdict, calibration, again, alternatives.best.name)
-    return _explain(verdict, calibration)
-
-
-def _rediagnose(calibration, vis, axisymmetric, geometry, alternatives):
-    """The diagnostic repeated with the best significant alternative in the model: a real disc
-    asymmetry, unmodelled, also leaves antenna-like residuals, so calibration is named only when they
-    remain once the asymmetry is modelled (``calibration.warning`` None otherwise)."""
-    from ...calibration import diagnose_calibration
-
-    best = alternatives.best
-    if best.delta_bic(alternatives.n_data) <= DELTA_BIC_THRESHOLD:
-        return calibration
-    vis = vis.standardised()
-    geometry = geometry if geometry is not None else alternatives.geometry
-    model = (np.asarray(axisymmetric.visibilities(vis.u, vis.v, geometry))
-             + alternatives.model_visibilities(best.name, vis, axisymmetric))
-    again = diagnose_calibration(vis, model)
-    log.info("calibration diagnostic with the %s model: %s", best.name, again.summary())
-    return again
-
-
-def _apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s) -> Verdict:
-    """``verdict`` with test 3 decided by the nested test (run when test 1 passes: else nothing to claim)."""
-    if not verdict.test1_passed:
-        return verdict
-    fits = nested_test(result, vis, axisymmetric, templates, alternatives, geometry, template=verdict.template,
-                       n_alternatives=s.nested_alternatives)
-    stat = min(f.delta_bic for f in fits)
-    passed = bool(stat > s.nested_threshold)
-    rows = []
-    for f in fits:
-        rows.append({**f.to_dict(), "survives": bool(f.alternative_delta_bic > s.bic_threshold_value
-                                                     and f.alternative_delta_bic_given_spiral > s.bic_threshold_value)})
-    survivors = [f for f, row in zip(fits, rows) if row["survives"]]
-    also = _also_present_phrase(survivors[0]) if passed and survivors else None
-    # the scan placed every template at the unfitted geometry: a spiral beside a real geometry error is
-    # claimed only after the rescan at the fitted geometry (follow_up), not at the positions found here
-    if passed and any(f.alternative == "geometry" for f in survivors):
-        passed = False
-    return dataclasses.replace(verdict, test3_passed=passed, test3_method="nested", nested_delta_bic=float(stat),
-                               nested_threshold=float(s.nested_threshold), nested=rows, also_present=also,
-                               detected=bool(verdict.test1_passed and verdict.test2_passed and passed))
-
-
-def _also_present_phrase(fit) -> str:
-    """How the summary names an alternative that survives beside the spiral."""
-    p = fit.params
-    if fit.alternative == "arc":
-        d = abs(p["r_c"] * np.exp(1j * np.radians(p["phi_c_deg"]))
-                - fit.r_p * np.exp(1j * np.radians(fit.phi_p_deg)))
-        near = d <= max(2 * p["sigma_r"], 0.15 * fit.r_p)
-        return "an arc-like peak at the planet" if near else "an arc/vortex elsewhere in the disc"
-    return {"lopsided": "an m = 1 lopsided asymmetry", "eccentric_ring": "an eccentric ring",
-            "m2": "an m = 2 (bar or two-armed) pattern",
-            "geometry": "a geometry error"}.get(
-        fit.alternative, fit.label)
-
-
-def _explain(verdict, calibration, again=None, alternative: str | None = None) -> Verdict:
-    """Record the calibration diagnostic and what the verdict names as the residual structure's cause.
-
-    ``again`` is the diagnostic repeated with the ``alternative`` in the model (:func:`_rediagnose`);
-    calibration is the explanation when the diagnostic (repeated, if it was) still warns.
-    """
-    keys = ("phase_rms_deg", "amp_rms", "reduced_chi2", "warning")
-    cal = None
-    if calibration is not None:
-        cal = {k: getattr(calibration, k) for k in keys}
-        cal["explains"] = bool((again if again is not None else calibration).warning)
-        if again is not None and again is not calibration:
-            cal["with_alternative"] = {"model": alternative, **{k: getattr(again, k) for k in keys}}
-    if verdict.detected:
-        why = "spiral"
-    elif cal is not None and cal["explains"]:
-        why = "calibration"
-    elif verdict.alternative_delta_bic is not None and verdict.alternative_delta_bic > DELTA_BIC_THRESHOLD:
-        why = verdict.best_alternative
-    else:
-        why = None
-    return dataclasses.replace(verdict, calibration=cal, explanation=why)
+            again = rediagnose(calibration, vis, axisymmetric, geometry, alternatives)
+            return explain(verdict, calibration, again, alternatives.best.name)
+    return explain(verdict, calibration)
 
 
 def detect_with_planet_peak(result, vis, axisymmetric, templates, geometry=None, amplitude=None, *,
