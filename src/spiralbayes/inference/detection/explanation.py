@@ -67,13 +67,19 @@ def nested_sentence(verdict) -> str:
 
 
 def calibration_sentence(verdict) -> str:
-    """The calibration sentence of the summary (empty unless calibration is the explanation)."""
-    if not calibration_explains(verdict) or verdict.detected:
-        return ""
+    """The calibration sentence of the summary: calibration as the explanation when no spiral is
+    claimed, a caution when one is and the diagnostic warns; empty otherwise."""
     c = verdict.calibration
+    if not c or not c.get("warning"):
+        return ""
     measured = ("" if c.get("phase_rms_deg") is None else
                 f"residual antenna phase rms {c['phase_rms_deg']:.3g} deg and amplitude rms "
                 f"{100 * c['amp_rms']:.3g} %, ")
+    if verdict.detected:
+        return (f" Calibration: the residuals also show {measured}reduced chi2 {c['reduced_chi2']:.3g}: "
+                "self-calibrate, or set [calibration] solve, and confirm the spiral in the calibrated data.")
+    if not calibration_explains(verdict):
+        return ""
     return (f" Calibration: the residuals show {measured}reduced chi2 {c['reduced_chi2']:.3g}, so antenna gain "
             "errors rather than a disc asymmetry are the likely explanation of the residual structure: "
             "self-calibrate, or set [calibration] solve, and scan again.")
