@@ -2,9 +2,12 @@
 
 A real planet has a spiral *and* whatever else the disc has (an arc-like compact peak at the
 planet, an eccentric or lopsided gap edge, residual calibration structure), so "which single model
-is best?" can hand a real planet to an alternative. The question asked here is the nested one:
-``ΔBIC_nested = BIC(alternative alone) − BIC(alternative + spiral)``, with both fitted to the same
-visibilities, weights and axisymmetric model as the scan.
+is best?" can hand a real planet to an alternative. The question asked here is whether the data
+need a spiral once the alternative is allowed: ``ΔBIC = BIC(alternative alone) − BIC(best model with
+the spiral)``, where the models with the spiral are the alternative + spiral (nested, fitted jointly)
+and the spiral alone (what is left when the alternative vanishes in the joint fit, e.g. an arc
+that was only the planet's own peak), each with its own parameter count; all are fitted to the
+same visibilities, weights and axisymmetric model as the scan.
 
 The joint model is ``V_A + ΔV_alt(θ) + a S + b P``: ``ΔV_alt`` the alternative
 (:mod:`spiralbayes.alternatives`), ``S`` the visibilities of the best scanned template at its
@@ -12,7 +15,8 @@ planet position (:func:`spiralbayes.model.perturbation_visibilities`), ``P`` a u
 Gaussian at the planet (the planet's own compact peak, :mod:`.planet_peak`). The spiral enters
 linearly, so for fixed ``θ`` its amplitudes are a two-column non-negative linear least-squares
 solve. Four spiral hypotheses are tried, each with its honest parameter count on top of the
-alternative's (the scan's six: ``r_p``, ``φ_p`` and the template's four, :mod:`spiralbayes.inference.scan.statistics`):
+alternative's (the scan's six: ``r_p``, ``φ_p`` and the template's four,
+:mod:`spiralbayes.inference.scan.statistics`):
 
 =====================================  ===  ==========================================
 hypothesis                              k   linear terms
@@ -31,7 +35,8 @@ projected out at every step (variable projection: L-BFGS-B with the gradient of 
 residual for the brightness fields, trust-region least squares with the Kaufman Jacobian for the
 geometry); (3) the positions are scored again with the refitted alternative. The alternative's
 own χ² is the lower of its fit's and its value alone at the jointly refitted parameters, so the
-nested Δχ² never credits the spiral with an improvement the alternative alone could make.
+nested Δχ² never credits the spiral with an improvement the alternative alone could make. The
+spiral alone is scored at the same positions and hypotheses by the linear solve.
 
 The spiral's template is placed at the scan's geometry; a fitted geometry offset of a few mas
 moves it by far less than a beam. The same fit also says whether the alternative *survives* with
@@ -87,7 +92,13 @@ class NestedFit:
     delta_chi2_spiral_alone : float
         The same spiral hypothesis at the same position without the alternative.
     delta_bic : float
-        ``BIC(alternative) − BIC(alternative + spiral)`` (the nested test's statistic).
+        The test's statistic against this alternative: ``BIC(alternative) − BIC(best model with the
+        spiral)``, the larger of ``delta_bic_joint`` and ``delta_bic_spiral_alone``.
+    delta_bic_joint : float
+        ``BIC(alternative) − BIC(alternative + spiral)``.
+    delta_bic_spiral_alone : float
+        ``BIC(alternative) − BIC(spiral alone)``, the spiral's best hypothesis and position without the
+        alternative (what is left when the alternative vanishes in the joint fit).
     alternative_delta_bic : float
         The alternative's own ΔBIC against the axisymmetric model.
     alternative_delta_bic_given_spiral : float
@@ -116,6 +127,8 @@ class NestedFit:
     delta_chi2_joint: float
     delta_chi2_spiral_alone: float
     delta_bic: float
+    delta_bic_joint: float
+    delta_bic_spiral_alone: float
     alternative_delta_bic: float
     alternative_delta_bic_given_spiral: float
     template: str
@@ -313,12 +326,16 @@ def nested_fit(name: str, alternatives, spirals: list[_Spiral], template: str, v
     _, amp, flux = spiral.solve(_alternative_residual(name, theta, prob, axisymmetric), hypothesis)
     k_s = HYPOTHESES[hypothesis][2]
     spiral_alone = spiral.solve(prob.R, hypothesis)[0]
+    spiral_only = _best_linear(spirals, prob.R, hypotheses)[0]  # ΔBIC of the best spiral without the alternative
     joint = prob.chi2_AO - chi2_joint
     alone = prob.chi2_AO - chi2_alone
     return NestedFit(
         alternative=name, label=fit.label, hypothesis=hypothesis, n_spiral_params=k_s, n_alt_params=fit.n_params,
         delta_chi2_alone=float(alone), delta_chi2_joint=float(joint), delta_chi2_spiral_alone=float(spiral_alone),
-        delta_bic=float(joint - alone - k_s * ln_n), alternative_delta_bic=float(fit.delta_bic(n)),
+        delta_bic=float(max(joint - alone - k_s * ln_n, spiral_only - (alone - fit.n_params * ln_n))),
+        delta_bic_joint=float(joint - alone - k_s * ln_n),
+        delta_bic_spiral_alone=float(spiral_only - (alone - fit.n_params * ln_n)),
+        alternative_delta_bic=float(fit.delta_bic(n)),
         alternative_delta_bic_given_spiral=float(joint - spiral_alone - fit.n_params * ln_n),
         template=template, r_p=spiral.r_p, phi_p_deg=float(np.degrees(spiral.phi_p)), amplitude=float(amp),
         peak_flux=float(flux), params=_describe(name, theta), params_alone=dict(fit.params),
