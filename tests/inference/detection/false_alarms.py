@@ -122,7 +122,8 @@ def evaluate(kind: str, seed: int) -> dict:
             "best_alternative": alts.best.name, "alternative_delta_bic": float(alts.best.delta_bic(alts.n_data)),
             "nested_delta_bic": binding.delta_bic, "nested_vs": binding.alternative,
             "nested_hypothesis": binding.hypothesis,
-            "nested_each": {f.alternative: f.delta_bic for f in fits},
+            "nested_each": {f.alternative: {"delta_bic": f.delta_bic, "joint": f.delta_bic_joint,
+                                            "spiral_alone": f.delta_bic_spiral_alone} for f in fits},
             "phase_rms_deg": calibration.phase_rms_deg, "calibration_warns": calibration.warning is not None,
             "detected": verdict.detected, "explanation": verdict.explanation}
 
