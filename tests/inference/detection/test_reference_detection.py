@@ -21,12 +21,10 @@ KNOWN_FAILURES = {
     ("fargo3d:h0.07_mu1", 0.3): "bank best Delta BIC -6 against the own map's 63 (test 1 fails)",
     ("fargo3dlib:h0.07_mu1_st0.03", 0.3): "bank best Delta BIC 2 against the own map's 137 (test 1 fails)",
     ("wakeflow:h0.10_mu0.3", 0.3): "bank best Delta BIC 10 against the own map's 32; test 2 fails",
-    ("wakeflow:h0.05_mu1", 0.3): "nested test 3: the spiral adds Delta BIC -22 to an arc at the planet (bank "
-                                 "Delta BIC 24; placed exactly)",
-    ("fargo3dlib:h0.07_mu1", 0.3): "nested test 3: the spiral adds Delta BIC -16 to an arc at the planet (bank "
-                                   "Delta BIC 22; placed exactly)",
-    ("fargo3dlib:h0.07_mu1_orbits200", 0.3): "nested test 3: the spiral adds Delta BIC -43 to an arc at the planet "
-                                             "(bank Delta BIC 50; placed exactly)",
+    ("wakeflow:h0.05_mu1", 0.3): "test 3 Delta BIC 5.5 against an arc at the planet (spiral alone; fitted jointly "
+                                 "with the arc -22), below 10 (bank Delta BIC 24, placed exactly)",
+    ("fargo3dlib:h0.07_mu1_orbits200", 0.3): "test 3 Delta BIC 9.0 against an arc at the planet (spiral alone; "
+                                             "jointly -43), below 10 (bank Delta BIC 50, placed exactly)",
 }
 """Cases that fail the acceptance as measured, with why (non-strict: a refit of the variants may fix them)."""
 
