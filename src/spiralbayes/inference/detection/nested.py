@@ -395,7 +395,7 @@ def nested_test(result, vis, axisymmetric, templates, alternatives, geometry=Non
 # --- the verdict's test 3 ---------------------------------------------------------------------
 def apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s):
     """``verdict`` with test 3 decided by the nested test (run when test 1 passes: else nothing to claim)."""
-    if not verdict.test1_passed:
+    if not verdict.test1_passed or not alternatives.fits:
         return verdict
     fits = nested_test(result, vis, axisymmetric, templates, alternatives, geometry, template=verdict.template,
                        n_alternatives=s.nested_alternatives)
