@@ -38,9 +38,13 @@ def nested_sentence(verdict) -> str:
     f = min(fits, key=lambda x: x["delta_bic"])
     names = " and ".join(x["label"] for x in fits)
     stat, thr = verdict.nested_delta_bic, verdict.nested_threshold
-    text = (f" Test 3 (nested): fitted jointly with the {names} model{'s' if len(fits) > 1 else ''}, the "
-            f"spiral ({f['hypothesis']}, {f['n_spiral_params']} parameters) lowers the BIC by "
-            f"{stat:.1f} against the {f['label']} model alone")
+    spiral = f"the spiral ({f['hypothesis']}, {f['n_spiral_params']} parameters)"
+    text = f" Test 3 (nested, against the {names} model{'s' if len(fits) > 1 else ''}): "
+    if f["delta_bic_spiral_alone"] > f["delta_bic_joint"]:
+        text += (f"the best spiral alone has a BIC lower by {stat:.1f} than the {f['label']} model alone "
+                 f"(fitted jointly with it, {spiral} by {f['delta_bic_joint']:.1f})")
+    else:
+        text += f"fitted jointly with the {f['label']} model, {spiral} lowers its BIC by {stat:.1f}"
     text += f" (> {thr:g})." if stat > thr else f", not more than {thr:g}."
     also = next((x for x in fits if x.get("survives")), None)
     if verdict.also_present and also is not None:
@@ -53,8 +57,9 @@ def nested_sentence(verdict) -> str:
                      "does it).")
     elif (not verdict.test3_passed and f["alternative_delta_bic"] > DELTA_BIC_THRESHOLD
           and not calibration_explains(verdict)):
-        text += (f" The {f['label']} model explains the structure (Delta BIC = {f['alternative_delta_bic']:.1f} "
-                 "against the axisymmetric disc).")
+        what = "explains the structure" if stat < 0 else "is about as good an explanation"
+        text += (f" The {f['label']} model {what} (Delta BIC = {f['alternative_delta_bic']:.1f} against the "
+                 "axisymmetric disc).")
         if f["alternative"] == "geometry":
             text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
     if verdict.delta_bic_vs_alternative is not None:
