@@ -112,13 +112,17 @@ def explain(verdict, calibration, again=None, alternative: str | None = None):
     """Record the calibration diagnostic and what the verdict names as the residual structure's cause.
 
     ``again`` is the diagnostic repeated with the ``alternative`` in the model (:func:`rediagnose`);
-    calibration is the explanation when the diagnostic (repeated, if it was) still warns.
+    calibration is the explanation when the diagnostic (repeated, if it was) still warns and there is
+    structure to explain (test 1 passes or an alternative is significant against the disc).
     """
     keys = ("phase_rms_deg", "amp_rms", "reduced_chi2", "warning")
     cal = None
     if calibration is not None:
         cal = {k: getattr(calibration, k) for k in keys}
-        cal["explains"] = bool((again if again is not None else calibration).warning)
+        # only structure needs explaining: a spiral or an alternative significant against the disc
+        structure = bool(verdict.test1_passed or (verdict.alternative_delta_bic is not None
+                                                   and verdict.alternative_delta_bic > DELTA_BIC_THRESHOLD))
+        cal["explains"] = bool((again if again is not None else calibration).warning) and structure
         if again is not None and again is not calibration:
             cal["with_alternative"] = {"model": alternative, **{k: getattr(again, k) for k in keys}}
     if verdict.detected:
