@@ -16,7 +16,7 @@ DELTA_BIC_THRESHOLD = 10.0
 """Test 1: the best template's ΔBIC must exceed this ("very strong" evidence, Stevenson et al. 2024)."""
 MASS_BAND = 10.0
 """Templates within this ΔBIC of the best (near its position) make the reported mass range."""
-NESTED_THRESHOLD = 10.0
+NESTED_THRESHOLD = 30.0
 """Nested test 3: BIC(alternative) − BIC(alternative + spiral) must exceed this (docs/verdict.md: calibration)."""
 
 
