@@ -3,7 +3,9 @@
 Timing: on the fiducial set-up (36k visibilities, 0.87 mm, C-4 + C-7) with a frank fit, measures in
 the same run a 16-template scan (tau0 = 3: four masses, two cooling times, both hands; 25 r_p x 90
 phi_p, 2 threads) and ``fit_alternatives`` with all five models (default two starts each, 2
-threads), and prints their ratio (the target is <= 1) with each model's time and evaluations.
+threads), and prints their ratio (the target is <= 1) with each model's time and evaluations;
+then test 3's cost per verdict: the single-model comparison (alternatives + the spiral with its
+compact peak) against the nested fits added to it (the best two alternatives; target <= 2x).
 
 Outcomes (``--table``): simulates each case of ``tests/inference/detection/test_scenarios.py``
 (planet-free vortex arc, lopsided disc, eccentric ring, 5 and 10 mas phase-centre errors; a planet;
@@ -25,6 +27,8 @@ import numpy as np
 
 from spiralbayes import DiscGeometry, detect, fit_alternatives, fit_axisymmetric, scan
 from spiralbayes.inference.detection.follow_up import rescan_at_fitted_geometry
+from spiralbayes.inference.detection.nested import nested_test
+from spiralbayes.inference.detection.planet_peak import spiral_with_planet_peak
 from spiralbayes.simulate import DiscModel, eccentric_ring, lopsided_disc, simulate_observation, vortex_arc
 from spiralbayes.templates import compromise_bank, make_template
 
@@ -48,7 +52,7 @@ def timing() -> None:
     templates = list(compromise_bank().select(tau0=3.0, h_p=0.07))
     print(f"fiducial set-up: N_vis = {vis.n}; {len(templates)} templates x {R_P.size} r_p x 90 phi_p")
     t0 = time.perf_counter()
-    scan(vis, axisym, templates, GEOMETRY, r_p=R_P, progress=False, nthreads=2)
+    result = scan(vis, axisym, templates, GEOMETRY, r_p=R_P, progress=False, nthreads=2)
     t_scan = time.perf_counter() - t0
     t0 = time.perf_counter()
     alts = fit_alternatives(vis, axisym, nthreads=2)
@@ -58,6 +62,26 @@ def timing() -> None:
         print(f"  {fit.name:<16} {fit.time_s:6.2f} s  {fit.n_evaluations:4d} evaluations  "
               f"dchi2 = {fit.delta_chi2:9.1f}")
     print(f"  grid: {alts.grid.n_r} rings x {alts.grid.n_phi} azimuths to {alts.grid.r_max:.3f} arcsec")
+    nested_cost(vis, axisym, templates, result, alts, t_alt)
+
+
+def nested_cost(vis, axisym, templates, result, alts, t_alt: float) -> None:
+    """Test 3 per verdict: today's single-model comparison (the alternatives' fits and the spiral +
+    compact peak) against the nested fits added to it (the best two alternatives, each refitted
+    jointly with the spiral at its 3 x 3 grid neighbourhood)."""
+    t0 = time.perf_counter()
+    spiral_with_planet_peak(result, vis, axisym, templates, GEOMETRY)
+    t_peak = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    fits = nested_test(result, vis, axisym, templates, alts, GEOMETRY, n_alternatives=2, nthreads=2)
+    t_nested = time.perf_counter() - t0
+    today = t_alt + t_peak
+    print(f"test 3 per verdict: single-model comparison {today:.1f} s (alternatives {t_alt:.1f} s + compact peak "
+          f"{t_peak:.1f} s); nested fits {t_nested:.1f} s; with them {(today + t_nested) / today:.2f}x today's "
+          "(target <= 2)")
+    for f in fits:
+        print(f"  nested vs {f.alternative:<16} {f.time_s:6.2f} s  {f.n_evaluations:4d} evaluations  "
+              f"delta BIC = {f.delta_bic:9.1f} ({f.hypothesis})")
 
 
 def cases():

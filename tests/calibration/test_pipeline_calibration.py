@@ -57,7 +57,7 @@ def test_scan_solves_the_gains_and_says_so(tmp_path, capsys):
     text = (out / "verdict.txt").read_text()
     assert f"The data were corrected first: {solution.note()}." in text
     assert "antenna gains solved (phase, 60 s intervals, " in text
-    assert json.loads((out / "verdict.json").read_text())["calibration"] == solution.note()
+    assert json.loads((out / "verdict.json").read_text())["gains_solved"] == solution.note()
     # limits reuse the scan and the saved solution, and say so first
     assert main(["-q", "limits", config]) == 0
     summary = (out / "limits_summary.txt").read_text().splitlines()

@@ -90,7 +90,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
     verdict = detect_with_planet_peak(result, vis, axisym, templates, axisym.geometry, amplitude, alternatives=alts,
                                       **detect_kwargs)
     if gains is not None:
-        verdict.calibration = gains.note()
+        verdict.gains_solved = gains.note()
     plots = config["output"]["plots"]
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
                                axisymmetric=axisym, templates=templates)
@@ -105,7 +105,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
                                            scheduler=scheduler, progress=progress, alternative_kwargs=alt_kwargs,
                                            detect_kwargs=detect_kwargs)
         if gains is not None:
-            follow.verdict.calibration = gains.note()
+            follow.verdict.gains_solved = gains.note()
         sub = out_dir / "refit_geometry"
         files += write_scan_outputs(follow.scan, follow.verdict, sub, plots, amplitude,
                                     alternatives=follow.alternatives,

@@ -147,6 +147,9 @@ def row(case: Case, tau0: float, own, bank, verdict) -> dict:
         "test1": verdict.test1_passed, "test2": verdict.test2_passed, "test3": verdict.test3_passed,
         "test3_margin": verdict.delta_bic_vs_alternative, "best_alternative": verdict.best_alternative,
         "test3_spiral_model": verdict.test3_spiral_model, "detected": verdict.detected,
+        "test3_method": verdict.test3_method, "nested_delta_bic": verdict.nested_delta_bic,
+        "nested_vs": None if not verdict.nested else min(verdict.nested, key=lambda f: f["delta_bic"])["alternative"],
+        "also_present": verdict.also_present,
         "mass_range_mth": None if verdict.mass_range is None else verdict.mass_range["mth"],
         "mass_range_mjup": None if verdict.mass_range is None else verdict.mass_range["mjup"],
         "verdict": verdict.to_dict(),
@@ -167,12 +170,15 @@ def accepted(r: dict) -> bool:
 def format_table(rows) -> str:
     """Markdown table: one line per case × τ0."""
     head = ("| case | τ0 | own ΔBIC | best ΔBIC | best template | mass range (M_th) | Δmass (steps) | Δr_p (steps) "
-            "| Δφ_p (°) | test 3 margin (vs) | verdict |")
-    lines = [head, "| " + " | ".join(["---"] * 11) + " |"]
+            "| Δφ_p (°) | best-model margin (vs) | nested ΔBIC (vs) | verdict |")
+    lines = [head, "| " + " | ".join(["---"] * 12) + " |"]
     for r in rows:
         margin = "-" if r["test3_margin"] is None else f"{r['test3_margin']:.0f} ({r['best_alternative']})"
         if r["test3_spiral_model"] == "spiral + compact peak at the planet":
             margin += " +peak"
+        nested = "-" if r.get("nested_delta_bic") is None else f"{r['nested_delta_bic']:.0f} ({r['nested_vs']})"
+        if r.get("also_present"):
+            nested += f"; also {r['also_present']}"
         mr = ("-" if r["mass_range_mth"] is None
               else "–".join(sorted({f"{m:g}" for m in r["mass_range_mth"]}, key=float)))
         if r["detected"]:
@@ -182,7 +188,7 @@ def format_table(rows) -> str:
         lines.append(f"| {r['case']} | {r['tau0']:g} | {r['own_delta_bic']:.0f} | {r['delta_bic']:.0f} | "
                      f"{r['template']} "
                      f"| {mr} | {r['mass_steps']:+d} | {r['dr_steps']:+.0f} | {r['dphi_deg']:+.0f} | {margin} | "
-                     f"{verdict} |")
+                     f"{nested} | {verdict} |")
     return "\n".join(lines)
 
 

@@ -7,6 +7,9 @@
 * :mod:`.starts` — their starting points, read off the residual dirty image;
 * :mod:`.follow_up` — refit frank at the fitted geometry, scan again, decide again.
 * :mod:`.planet_peak` — the spiral hypothesis as spiral + compact source at the planet, scored in test 3.
+* :mod:`.nested` — test 3 as a nested question: the best alternatives fitted jointly with the spiral;
+* :mod:`.explanation` — what the verdict names as the residual structure's cause (calibration included);
+* :mod:`.mass` — the planet's mass range.
 """
 
 from .verdict import (
@@ -20,7 +23,9 @@ from .verdict import (
     mirror_index,
     one_sidedness,
 )
-from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, AlternativesSettings, DetectionSettings
+from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, NESTED_THRESHOLD, AlternativesSettings, DetectionSettings
+from .nested import HYPOTHESES, NestedFit, also_present_phrase, apply_nested, nested_fit, nested_test
+from .explanation import calibration_explains, calibration_sentence, explain, nested_sentence, rediagnose
 from .starts import candidate_starts, linear_amplitudes
 from .alternatives import (
     ALTERNATIVES_KIND,
@@ -39,6 +44,18 @@ from .planet_peak import (
 )
 
 __all__ = [
+    "NESTED_THRESHOLD",
+    "HYPOTHESES",
+    "NestedFit",
+    "also_present_phrase",
+    "apply_nested",
+    "nested_fit",
+    "nested_test",
+    "calibration_explains",
+    "calibration_sentence",
+    "explain",
+    "nested_sentence",
+    "rediagnose",
     "rescore_with_planet_peak",
     "spiral_with_planet_peak",
     "apply_planet_peak",

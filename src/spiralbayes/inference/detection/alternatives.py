@@ -229,12 +229,14 @@ class _Problem:
     beam: float
 
 
-def _setup(vis, axisymmetric, geometry, r_max, cell_factor, nthreads) -> _Problem:
+def _setup(vis, axisymmetric, geometry, r_max, cell_factor, nthreads, grid: DiscGrid | None = None) -> _Problem:
+    """The data side of the fits; ``grid`` (e.g. an earlier fit's) replaces the one made from ``r_max``."""
     V_A = np.asarray(axisymmetric.visibilities(vis.u, vis.v, geometry))
     R = vis.V - V_A
     uv_max = float(np.max(np.hypot(vis.u, vis.v)))
-    r_max = _emission_radius(axisymmetric) if r_max is None else float(r_max)
-    grid = DiscGrid.for_baselines(uv_max, r_max, cell_factor)
+    if grid is None:
+        r_max = _emission_radius(axisymmetric) if r_max is None else float(r_max)
+        grid = DiscGrid.for_baselines(uv_max, r_max, cell_factor)
     ctx = ProfileContext.build(axisymmetric.brightness, grid)
     transform = FieldTransform(grid, vis.u, vis.v, geometry, nthreads=nthreads, single=True)
     exact = FieldTransform(grid, vis.u, vis.v, geometry, nthreads=nthreads)
@@ -273,8 +275,13 @@ def _fit_geometry(prob: _Problem, axisymmetric) -> AlternativeFit:
                           params, int(counter["n"]), time.perf_counter() - t0, bool(sol.success))
 
 
-def _objective(model, prob: _Problem, scales, counter):
-    """``(−Δχ², gradient)`` in the scaled variables ``x = theta / scales``."""
+def _objective(model, prob: _Problem, scales, counter, project=None):
+    """``(−Δχ², gradient)`` in the scaled variables ``x = theta / scales``.
+
+    ``project(res) -> res`` removes the best fit of further linear terms from the residual (the
+    nested test's spiral); by the envelope theorem the gradient is then that of the projected
+    residual with the linear coefficients held fixed.
+    """
 
     def fun(x):
         counter["n"] += 1
@@ -282,6 +289,8 @@ def _objective(model, prob: _Problem, scales, counter):
         P, J = model.field_and_jacobian(theta, prob.ctx)
         dV = prob.transform.visibilities(P)
         res = prob.R - dV
+        if project is not None:
+            res = project(res)
         value = float(np.sum(prob.weights * (res.real ** 2 + res.imag ** 2))) - prob.chi2_AO
         g = prob.transform.gradient_map(prob.weights * res)
         grad = -2 * np.tensordot(J, g, axes=([1, 2], [0, 1]))

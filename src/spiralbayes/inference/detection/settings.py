@@ -10,12 +10,14 @@ from ...alternatives import ALTERNATIVE_MODELS, DEFAULT_CELL_FACTOR
 from ...exceptions import InputError
 from ...settings import DEFAULT_MSTAR_MSUN, documented, is_finite_number, is_integer, option
 
-__all__ = ["AlternativesSettings", "DELTA_BIC_THRESHOLD", "DetectionSettings", "MASS_BAND"]
+__all__ = ["AlternativesSettings", "DELTA_BIC_THRESHOLD", "DetectionSettings", "MASS_BAND", "NESTED_THRESHOLD"]
 
 DELTA_BIC_THRESHOLD = 10.0
 """Test 1: the best template's ΔBIC must exceed this ("very strong" evidence, Stevenson et al. 2024)."""
 MASS_BAND = 10.0
 """Templates within this ΔBIC of the best (near its position) make the reported mass range."""
+NESTED_THRESHOLD = 30.0
+"""Nested test 3: BIC(alternative) − BIC(alternative + spiral) must exceed this (docs/verdict.md: calibration)."""
 
 
 @documented
@@ -75,6 +77,10 @@ class DetectionSettings:
                                                              "this")
     alternative_threshold: float = option(AlternativesSettings.threshold, "test 3: the spiral's Delta BIC must "
                                           "exceed the best alternative's by more than this")
+    nested_threshold: float = option(NESTED_THRESHOLD, "test 3 (nested): the spiral must lower the BIC of the best "
+                                     "alternative model by more than this when fitted jointly with it")
+    nested_alternatives: int = option(2, "test 3 (nested): how many alternatives, best first, each get a joint "
+                                         "fit with the spiral (the spiral must pass against every one)")
     mass_band: float = option(MASS_BAND, "Delta BIC band of the templates that make the reported mass range")
     mstar: float = option(DEFAULT_MSTAR_MSUN, "stellar mass [M_sun], for the mass range in M_Jup "
                                               "(M_th = h_p^3 M_*)")
@@ -87,7 +93,9 @@ class DetectionSettings:
             # infinity switches the criterion off
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not float(value) > 0:
                 raise InputError(f"{name} = {value!r} must be a positive fraction (inf: no limit)")
-        for name in ("bic_threshold_value", "alternative_threshold", "mass_band"):
+        if not is_integer(self.nested_alternatives) or self.nested_alternatives < 1:
+            raise InputError(f"nested_alternatives = {self.nested_alternatives!r} must be an integer >= 1")
+        for name in ("bic_threshold_value", "alternative_threshold", "nested_threshold", "mass_band"):
             if not is_finite_number(getattr(self, name)):
                 raise InputError(f"{name} = {getattr(self, name)!r} must be a finite number (Delta BIC)")
         if not is_finite_number(self.mstar) or self.mstar <= 0:

@@ -24,6 +24,15 @@ of Kass & Raftery 1995, the threshold test 1 uses against the axisymmetric model
 against the same axisymmetric model and data, so their difference is ``BIC_alt − BIC_spiral``.
 When it fails the verdict names the alternative.
 
+Given the scanned data too (``vis``, ``axisymmetric``, ``templates``, as the pipeline runs it) test 3
+is the **nested** question (:mod:`.nested`): once the best alternatives (``nested_alternatives``,
+each on its own) are in the model, fitted jointly with the spiral, does the spiral still lower the
+BIC by more than ``nested_threshold``? Then "which single model is best" (the comparison above,
+with the planet's compact peak, :mod:`.planet_peak`) is kept as information. An alternative that
+is significant on its own and survives the joint fit is named as also present. With a calibration
+diagnostic that warns (:func:`spiralbayes.calibration.diagnose_calibration`) and no spiral claimed,
+the verdict names calibration errors, not a disc asymmetry, as the explanation.
+
 When the global peak fails test 2, :func:`detect` also looks for the best *handed, compact*
 candidate — the highest local maximum of any template that passes test 1 and whose mirror ratio
 and local peak area pass test 2 — so that a planet behind a false peak (e.g. from a phase-centre
@@ -31,7 +40,7 @@ error) is not hidden.
 Its ``localisation`` is the area of its own connected region above half its Δχ² (for the global
 peak of a map with one peak this equals the paper's measure above).
 
-The planet's mass is reported as a **range** (:func:`.mass_range`; docs/verdict.md): no template is the true
+The planet's mass is reported as a **range** (:func:`.mass.mass_range`; docs/verdict.md): no template is the true
 spiral, and templates of other morphology variants and H/r explain a real spiral almost as well as
 the best one, so its single label would claim more than the data say. The range covers every
 template of the best one's hand whose best Δχ² near the best instance is within ``mass_band``
@@ -51,9 +60,11 @@ from ...exceptions import InputError
 from ...io.argument_checks import check_scan_result
 from ...results import ResultMixin, fields_dict
 from ...settings import with_overrides
-from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, AlternativesSettings, DetectionSettings
+from .settings import DELTA_BIC_THRESHOLD, AlternativesSettings, DetectionSettings
 from .planet_peak import rescore_with_planet_peak
-from ...units import M_JUP, M_SUN
+from .explanation import calibration_sentence, explain, nested_sentence, rediagnose
+from .nested import apply_nested
+from .mass import mass_range
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "detect_with_planet_peak", "handedness_ratio", "localisation",
            "mass_range", "mirror_index", "one_sidedness"]
@@ -188,63 +199,6 @@ def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = Detect
     return best
 
 
-def mass_range(result, amplitude=None, *, band: float = MASS_BAND, window: tuple = (2, 3),
-               mstar: float = DetectionSettings.mstar) -> dict | None:
-    """Planet masses of every template that explains the best instance nearly as well as the best one.
-
-    A template belongs to the range when it has the best template's hand and its largest Δχ² within
-    ``window`` = (radius, azimuth) grid steps of the best instance is at least the best Δχ² minus
-    ``band`` (all templates have the same number of parameters, so this is a ΔBIC band).
-
-    Parameters
-    ----------
-    result : ScanResult
-    amplitude : None or "free"
-    band : float
-        Width of the ΔBIC band.
-    window : (int, int)
-        Half-widths of the neighbourhood in radius and azimuth steps (azimuth periodic): templates
-        of other morphologies peak a step or two apart at the same planet.
-    mstar : float
-        Stellar mass [M_sun] for Jupiter masses.
-
-    Returns
-    -------
-    dict or None
-        ``mth`` [min, max] M_p/M_th; ``mjup`` [min, max] M_Jup (each template's own ``h_p``; None when
-        no member has one); ``band``, ``mstar``; ``members``: name, mass, h_p, variant and ΔBIC below
-        the best of each member. None when the best template has no mass.
-    """
-    if not np.isfinite(band) or band < 0:
-        raise InputError(f"mass band must be a non-negative ΔBIC, got {band!r}")
-    dchi2 = result.delta_chi2(amplitude)
-    best = result.peak(amplitude=amplitude)
-    meta = result.templates[best.template_index]
-    if meta.get("mass") is None:
-        return None
-    n_phi = len(result.phi_p)
-    rows = slice(max(best.i_rp - window[0], 0), best.i_rp + window[0] + 1)
-    cols = [(best.i_phi + d) % n_phi for d in range(-window[1], window[1] + 1)]
-    members = []
-    for t, m in enumerate(result.templates):
-        if m.get("mass") is None or m.get("hand") != meta.get("hand"):
-            continue
-        local = np.nanmax(dchi2[t, rows][:, cols])
-        if local >= best.delta_chi2 - band:
-            h_p = m.get("h_p")
-            mjup = (float(m["mass"]) * float(h_p) ** 3 * mstar * M_SUN / M_JUP
-                    if h_p is not None and np.isfinite(h_p) else None)
-            members.append({"template": m["name"], "mass": float(m["mass"]), "h_p": h_p, "variant": m.get("variant"),
-                            "mjup": mjup, "below_best": float(best.delta_chi2 - local)})
-    masses = [x["mass"] for x in members]
-    mjups = [x["mjup"] for x in members if x["mjup"] is not None]
-    return {"mth": [min(masses), max(masses)], "mjup": [min(mjups), max(mjups)] if mjups else None,
-            "band": float(band), "mstar": float(mstar),
-            "variants": sorted({str(x["variant"] or "compromise") for x in members}),
-            "h_ps": sorted({float(x["h_p"]) for x in members if x["h_p"] is not None}),
-            "members": sorted(members, key=lambda x: x["below_best"])}
-
-
 def _alternatives_summary(alternatives, spiral_delta_bic: float) -> dict:
     """Each alternative's Δχ², ΔBIC against the axisymmetric model and against the best spiral."""
     n = alternatives.n_data
@@ -265,7 +219,16 @@ class Verdict(ResultMixin):
     handed, compact candidate when the global peak fails test 2 (:func:`.best_handed_candidate`);
     ``test3_spiral_model`` which spiral hypothesis test 3 scored ("spiral", or "spiral + compact peak
     at the planet" from :func:`.apply_planet_peak`);
-    ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass_range`).
+    ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass.mass_range`).
+
+    With the scanned data, test 3 is the nested test (:mod:`.nested`): ``test3_method`` is
+    "nested" (else "best model"), ``nested_delta_bic`` the smallest ``BIC(alt) − BIC(alt + spiral)``
+    over the alternatives tried, ``nested`` each joint fit (:class:`~.nested.NestedFit` as dicts),
+    ``also_present`` the phrase naming an alternative that is significant and survives the joint fit;
+    ``best_alternative`` and ``delta_bic_vs_alternative`` are then information ("which single model
+    is best"). ``calibration`` holds the calibration diagnostic's numbers when one was given, and
+    ``explanation`` what the verdict names as the cause of the residual structure ("spiral",
+    "calibration", an alternative's name, or None).
 
     Attributes
     ----------
@@ -306,7 +269,13 @@ class Verdict(ResultMixin):
         the compact-peak score of test 3; the masses [M_th] within a ΔBIC band of the best.
     test3_spiral_model : str or None
         Which spiral hypothesis test 3 scored.
-    calibration : str or None
+    test3_method, nested_delta_bic, nested_threshold, nested, also_present : optional
+        The nested test 3 (below).
+    calibration : dict or None
+        The calibration diagnostic's numbers, when one was given.
+    explanation : str or None
+        What the verdict names as the cause of the residual structure.
+    gains_solved : str or None
         What was done to the data's calibration before the scan (set by the pipeline, e.g.
         ``antenna gains solved (phase, 60 s intervals, 9.8 deg rms)``).
     """
@@ -334,7 +303,14 @@ class Verdict(ResultMixin):
     test3_spiral_model: str | None = None
     planet_peak: dict | None = None
     mass_range: dict | None = None
-    calibration: str | None = None
+    test3_method: str | None = None
+    nested_delta_bic: float | None = None
+    nested_threshold: float | None = None
+    nested: list | None = None
+    also_present: str | None = None
+    calibration: dict | None = None
+    explanation: str | None = None
+    gains_solved: str | None = None
 
     KIND = "spiralbayes.Verdict"
     WHAT = "verdict"
@@ -372,11 +348,12 @@ class Verdict(ResultMixin):
                      f" However {hand}, so the improvement is not attributed to a planet-driven spiral "
                      "(e.g. an arc or a geometry error).")
         text += self._mass_sentence() if self.test1_passed else ""
-        text += self._test3_sentence()
+        text += nested_sentence(self) if self.test3_method == "nested" else self._test3_sentence()
+        text += calibration_sentence(self)
         if self.candidate is not None:
             text += self._candidate_sentence()
         text += " A planet-driven spiral is detected." if self.detected else " No planet-driven spiral is claimed."
-        return text + (f" The data were corrected first: {self.calibration}." if self.calibration else "")
+        return text + (f" The data were corrected first: {self.gains_solved}." if self.gains_solved else "")
 
     def _mass_sentence(self) -> str:
         m = self.mass_range
@@ -439,7 +416,7 @@ def _check_same_data(result, alternatives) -> None:
 
 
 def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | None = None, alternatives=None,
-           vis=None, axisymmetric=None, templates=None, **overrides) -> Verdict:
+           vis=None, axisymmetric=None, templates=None, geometry=None, calibration=None, **overrides) -> Verdict:
     """Decide whether a scan detects a planet-driven spiral.
 
     Tests 1 and 2 are the paper's (module docstring). With ``alternatives`` (an
@@ -460,8 +437,15 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
         Competing asymmetry models (:func:`spiralbayes.inference.detection.alternatives.fit_alternatives`).
     vis, axisymmetric, templates : Visibilities, AxisymmetricModel, sequence of SpiralTemplate, optional
         The scanned data, model and templates (in the scan's order). Given with ``alternatives``, test 3
-        scores the spiral with the planet's own compact peak against the arc alternative
-        (:mod:`.planet_peak`), as ``spiralbayes scan`` does; without them test 3 compares the bare spiral.
+        is the nested test (:mod:`.nested`: the best alternatives fitted jointly with the spiral), as
+        ``spiralbayes scan`` does, and the single-model comparison scores the spiral with the planet's
+        own compact peak against the arc alternative (:mod:`.planet_peak`); without them test 3 is
+        that single-model comparison with the bare spiral.
+    geometry : DiscGeometry, optional
+        Where the joint fits place the models (default: the axisymmetric model's).
+    calibration : CalibrationDiagnostic, optional
+        :func:`spiralbayes.calibration.diagnose_calibration` of the same data and model; when it
+        warns and no spiral is claimed, the verdict names calibration as the explanation.
     **overrides
         Fields of :class:`DetectionSettings` replacing those of ``settings`` (e.g.
         ``bic_threshold_value=15``, ``mstar=1.2``).
@@ -525,24 +509,31 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
         detected=bool(detected), delta_bic=best.delta_bic, test1_passed=test1,
         handedness_ratio=ratio, localisation=loc, test2_passed=test2, template=best.template,
         r_p=best.r_p, phi_p_deg=float(np.degrees(best.phi_p)), delta_chi2=best.delta_chi2,
-        threshold_6lnN=best.delta_chi2 - best.delta_bic, distance=result.distance, **extra)
+        threshold_6lnN=best.delta_chi2 - best.delta_bic, distance=result.distance,
+        test3_method=None if alternatives is None else "best model", **extra)
     data = {"vis": vis, "axisymmetric": axisymmetric, "templates": templates}
     missing = [k for k, v in data.items() if v is None]
-    if len(missing) == 3 or alternatives is None:
-        return verdict
-    if missing:
+    if len(missing) != 3 and missing:
         raise InputError(f"detect: give vis, axisymmetric and templates together (missing {', '.join(missing)}) "
-                         "so that test 3 can fit the planet's compact peak, or none of them")
-    return rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, alternatives=alternatives)
+                         "so that test 3 can fit the spiral jointly with the alternatives, or none of them")
+    if not missing and alternatives is not None:
+        verdict = rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry,
+                                           alternatives=alternatives)
+        verdict = apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s)
+        if calibration is not None and calibration.warning and not verdict.detected:
+            again = rediagnose(calibration, vis, axisymmetric, geometry, alternatives)
+            return explain(verdict, calibration, again, alternatives.best.name)
+    return explain(verdict, calibration)
 
 
 def detect_with_planet_peak(result, vis, axisymmetric, templates, geometry=None, amplitude=None, *,
                             alternatives=None, **detect_kwargs) -> Verdict:
-    """:func:`detect`, then test 3 rescored with the planet's compact peak at ``geometry``
+    """:func:`detect` with the scanned data: test 3 is the nested test (:mod:`.nested`), and the
+    single-model comparison scores the spiral with the planet's compact peak at ``geometry``
     (:func:`~.planet_peak.rescore_with_planet_peak`; default: the axisymmetric model's geometry).
 
-    The peak is fitted only when there are alternatives and test 1 passes (otherwise test 3 cannot
-    change the verdict); ``detect_kwargs`` go to :func:`detect`.
+    Both fits are made only when there are alternatives and test 1 passes (otherwise test 3 cannot
+    change the verdict); ``detect_kwargs`` go to :func:`detect` (e.g. ``calibration=``).
     """
-    verdict = detect(result, amplitude, alternatives=alternatives, **detect_kwargs)
-    return rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry, alternatives=alternatives)
+    return detect(result, amplitude, alternatives=alternatives, vis=vis, axisymmetric=axisymmetric,
+                  templates=templates, geometry=geometry, **detect_kwargs)

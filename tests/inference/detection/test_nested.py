@@ -1,0 +1,126 @@
+"""Nested test 3: the spiral fitted jointly with the competing asymmetries (small, reduced data)."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from spiralbayes import DiscGeometry, GainErrors
+from spiralbayes.calibration import diagnose_calibration
+from spiralbayes.inference.detection import detect_with_planet_peak, fit_alternatives
+from spiralbayes.inference.detection.nested import HYPOTHESES, _Spiral, nested_test
+from spiralbayes.inference.scan.engine import ScanContext
+from spiralbayes.inference.scan.run import scan
+from spiralbayes.model import perturbation_visibilities
+from spiralbayes.simulate import DiscModel, simulate_observation
+from spiralbayes.simulate.asymmetric import ExactAxisymmetric, vortex_arc
+
+GEOMETRY = DiscGeometry(30.0, 60.0)
+DISTANCE = 140.0
+DISC = DiscModel(distance=DISTANCE, tau_ref=3.0)
+WAVELENGTH = 0.87e-3
+R_GRID = np.linspace(0.04, 0.52, 13)
+R_PLANET = 50 / DISTANCE
+
+
+@pytest.fixture(scope="module")
+def pair():
+    from spiralbayes.templates import make_template
+
+    right = make_template(1.0, 3.0, 10.0, "R", n_x=160, n_phi=360)
+    return [right, right.mirror()]
+
+
+def _reduced(delta=None, **kwargs):
+    vis = simulate_observation("fiducial", DISC, GEOMETRY, delta, **kwargs)
+    return vis.subset(np.arange(0, vis.V.size, 4))
+
+
+def _verdict(vis, axisym, templates, **detect_kwargs):
+    result = scan(vis, axisym, templates, GEOMETRY, r_p=R_GRID, distance=DISTANCE, progress=False)
+    alts = fit_alternatives(vis, axisym, GEOMETRY, n_starts=1)
+    return result, alts, detect_with_planet_peak(result, vis, axisym, templates, GEOMETRY, alternatives=alts,
+                                                 **detect_kwargs)
+
+
+def test_linear_part_matches_non_negative_least_squares():
+    """The spiral's amplitudes for a fixed residual: scipy's NNLS on the stacked real system."""
+    from scipy.optimize import nnls
+
+    rng = np.random.default_rng(3)
+    n = 400
+    S = rng.normal(size=n) + 1j * rng.normal(size=n)
+    P = rng.normal(size=n) + 1j * rng.normal(size=n)
+    w = rng.uniform(0.5, 2.0, n)
+    res = 0.7 * S - 0.4 * P + 0.3 * (rng.normal(size=n) + 1j * rng.normal(size=n))
+    sp = _Spiral(S, P, w, 0.3, 0.0)
+    sw = np.sqrt(w)
+    for hypothesis, (fixed, peak, _) in HYPOTHESES.items():
+        target = res - S if fixed else res
+        cols = ([P] if peak else []) if fixed else ([S, P] if peak else [S])
+        chi2_0 = np.sum(w * np.abs(res) ** 2)
+        if cols:
+            A = np.stack([np.concatenate([(sw * c).real, (sw * c).imag]) for c in cols], axis=1)
+            b = np.concatenate([(sw * target).real, (sw * target).imag])
+            chi2_ref = nnls(A, b)[1] ** 2
+        else:
+            chi2_ref = np.sum(w * np.abs(target) ** 2)
+        gain = sp.solve(res, hypothesis)[0]
+        assert gain == pytest.approx(chi2_0 - chi2_ref, rel=1e-9), hypothesis
+
+
+def test_planet_beside_a_vortex_is_detected_and_the_vortex_named(pair):
+    """A planet and an unrelated bright arc: the single-model comparison may prefer either, the
+    nested test finds the spiral in addition to the arc, and the verdict names both."""
+    delta = vortex_arc(DISC.profile(WAVELENGTH), 0.25, 3.0, 0.03, 0.35, 0.3)
+    axisym = ExactAxisymmetric(DISC, WAVELENGTH, GEOMETRY, delta)
+    # the arc disc observed, plus the planet's spiral visibilities
+    base = _reduced(delta, seed=1)
+    ctx = ScanContext.build(base, axisym, GEOMETRY, [R_PLANET], 8)
+    planet = perturbation_visibilities(base.u, base.v, GEOMETRY, ctx.profile, pair[0], R_PLANET, 0.0,
+                                       quad=ctx.quadrature(pair[0], R_PLANET))
+    vis = dataclasses.replace(base, V=base.V + planet)
+    _, alts, verdict = _verdict(vis, axisym, pair)
+    assert alts.fits["arc"].params["r_c"] == pytest.approx(0.25, abs=0.02)
+    assert verdict.test3_method == "nested" and verdict.detected
+    assert verdict.r_p == pytest.approx(R_PLANET, abs=0.04)
+    arc = next(f for f in verdict.nested if f["alternative"] == "arc")
+    assert arc["survives"] and arc["delta_bic"] > verdict.nested_threshold
+    assert verdict.also_present == "an arc/vortex elsewhere in the disc"
+    assert "The data hold a spiral and an arc/vortex elsewhere in the disc" in verdict.summary()
+
+
+def test_vortex_alone_fails_the_nested_test(pair):
+    delta = vortex_arc(DISC.profile(WAVELENGTH), 0.35, 2.0, 0.03, 0.35, 0.15)
+    vis = _reduced(delta, seed=4)
+    axisym = ExactAxisymmetric(DISC, WAVELENGTH, GEOMETRY, delta)
+    result = scan(vis, axisym, pair, GEOMETRY, r_p=R_GRID, distance=DISTANCE, progress=False)
+    alts = fit_alternatives(vis, axisym, GEOMETRY, n_starts=1)
+    fits = nested_test(result, vis, axisym, pair, alts, GEOMETRY, n_alternatives=2)
+    assert [f.alternative for f in fits] == sorted(alts.fits, key=lambda k: -alts.delta_bic()[k])[:2]
+    for f in fits:
+        # nested: the joint model contains the alternative alone and the spiral alone
+        assert f.delta_chi2_joint >= f.delta_chi2_alone - 1e-6
+        assert f.delta_chi2_alone >= alts.fits[f.alternative].delta_chi2 - 1e-6
+        ln_n = np.log(vis.V.size)
+        assert f.delta_bic_joint == pytest.approx(f.delta_chi2_joint - f.delta_chi2_alone - f.n_spiral_params * ln_n)
+        # the spiral alone at the same hypothesis and position is one of the models the statistic may use
+        alone_bic = f.delta_chi2_alone - f.n_alt_params * ln_n
+        assert f.delta_bic_spiral_alone >= f.delta_chi2_spiral_alone - f.n_spiral_params * ln_n - alone_bic - 1e-6
+        assert f.delta_bic == max(f.delta_bic_joint, f.delta_bic_spiral_alone)
+    assert max(f.delta_bic for f in fits) < 10
+
+
+def test_gain_errors_are_named_as_the_explanation(pair):
+    """Planet-free data with 20 deg antenna phase errors: no spiral is claimed, and the verdict names
+    calibration (with what to do) rather than a disc asymmetry."""
+    vis = _reduced(seed=7, gains=GainErrors(20.0, 0.05, 300.0, seed=7))
+    axisym = ExactAxisymmetric(DISC, WAVELENGTH, GEOMETRY)
+    calibration = diagnose_calibration(vis, axisym)
+    assert calibration.warning is not None
+    _, _, verdict = _verdict(vis, axisym, pair, calibration=calibration)
+    assert not verdict.detected
+    assert verdict.explanation == "calibration"
+    text = verdict.summary()
+    assert "antenna gain errors rather than a disc asymmetry" in text and "[calibration] solve" in text
+    assert verdict.to_dict()["calibration"]["phase_rms_deg"] == pytest.approx(20.0, rel=0.5)
