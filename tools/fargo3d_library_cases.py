@@ -56,7 +56,8 @@ class Case:
         What the case is for.
     batch : str
         The run set it was planned in (``issue21``: the library; ``issue22``: 3 M_th at H/r 0.05 and
-        0.10, added so that the 3 M_th morphology has references at more than one H/r).
+        0.10, added so that the 3 M_th morphology has references at more than one H/r; ``dust2``:
+        dust at Stokes numbers 0.01 and 0.1 beside the library's 0.03).
     """
 
     name: str
@@ -129,6 +130,17 @@ CASES: list[Case] = [  # run order: the most distinct cases per CPU hour first (
     # set out still leaves an early-time 3 M_th reference
     _case("lib_mu3_h010", 3.0, 0.10, batch="issue22"),
     _case("lib_mu3_h005", 3.0, 0.05, batch="issue22"),
+    # a third run set (dust2): Stokes numbers 0.01 and 0.1 beside the library's 0.03, at 1 M_th first
+    # and then 0.3 and 3 M_th, so that the dust morphology's dependence on grain size is measured
+    _case("lib_mu1_h007_st0.01", 1.0, 0.07, stokes=0.01, batch="dust2"),
+    _case("lib_mu1_h007_st0.1", 1.0, 0.07, stokes=0.1, batch="dust2"),
+    _case("lib_mu0.3_h007_st0.01", 0.3, 0.07, stokes=0.01, batch="dust2"),
+    _case("lib_mu0.3_h007_st0.1", 0.3, 0.07, stokes=0.1, batch="dust2"),
+    _case("lib_mu3_h007_st0.01", 3.0, 0.07, stokes=0.01, batch="dust2"),
+    _case("lib_mu3_h007_st0.1", 3.0, 0.07, stokes=0.1, batch="dust2"),
+    # the fastest-drifting grains continued to 200 orbits (restarted from the 20-orbit run's last
+    # output): the dust's evolved gap and ring
+    _case("lib_mu1_h007_st0.1_long", 1.0, 0.07, stokes=0.1, orbits=200.0, role="orbits200", batch="dust2"),
 ]
 BY_NAME = {c.name: c for c in CASES}
 

@@ -13,7 +13,7 @@ whether the run had finished (a running run is reduced at its latest output and 
 ``run_state = running``). Root attribute ``beta_cooling_test``: the unperturbed-disc relaxation
 test (decay rate of the temperature excess against Ω/β).
 
-    python tools/fargo3d_library_reduce.py [--runs-dir /work/fargo_runs] [--min-output 2]
+    python tools/fargo3d_library_reduce.py [--runs-dir /work/fargo_runs] [--min-output 2] [--cases NAME ...]
 """
 
 from __future__ import annotations
@@ -36,11 +36,28 @@ import reference_common as rc
 
 TAU0S = (0.1, 0.3, 1.0, 3.0)
 QUANTUM = 2.0**-17   # maps are rounded to multiples of this (7.6e-6) before gzip: 3x smaller files
+# run sets stored coarser, to keep the repository's reference files small: 2^-14 (6.1e-5, rounding
+# noise 1.8e-5 RMS, < 0.1 % of any arm RMS) makes a dust case 0.45 MB instead of 0.57 MB
+QUANTUM_BY_BATCH = {"dust2": 2.0**-14}
 log = logging.getLogger("fargo3d_library")
 
 
-def _quantise(a: np.ndarray) -> np.ndarray:
-    return (np.round(np.asarray(a, np.float64) / QUANTUM) * QUANTUM).astype(np.float32)
+def _quantise(a: np.ndarray, quantum: float = QUANTUM) -> np.ndarray:
+    """``a`` rounded to multiples of ``quantum``; a map's rows keep their sums to within half a quantum
+    (the zero azimuthal mean: where a row is nearly constant, e.g. optically thick, plain rounding
+    errs the same way in every cell), by moving the cells rounded furthest by one quantum."""
+    a = np.asarray(a, np.float64) / quantum
+    n = np.round(a)
+    if a.ndim == 2:
+        resid = a - n
+        deficit = np.round(resid.sum(axis=1)).astype(int)
+        order = np.argsort(-resid, axis=1)  # the most under-rounded cells first
+        for i, k in enumerate(deficit):
+            if k > 0:
+                n[i, order[i, :k]] += 1
+            elif k < 0:
+                n[i, order[i, k:]] -= 1
+    return (n * quantum).astype(np.float32)
 
 
 def _params_and_grid(run: Path):
@@ -175,6 +192,7 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
     valid = (x >= float(params["YMIN"]) * dz) & (x <= float(params["YMAX"]) / dz)
     fluid = "dust1" if case.stokes > 0 else "gas"
     beta = case.beta > 0
+    q = QUANTUM_BY_BATCH.get(case.batch, QUANTUM)
     main = reduce_output(run, n, x, phi, valid, fluid, temperature=beta)
     d = main["dsigma"]
     steady = {}
@@ -186,20 +204,20 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
             steady[f"arm_vs_{tag}"] = rc.arm_steadiness(x, phi, d, old["dsigma"], case.h_p, valid)
     sig_ax = np.where(valid, main["mean"], x**-rc.SIGMA_SLOPE)
     tfac = main.get("tfac")
-    datasets = {"dsigma": _quantise(d), "sigma_axisym": np.where(valid, main["mean"], np.nan).astype(np.float32),
+    datasets = {"dsigma": _quantise(d, q), "sigma_axisym": np.where(valid, main["mean"], np.nan).astype(np.float32),
                 "valid": valid}
     for tau0 in TAU0S:
         full = np.zeros((x.size, phi.size), np.float32)
         full[valid] = brightness(x[valid], phi, d[valid], sig_ax[valid], case.h_p, tau0,
                                  None if tfac is None else tfac[valid])
-        datasets[f"delta_tau{tau0:g}"] = _quantise(full)
+        datasets[f"delta_tau{tau0:g}"] = _quantise(full, q)
     extra = {}
     if beta:
-        datasets["dtemp"] = _quantise(np.where(valid[:, None], tfac - 1.0, 0.0))
+        datasets["dtemp"] = _quantise(np.where(valid[:, None], tfac - 1.0, 0.0), q)
         extra["dtemp_rms_over_dsigma_rms"] = round(arm_rms(tfac - 1.0, x, valid) / arm_rms(d, x, valid), 4)
     if case.stokes > 0:
         gas = reduce_output(run, n, x, phi, valid, "gas")
-        datasets["dsigma_gas"] = _quantise(gas["dsigma"])
+        datasets["dsigma_gas"] = _quantise(gas["dsigma"], q)
         extra["dust_over_gas_arm_rms"] = round(arm_rms(d, x, valid) / arm_rms(gas["dsigma"], x, valid), 4)
         extra["diagnostics_gas"] = rc.diagnostics(x, phi, gas["dsigma"], case.h_p, valid)
     if case.role == "res14":
@@ -234,7 +252,7 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
         "near_planet_peak_def": "max Sigma/<Sigma>_phi - 1 within 1 H(r_p) of the planet, native grid",
         "orientation_check": rc.check_orientation(x, phi, d, case.h_p),
         "diagnostics": rc.diagnostics(x, phi, d, case.h_p, valid), "package_reader": reader,
-        "tau0": list(TAU0S), "quantisation": f"maps rounded to multiples of 2^-17 = {QUANTUM:.3g}", **extra,
+        "tau0": list(TAU0S), "quantisation": f"maps rounded to multiples of 2^{np.log2(q):.0f} = {q:.3g}", **extra,
     }
     return case.group, {"datasets": datasets, "attrs": attrs, "dataset_attrs": dataset_docs(fluid, beta)}
 
@@ -314,6 +332,8 @@ def main(argv=None) -> None:
     ap.add_argument("--fargo-dir", type=Path, default=Path("/work/fargo3d"))
     ap.add_argument("--min-output", type=int, default=2, help="skip runs with fewer outputs (5 orbits each)")
     ap.add_argument("--out", type=Path, default=rc.REPO / "tests/data/references/fargo3d_library.h5")
+    ap.add_argument("--cases", nargs="*", default=None,
+                    help="reduce only these runs (names of tools/fargo3d_library_cases.py; default all found)")
     ap.add_argument("--replace", action="store_true",
                     help="write only the cases reduced now (default: keep the file's other cases, whose raw "
                          "outputs may live on another machine)")
@@ -321,8 +341,11 @@ def main(argv=None) -> None:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     x, phi = rc.reference_grid()
     cases = {}
+    unknown = set(args.cases or ()) - set(lib.BY_NAME)
+    if unknown:
+        raise SystemExit(f"--cases: unknown {sorted(unknown)}; known: {list(lib.BY_NAME)}")
     for case in lib.CASES:
-        if case.role == "relaxtest":
+        if case.role == "relaxtest" or (args.cases is not None and case.name not in args.cases):
             continue
         rec = reduce_case(case, args.runs_dir, x, phi, args.min_output)
         if rec is None:

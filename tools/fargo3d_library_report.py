@@ -113,6 +113,71 @@ def scaling(f) -> list[str]:
     return out
 
 
+def coorbital(f, group: str, key: str = "dsigma", half_width: float = 0.1, exclude_h: float = 2.0) -> float:
+    """RMS of a δΣ/Σ map in the co-orbital band |x − 1| < ``half_width`` away from the planet
+    (|φ| > ``exclude_h`` H(r_p)/r_p): the horseshoe region's azimuthal structure, planet excluded."""
+    x, phi, g = f["x"][()], f["phi"][()], f[group]
+    band = np.abs(x - 1.0) < half_width
+    far = np.abs(phi) > exclude_h * float(g.attrs["h_p"])
+    return float(np.sqrt(np.mean(g[key][()][band][:, far].astype(float) ** 2)))
+
+
+def residual_location(f, gas: str, dust: str, tau0: float = 0.3, band: float = 0.15) -> tuple[float, float]:
+    """What the beam sees of the dust that the gas run does not: the dust image minus the gas
+    run's image scaled to it by least squares. Returns (residual power / dust power, the share of
+    the residual power within |r − r_p| < ``band`` r_p: the co-orbital region)."""
+    from tests.templates.fidelity import _image_grid, smoothed_image
+
+    sd, sg = smoothed_image(_template(f, dust, tau0), tau0), smoothed_image(_template(f, gas, tau0), tau0)
+    res = sd - np.sum(sd * sg) / np.sum(sg * sg) * sg
+    r = _image_grid()[0]
+    return float(np.sum(res**2) / np.sum(sd**2)), float(np.sum(res[np.abs(r - 1.0) < band] ** 2) / np.sum(res**2))
+
+
+def rings(f, group: str, bands=((0.6, 0.9), (0.9, 1.1), (1.1, 1.5))) -> str:
+    """Largest and smallest <Σ>_φ/Σ_initial (the stored mean over x^-1) and where, in each band:
+    the dust's rings at the gap edges, its gap and its co-orbital ring."""
+    x, s = f["x"][()], f[group]["sigma_axisym"][()] / f["x"][()] ** -1.0
+    out = []
+    for lo, hi in bands:
+        m = np.isfinite(s) & (x > lo) & (x < hi)
+        i, j = np.argmax(s[m]), np.argmin(s[m])
+        out.append(f"{lo:g}–{hi:g} r_p: max {s[m][i]:.2f} at {x[m][i]:.2f}, min {s[m][j]:.2f} at {x[m][j]:.2f}")
+    return "; ".join(out)
+
+
+def dust_table(f) -> str:
+    """Each dust run against its own gas and against the gas-only run of the same planet.
+
+    Columns: arm RMS of δΣ/Σ dust/gas (the run's two fluids); gap depth <Σ>_φ/Σ_0 at r_p of the dust
+    and of the gas-only run; co-orbital RMS (:func:`coorbital`) dust/gas; near-planet peak dust and
+    gas-only; and at τ0 0.3 the dust δ map against the gas-only run's: raw and beam-smoothed RMS
+    ratio and normalised cross-correlation (:func:`compare`), and the residual after the scaled
+    gas image (:func:`residual_location`): its share of the dust image's power and the share of it
+    in the co-orbital band |r − r_p| < 0.15 r_p.
+    """
+    rows = ["| dust run | St | arm RMS dust/gas | gap at r_p dust (gas run) | co-orbital RMS dust/gas | "
+            "near-planet peak dust (gas run) | vs gas run, τ0 0.3: raw RMS ratio, NCC | beam RMS ratio, NCC | "
+            "beam residual / dust power, its co-orbital share |", "|" + "---|" * 9]
+    groups = json.loads(f.attrs["cases"])
+    for g in groups:
+        a = f[g].attrs
+        if float(a["stokes"]) <= 0:
+            continue
+        gas = f"h{float(a['h_p']):.2f}_mu{float(a['mu_Mth']):g}" + ("_orbits200" if "orbits200" in g else "")
+        c = compare(f, gas, g) if gas in groups else None
+        res = residual_location(f, gas, g) if gas in groups else (float("nan"),) * 2
+        co = coorbital(f, g) / coorbital(f, g, "dsigma_gas")
+        rows.append(f"| {g} | {float(a['stokes']):g} | {float(a['dust_over_gas_arm_rms']):.2f} | "
+                    f"{gap_depth(f, g):.3f} ({gap_depth(f, gas) if gas in groups else float('nan'):.3f}) | "
+                    f"{co:.2f} | {float(a['near_planet_peak']):.2f} "
+                    f"({float(f[gas].attrs['near_planet_peak']) if gas in groups else float('nan'):.2f}) | "
+                    + (f"{c['raw_rms_ratio']:.2f}, {c['raw_ncc']:.2f} | "
+                       f"{c['beam_rms_ratio']:.2f}, {c['beam_ncc']:.2f} |" if c else "– | – |")
+                    + f" {res[0]:.2f}, {res[1]:.2f} |")
+    return "\n".join(rows)
+
+
 def main() -> None:
     import h5py
 
@@ -123,7 +188,8 @@ def main() -> None:
         for line in scaling(f):
             print("-", line)
         for g in groups:  # numerical checks and longer runs against the library case they repeat
-            base = next((b for b in groups if g.startswith(b + "_") and f[g].attrs["variant"] in CHECK_ROLES), None)
+            base = max((b for b in groups if g.startswith(b + "_") and f[g].attrs["variant"].endswith(CHECK_ROLES)),
+                       key=len, default=None)  # the longest prefix: a dust run's check against that dust run
             if base is not None and "equal_time_check" in f[g].attrs:  # a check run stopped early
                 print(f"- {g}, at equal time: {f[g].attrs['equal_time_check']}")
             elif base is not None:
@@ -140,12 +206,18 @@ def main() -> None:
                     e_b = power(_template(f, g, tau0), tau0)
                     e_i = power(_template(f, iso, tau0), tau0) if iso in groups else float("nan")
                     print(f"    τ0 {tau0:g}: beam power β=10 / isothermal = {e_b / e_i:.2f}")
+        print("- relaxation test:", f.attrs["beta_cooling_test"])
+        print()
+        print(dust_table(f))
+        for g in groups:
+            a = f[g].attrs
             if float(a["stokes"]) > 0:
                 dg, dd = json.loads(a["diagnostics_gas"]), json.loads(a["diagnostics"])
-                print(f"- {g}: dust/gas arm RMS {a['dust_over_gas_arm_rms']}; pitch [deg] dust/gas: "
+                print(f"- {g}: <Σ>_φ/Σ_initial {rings(f, g)}")
+                print(f"- {g}: pitch [deg] dust/gas: "
                       + ", ".join(f"{k} {dd[k]['pitch_deg']}/{dg[k]['pitch_deg']} (φ {dd[k]['phi_peak_deg']}/"
-                                  f"{dg[k]['phi_peak_deg']})" for k in dd if k in dg))
-        print("- relaxation test:", f.attrs["beta_cooling_test"])
+                                  f"{dg[k]['phi_peak_deg']}, peak {dd[k]['peak']}/{dg[k]['peak']})"
+                                  for k in dd if k in dg))
 
 
 if __name__ == "__main__":

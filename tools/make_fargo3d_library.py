@@ -157,7 +157,7 @@ def main(argv=None) -> None:
     if args.reduce:
         import fargo3d_library_reduce as red
 
-        red.main(["--runs-dir", str(args.runs_dir), "--fargo-dir", str(args.fargo_dir), *rest])
+        red.main(["--runs-dir", str(args.runs_dir), "--fargo-dir", str(args.fargo_dir), "--cases", *args.cases, *rest])
 
 
 if __name__ == "__main__":
