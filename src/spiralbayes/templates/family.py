@@ -47,8 +47,8 @@ log = logging.getLogger(__name__)
 MASS_RANGE = (0.1, 3.0)
 """Default mass range of a family [M_th]: the paper's bank masses."""
 
-N_MASS_NODES = 33
-"""Default number of log-spaced mass nodes over :data:`MASS_RANGE` (a step of 11 % in mass)."""
+N_MASS_NODES = 49
+"""Default number of log-spaced mass nodes over :data:`MASS_RANGE` (a step of 7.3 % in mass)."""
 
 H_NODES = (0.05, 0.0625, 0.075, 0.0875, 0.10)
 """Default aspect-ratio nodes (``H/r`` at ``r_p``) of a family that spans the bank's range."""
