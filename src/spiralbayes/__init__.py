@@ -37,7 +37,15 @@ from .inference.scan.run import ScanResult, scan
 from .inference.scan.settings import ScanSettings
 from .io import load_visibilities, save_visibilities
 from .simulate import PRESETS, DiscModel, GainErrors, simulate_observation, uv_coverage
-from .templates import SpiralTemplate, TemplateBank, compromise_bank, default_bank, make_template, variant_bank
+from .templates import (
+    SpiralTemplate,
+    TemplateBank,
+    TemplateFamily,
+    compromise_bank,
+    default_bank,
+    make_template,
+    variant_bank,
+)
 from .visibilities import Visibilities, bin_deprojected, estimate_weights
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
@@ -65,7 +73,7 @@ DATA = ["Visibilities", "DiscGeometry", "load_visibilities", "save_visibilities"
 """Data: visibilities, disc geometry, files, synthetic observations (with gain errors), calibration checks and
 antenna gain solves."""
 MODELS = ["AxisymmetricModel", "FrankSettings", "fit_axisymmetric", "SpiralTemplate", "TemplateBank", "default_bank",
-          "compromise_bank", "variant_bank", "make_template"]
+          "compromise_bank", "variant_bank", "make_template", "TemplateFamily"]
 """Models: the axisymmetric (frank) profile and the spiral templates."""
 SEARCH = ["ScanResult", "ScanSettings", "scan"]
 """Search: the template scan."""

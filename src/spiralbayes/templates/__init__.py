@@ -11,11 +11,14 @@ planet at φ = 0, hand R = anticlockwise orbit with trailing arms).
   compromise, hydro and wakeflow morphologies (576; :func:`variant_bank`, :mod:`.variants`);
   :func:`compromise_bank` the same grid in the compromise morphology alone (192, :func:`paper_grid`),
   for comparisons with the paper.
+* :class:`TemplateFamily` — one morphology at any mass (and H/r) in a range, interpolated between
+  generator templates on fine nodes (:mod:`.family`).
 * :func:`make_template` — the built-in semi-analytic generator (:mod:`.wake`).
 * :func:`read_fargo3d`, :func:`read_fits_template` — bring your own simulations.
 """
 
 from .bank import TemplateBank, compromise_bank, default_cache_dir
+from .family import TemplateFamily
 from .fargo3d import read_fargo3d
 from .fits import read_fits_template, write_fits_template
 from .generator import make_template, paper_grid
@@ -27,6 +30,7 @@ from .wake import WakeSettings, wake_shape
 __all__ = [
     "SpiralTemplate",
     "TemplateBank",
+    "TemplateFamily",
     "WakeSettings",
     "compromise_bank",
     "default_bank",
