@@ -171,6 +171,7 @@ def _solve_gains(vis: Visibilities, M: np.ndarray, interval_s, min_snr: float):
     sq_phase, sq_amp, n_values = 0.0, 0.0, 0
     per_antenna: dict[int, list] = {}
     for g in groups:
+        assert g.amp is not None and g.cov_amp is not None  # solved with amplitude=True
         n_ant = g.antennas.size
         centre = np.eye(n_ant) - 1.0 / n_ant
         c_phi, c_alpha = centre @ g.phase, centre @ (g.amp - 1.0)

@@ -148,6 +148,7 @@ def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min
     index = np.flatnonzero(use)
     ratio = vis.V[use] / M[use]
     wt = snr[use] ** 2
+    assert vis.antenna1 is not None and vis.antenna2 is not None  # the callers check vis.has_antennas
     a1, a2 = vis.antenna1[use], vis.antenna2[use]
     interval = interval_labels(vis.time, interval_s, vis.n)[use]
     solved = []

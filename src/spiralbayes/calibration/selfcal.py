@@ -113,6 +113,8 @@ def selfcal(vis: Visibilities, geometry: DiscGeometry | None = None, *, settings
         model = fit_axisymmetric(corrected, geometry, settings=frank, progress=progress)
         history.append(solution.phase_rms_deg)
         log.info("self-calibration round %d: %s", k + 1, solution.describe())
+    if solution is None or corrected is None:
+        raise InputError(f"n_iterations must be at least 1, got {s.n_iterations}")
     result = SelfCalibration(corrected, solution, model, [float(p) for p in np.atleast_1d(history)])
     log.info("%s", result.summary())
     return result

@@ -123,6 +123,7 @@ class GainSolution(ResultMixin):
         """``(g[antenna1], g[antenna2])`` of every row of ``vis`` (1 where no solution covers the row)."""
         if not vis.has_antennas:
             raise InputError("these visibilities record no antennas: a gain solution cannot be applied to them")
+        assert vis.antenna1 is not None and vis.antenna2 is not None
         column = np.full(int(max(self.antennas.max(initial=0), vis.antenna1.max(), vis.antenna2.max())) + 1, -1)
         column[self.antennas] = np.arange(self.antennas.size)
         t = np.zeros(vis.n) if vis.time is None else np.asarray(vis.time, float)

@@ -160,6 +160,7 @@ class TemplateFamily:
     def node(self, j: int, k: int = 0) -> SpiralTemplate:
         """The hand-R node template at ``masses[j]``, ``h_ps[k]`` (made on first use)."""
         if (j, k) not in self._made:
+            assert callable(self.nodes)  # a full grid was added in __post_init__
             self._add(j, k, self.nodes(float(self.masses[j]), float(self.h_ps[k])))
         return self._made[(j, k)]
 
@@ -198,24 +199,26 @@ class TemplateFamily:
         """
         from .variants import variant_template  # the variants module imports the bank; keep this light
 
+        nodes_m: np.ndarray
         if masses is None:
             lo, hi = (float(m) for m in mass_range)
             if not (0 < lo < hi and np.isfinite(hi)):
                 raise InputError(f"mass_range must be (M_min, M_max) with 0 < M_min < M_max [M_th], got {mass_range}")
             if int(n_masses) < 2:
                 raise InputError(f"n_masses must be at least 2, got {n_masses}")
-            masses = np.geomspace(lo, hi, int(n_masses))
-        masses = np.asarray(masses, dtype=float)
+            nodes_m = np.geomspace(lo, hi, int(n_masses))
+        else:
+            nodes_m = np.asarray(masses, dtype=float)
         h_ps = np.atleast_1d(np.asarray(h_p, dtype=float))
 
         def make(mass: float, h: float) -> SpiralTemplate:
             return variant_template(mass, tau0, beta, "R", variant, h_p=h, **options)
 
-        first = make(float(masses[0]), float(h_ps[0]))  # bad settings fail here, not at the first at()
+        first = make(float(nodes_m[0]), float(h_ps[0]))  # bad settings fail here, not at the first at()
         wake = {k: v for k, v in options.items() if k in WakeSettings.__dataclass_fields__ and k != "h_p"}
         log.info("template family %s tau0=%g beta=%g: %d masses x %d H/r nodes", variant, tau0, beta,
-                 masses.size, h_ps.size)
-        family = cls(masses, h_ps, make, variant=str(variant), tau0=float(tau0), beta=float(beta), hand=hand,
+                 nodes_m.size, h_ps.size)
+        family = cls(nodes_m, h_ps, make, variant=str(variant), tau0=float(tau0), beta=float(beta), hand=hand,
                      wake_options=wake)
         family._add(0, 0, first)
         return family
