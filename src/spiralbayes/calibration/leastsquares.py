@@ -1,5 +1,5 @@
 """Antenna gains per solution interval by weighted linear least squares: one implementation for the
-diagnostic (:mod:`.diagnostics`) and the solver (:mod:`.solve`).
+diagnostic (:mod:`spiralbayes.calibration.diagnostics`) and the solver (:mod:`.solve`).
 
 A row of :class:`~spiralbayes.visibilities.Visibilities` with ``antenna1 = q``, ``antenna2 = p`` is
 corrupted as ``g_p conj(g_q) V`` (:mod:`spiralbayes.simulate.gains`), so the ratio of the data to a
@@ -132,7 +132,7 @@ def solve_groups(vis: Visibilities, M: np.ndarray, interval_s: float | None, min
         solution (CASA gaincal's); the angle's is the same at high S/N and biased where ``|r|`` is noisy.
     keep_position : bool
         Remove from every set's phases the image shift (phases linear in the antennas' uv positions)
-        that the sets imply on average over the observation; ``antennas[0]`` is then no longer at zero.
+        that the sets imply on average over the observation; ``antennas[0]``'s phase is then not held at zero.
 
     Returns
     -------

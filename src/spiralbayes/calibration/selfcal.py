@@ -95,6 +95,12 @@ def selfcal(vis: Visibilities, geometry: DiscGeometry | None = None, *, settings
         frank's progress counter.
     **overrides
         Fields of :class:`CalibrationSettings`.
+
+    Returns
+    -------
+    SelfCalibration
+        The corrected data, the last round's frank model and gain solution, and each round's
+        phase rms [deg].
     """
     s = with_overrides(settings, CalibrationSettings, overrides, "selfcal")
     frank = replace(frank or FrankSettings(), fit_geometry=None)

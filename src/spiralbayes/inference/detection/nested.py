@@ -115,7 +115,10 @@ class NestedFit:
     params_alone : dict
         Its own best fit's.
     n_evaluations : int
+        Likelihood evaluations of the joint fit.
     time_s : float
+        Its wall-clock time [s]; logged, and left out of ``to_dict()`` so that a verdict depends
+        only on the data.
     """
 
     alternative: str
@@ -142,7 +145,9 @@ class NestedFit:
     time_s: float = 0.0
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        out = asdict(self)
+        del out["time_s"]
+        return out
 
 
 # --- the spiral's linear part -----------------------------------------------------------------

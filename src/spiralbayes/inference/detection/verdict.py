@@ -6,6 +6,10 @@ Stevenson et al. (2024, sec. 3-4): a spiral is claimed when the best template's 
 and geometry errors (their Appendix A) raise Δχ² for both hands alike and in extended,
 one-sided clusters.
 
+Why this module is long: the :class:`Verdict` documents each of its ~30 fields for the API page and
+``help()``, and tests 1 and 2 (the peak, its mirror, its localisation) are one procedure whose
+helpers are read together; test 3 lives in :mod:`.nested`, :mod:`.explanation` and :mod:`.mass`.
+
 Quantities used here (spiralbayes' definitions; thresholds are parameters):
 
 * ``handedness_ratio``: the mirror template's largest Δχ² at radii within ``neighbourhood`` grid
@@ -212,15 +216,6 @@ def _alternatives_summary(alternatives, spiral_delta_bic: float) -> dict:
 class Verdict(ResultMixin):
     """Outcome of :func:`detect`: tests 1 and 2 of the paper and test 3 (competing models).
 
-    ``test3_passed`` is None when no alternatives were given; ``delta_bic_vs_alternative`` is
-    ``ΔBIC_spiral − ΔBIC_alternative`` (positive favours the spiral); ``alternatives`` holds each
-    alternative's Δχ², ΔBIC against the axisymmetric model and the spiral's ΔBIC minus it,
-    parameter count and fitted parameters; ``candidate`` the best
-    handed, compact candidate when the global peak fails test 2 (:func:`.best_handed_candidate`);
-    ``test3_spiral_model`` which spiral hypothesis test 3 scored ("spiral", or "spiral + compact peak
-    at the planet" from :func:`.apply_planet_peak`);
-    ``mass_range`` the planet masses of the templates within a ΔBIC band of the best (:func:`.mass.mass_range`).
-
     With the scanned data, test 3 is the nested test (:mod:`.nested`): ``test3_method`` is
     "nested" (else "best model"), ``nested_delta_bic`` the smallest ``BIC(alt) − BIC(alt + spiral)``
     over the alternatives tried, ``nested`` each joint fit (:class:`~.nested.NestedFit` as dicts),
@@ -228,7 +223,7 @@ class Verdict(ResultMixin):
     ``best_alternative`` and ``delta_bic_vs_alternative`` are then information ("which single model
     is best"). ``calibration`` holds the calibration diagnostic's numbers when one was given, and
     ``explanation`` what the verdict names as the cause of the residual structure ("spiral",
-    "calibration", an alternative's name, or None).
+    "calibration", an alternative's name, or None). The other fields are listed below.
 
     Attributes
     ----------
@@ -269,12 +264,8 @@ class Verdict(ResultMixin):
         the compact-peak score of test 3; the masses [M_th] within a ΔBIC band of the best.
     test3_spiral_model : str or None
         Which spiral hypothesis test 3 scored.
-    test3_method, nested_delta_bic, nested_threshold, nested, also_present : optional
-        The nested test 3 (below).
-    calibration : dict or None
-        The calibration diagnostic's numbers, when one was given.
-    explanation : str or None
-        What the verdict names as the cause of the residual structure.
+    test3_method, nested_delta_bic, nested_threshold, nested, also_present, calibration, explanation
+        The nested test 3 and the explanation (above).
     gains_solved : str or None
         What was done to the data's calibration before the scan (set by the pipeline, e.g.
         ``antenna gains solved (phase, 60 s intervals, 9.8 deg rms)``).
