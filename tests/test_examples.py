@@ -1,4 +1,8 @@
-"""The notebook walk-through in examples/ runs from top to bottom (so that it cannot rot)."""
+"""The notebook walk-through in examples/ runs from top to bottom (so that it cannot rot).
+
+Slow group: the documentation's tutorials, executed by the default run's docs build, take the same
+API path (simulate, frank, scan, verdict, posterior) at reduced size; this one runs at full size.
+"""
 
 from pathlib import Path
 
@@ -7,6 +11,7 @@ import pytest
 NOTEBOOK = Path(__file__).parent.parent / "examples" / "walkthrough.ipynb"
 
 
+@pytest.mark.slow
 @pytest.mark.notebook
 def test_walkthrough_notebook_runs(tmp_path, monkeypatch):
     nbformat = pytest.importorskip("nbformat")
