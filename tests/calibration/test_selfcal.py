@@ -84,3 +84,22 @@ def test_selfcal_with_frank_keeps_the_spiral_and_removes_gain_errors(planted):
     assert fixed.solution.phase_rms_deg == pytest.approx(10.0, rel=0.3)
     after = sb.diagnose_calibration(fixed.corrected, fixed.model)
     assert after.phase_rms_deg < 3.0 and after.warning is None
+
+
+@pytest.mark.slow
+def test_amplitude_selfcal_solves_phases_first():
+    """30 deg rms antenna phase errors and 5 % amplitude errors on the fiducial disc with a 1 M_th planet
+    (~40 s). Reference: the same observation without gain errors or noise. An amplitude solve against
+    the first frank fit (made on phase-corrupted, decorrelated data) would put the lost amplitude in the
+    antennas: measured amplitude rms 0.169 and chi2/N 10.7 against the truth when both rounds solve
+    amplitudes; phase round first: 0.064 (the errors' own) and 1.24 (noise alone: 1)."""
+    template = sb.compromise_bank().get(1.0, 3.0, 10.0, "R", h_p=0.07)
+    kwargs = {"perturbation": template, "r_p": R_P, "phi_p": 0.0}
+    truth = simulate_observation("fiducial", add_noise=False, **kwargs)
+    dirty = simulate_observation("fiducial", seed=1, gains=GainErrors(30.0, 0.05, coherence_s=180.0,
+                                                                      amp_coherence_s=600.0, seed=1), **kwargs)
+    raw_amp = sb.solve_gains(dirty, truth.V, solve="amplitude+phase").amp_rms  # against the truth
+    result = selfcal(dirty, sb.DiscGeometry(30.0, 60.0), solve="amplitude+phase", n_iterations=2)
+    chi2_n = float(np.mean(dirty.weights * np.abs(result.corrected.V - truth.V) ** 2) / 2)
+    assert result.solution.amp_rms == pytest.approx(raw_amp, rel=0.25)
+    assert chi2_n < 1.5

@@ -6,6 +6,17 @@ geometry; after ``n_iterations`` rounds the corrected data, the last solution an
 returned. Solving the original data each round (rather than correcting corrected data again) keeps
 one solution that holds the whole correction, as CASA's self-calibration does.
 
+With ``solve = "amplitude+phase"`` every round but the last solves phases only, and the last one
+amplitudes and phases (with one round, that round solves both). A model fitted to data with phase
+errors has lost amplitude where the errors decorrelate the baselines (by ``exp(-σ²/2)`` for a
+baseline phase scatter ``σ``), and an amplitude solve against it puts that loss into the
+antennas' amplitudes; phase rounds first give the amplitude solve a model fitted to phase-corrected
+data, the usual order of self-calibration (e.g. the ALMA and CASA self-calibration guides, Brogan
+et al. 2018, arXiv 1805.05266). Measured on the fiducial observation with a 1 M_th planet, 5 %
+amplitude errors and 10° (30°) rms antenna phase errors, as χ²/N of the corrected data against the error-free, noise-free visibilities
+(1 is noise alone): uncorrected 6.11 (39.3), two phase rounds 1.38 (1.59), amplitude and phase in
+both rounds 1.20 (10.7), a phase round then an amplitude-and-phase round 1.03 (1.24) (docs/calibration.md).
+
 The prior that keeps the solve from absorbing a spiral:
 
 * the gains are antenna-based: ``N_ant - 1`` phases (and ``N_ant`` amplitudes) per interval against
@@ -114,7 +125,9 @@ def selfcal(vis: Visibilities, geometry: DiscGeometry | None = None, *, settings
     history = []
     solution = corrected = None
     for k in range(s.n_iterations):
-        solution = solve_gains(vis, model.visibilities(vis.u, vis.v) + extra, settings=s)
+        last = k == s.n_iterations - 1
+        round_settings = s if last or s.solve != "amplitude+phase" else replace(s, solve="phase")
+        solution = solve_gains(vis, model.visibilities(vis.u, vis.v) + extra, settings=round_settings)
         corrected = solution.apply(vis)
         model = fit_axisymmetric(corrected, geometry, settings=frank, progress=progress)
         history.append(solution.phase_rms_deg)
