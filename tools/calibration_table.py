@@ -44,13 +44,17 @@ def simulate(planet: bool, phase_rms: float, seed: int, noise: bool = True):
                                 phi_p=0.0 if planet else None, seed=seed, gains=gains, add_noise=noise)
 
 
-def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, keep_position: bool = True) -> dict:
+def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, keep_position: bool = True,
+             min_snr: float | None = None) -> dict:
     name = f"{'planet' if planet else 'free'}_{phase_rms:g}deg_seed{seed}_{solve.replace('+', '')}" + \
-        ("" if keep_position else "_nokeep")
+        ("" if keep_position else "_nokeep") + ("" if min_snr is None else f"_snr{min_snr:g}")
+    calibration = {"solve": solve, "keep_position": keep_position}
+    if min_snr is not None:
+        calibration["min_snr"] = min_snr
     folder = out / name
     data = save_visibilities(simulate(planet, phase_rms, seed), out / f"{name}.h5")
     config = merge_config({"data": {"path": str(data)}, "geometry": {"inc": 30.0, "PA": 60.0, "distance": DISTANCE},
-                           "calibration": {"solve": solve, "keep_position": keep_position},
+                           "calibration": calibration,
                            "templates": {"tau0": [3.0]},
                            "output": {"dir": str(folder), "plots": False}})
     t0 = time.perf_counter()
@@ -60,7 +64,7 @@ def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, k
     row = {"case": name, "planet": planet, "phase_rms": phase_rms, "seed": seed, "solve": solve,
            "detected": bool(v.detected), "template": v.template, "r_p_au": v.r_p * DISTANCE,
            "phi_p_deg": v.phi_p_deg, "delta_bic": v.delta_bic,
-           "keep_position": keep_position, "test1": v.test1_passed, "test2": v.test2_passed,
+           "keep_position": keep_position, "min_snr": min_snr, "test1": v.test1_passed, "test2": v.test2_passed,
            "test3": v.test3_passed, "best_alternative": v.best_alternative,
            "alternative_delta_bic": v.alternative_delta_bic, "time_s": time.perf_counter() - t0,
            "refit": None if follow is None else {
@@ -89,7 +93,8 @@ def markdown(rows: list) -> str:
         refit = "-" if f is None else (f"{'claimed' if f['detected'] else 'not claimed'}: {f['template']} "
                                        f"({f['r_p_au']:.0f}, {f['phi_p_deg']:.0f}), Delta BIC {f['delta_bic']:.0f}; "
                                        f"{f['best_alternative']} ({f['alternative_delta_bic']:.0f})")
-        solve = r["solve"] + ("" if r.get("keep_position", True) else ", keep_position false")
+        solve = r["solve"] + ("" if r.get("keep_position", True) else ", keep_position false") + \
+            ("" if r.get("min_snr") is None else f", min_snr {r['min_snr']:g}")
         lines.append(f"| {'1 M_th planet' if r['planet'] else 'no planet'} | {r['phase_rms']:g} | {r['seed']} | "
                      f"{solve} | {'yes' if r['detected'] else 'no'} | {r['template']} ({r['r_p_au']:.0f}, "
                      f"{r['phi_p_deg']:.0f}) | {r['delta_bic']:.0f} | {tests} | {r['best_alternative']} "
@@ -104,12 +109,13 @@ def main(argv=None) -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
     parser.add_argument("--solve", nargs="+", default=["phase"], choices=["none", "phase", "amplitude+phase"])
     parser.add_argument("--no-keep-position", action="store_true", help="[calibration] keep_position = false")
+    parser.add_argument("--min-snr", type=float, default=None, help="[calibration] min_snr (default: the package's)")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
     args.out.mkdir(parents=True, exist_ok=True)
     keep = not args.no_keep_position
-    rows = [run_case(args.out, planet, rms, seed, solve, keep) for solve in args.solve for planet in (False, True)
-            for rms in args.phase_rms for seed in args.seeds]
+    rows = [run_case(args.out, planet, rms, seed, solve, keep, args.min_snr) for solve in args.solve
+            for planet in (False, True) for rms in args.phase_rms for seed in args.seeds]
     (args.out / "table.md").write_text(markdown(rows))
     (args.out / "rows.json").write_text(json.dumps(rows, indent=1))
     print(markdown(rows))
