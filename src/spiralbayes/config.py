@@ -25,8 +25,10 @@ import copy
 import math
 import re
 import warnings
+from collections.abc import Callable
 from dataclasses import fields
 from pathlib import Path
+from typing import Any, TypeVar
 
 from ._compat import tomllib
 
@@ -217,7 +219,7 @@ def _string(check):
 _UV_UNITS = ("", "lambda", "klambda", "m", "λ", "kλ", "wavelengths", "wle", "kilolambda", "metre", "metres",
              "meter", "meters")
 
-CHECKS: dict[str, dict[str, object]] = {
+CHECKS: dict[str, dict[str, Callable[[Any], str | None]]] = {
     "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative},
     "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _distance},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
@@ -391,7 +393,10 @@ def read_toml(path, *, what: str = "configuration file", hint: str = "write one 
         raise ConfigError(f"{path} is a folder, not a {what}") from None
 
 
-def resolve_paths(config: dict, root) -> dict:
+_ConfigT = TypeVar("_ConfigT", bound=dict)
+
+
+def resolve_paths(config: _ConfigT, root) -> _ConfigT:
     """``config`` with its relative path options (:data:`PATH_KEYS`) taken relative to ``root`` (``~`` expanded)."""
     for section, key in PATH_KEYS:
         value = config.get(section, {}).get(key)

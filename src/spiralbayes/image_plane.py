@@ -457,7 +457,7 @@ def gap_depth(clean: CleanImage, geometry: DiscGeometry, r_out: float, *, noise:
     beams = np.maximum(1.0, counts * clean.cell**2 / clean.beam_area)
     err = noise / np.sqrt(beams)
     lo, hi = r_range if r_range is not None else (np.sqrt(bmaj * bmin), r_out)
-    best = (1.0, 0.0, None, None)
+    best: tuple[float, float, float | None, float | None] = (1.0, 0.0, None, None)
     for i in range(1, r.size - 1):
         if not (lo <= r[i] <= hi and profile[i] < profile[i - 1] and profile[i] <= profile[i + 1] and profile[i] > 0):
             continue

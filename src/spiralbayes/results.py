@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -72,6 +72,8 @@ class ResultMixin:
     KIND: str = ""
     WHAT: str = "result"
     LEGACY_READERS: dict = {}
+    # set by the subclass's @dataclass; declared so that the checker accepts dataclasses.fields(self)
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
 
     def save(self, path) -> Path:
         """Write to HDF5, atomically (``spiralbayes._hdf5.save_dataclass``)."""

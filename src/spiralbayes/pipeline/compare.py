@@ -6,6 +6,7 @@ import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .._provenance import json_default
 from ..axisymmetric import AxisymmetricModel
@@ -14,6 +15,11 @@ from .inputs import load_data
 from .outputs import _write_text, save_figure
 from .scan_command import run_scan_config
 
+if TYPE_CHECKING:  # the image-plane module is imported when a comparison runs
+    from ..image_plane import CleanResiduals, GapDepth
+    from ..inference.detection.verdict import Verdict
+    from ..inference.scan.run import ScanResult
+
 __all__ = ["CompareResult", "compare_table", "run_compare_config"]
 
 
@@ -21,10 +27,10 @@ __all__ = ["CompareResult", "compare_table", "run_compare_config"]
 class CompareResult:
     """Outcome of :func:`run_compare_config`: the three methods' verdicts and what they were based on."""
 
-    verdict: object
-    scan: object
-    residuals: object
-    gap: object
+    verdict: Verdict
+    scan: ScanResult
+    residuals: CleanResiduals
+    gap: GapDepth
     table: list
     files: list
     timings: dict

@@ -11,9 +11,9 @@ from .._provenance import check_output_name
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..geometry import DiscGeometry
 from ..settings import DEFAULT_DISTANCE_PC
-from ..inference.detection.alternatives import fit_alternatives
-from ..inference.detection.verdict import detect_with_planet_peak
-from ..inference.scan.run import scan
+from ..inference.detection.alternatives import AlternativesResult, fit_alternatives
+from ..inference.detection.verdict import Verdict, detect_with_planet_peak
+from ..inference.scan.run import ScanResult, scan
 from ..plotting.axisymmetric import plot_binned_visibilities, plot_profile
 from ..simulate import DiscModel, simulate_observation
 from ..templates import default_bank, make_template
@@ -34,11 +34,11 @@ DEMO_PLANET_AU = 50.0
 
 @dataclass
 class DemoResult:
-    verdict: object
-    scan: object
+    verdict: Verdict
+    scan: ScanResult
     files: list
     timings: dict
-    alternatives: object = None
+    alternatives: AlternativesResult | None = None
 
 
 def run_demo(out_dir="spiralbayes-demo", *, seed: int = 1, masses=(0.3, 1.0, 3.0), progress: bool = True,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
 from ..axisymmetric.provenance import check_fitted_to
@@ -63,7 +64,8 @@ def load_data(data: dict, geometry: DiscGeometry | None = None):
     return estimate_weights(vis, method="neighbours") if data["estimate_weights"] else vis
 
 
-BANKS = {"default": default_bank, "variants": default_bank, "compromise": compromise_bank}
+BANKS: dict[str, Callable[[], TemplateBank]] = {"default": default_bank, "variants": default_bank,
+                                                 "compromise": compromise_bank}
 """The built-in banks by their ``[templates] bank`` name (:data:`spiralbayes.config.BUILT_IN_BANKS`):
 ``default`` and ``variants`` are the morphology-robust bank, ``compromise`` the single-morphology one."""
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -27,8 +28,8 @@ __all__ = ["LimitsRun", "TAURUS_DEMO", "default_limits_config", "run_forecast", 
 
 log = logging.getLogger(__name__)
 
-TAURUS_DEMO = {"distance": DEFAULT_DISTANCE_PC, "tau0": 0.3, "beta": 10.0, "h_p": 0.07, "masses": (0.1, 0.3, 1.0, 3.0),
-               "wavelength": 1.33e-3}
+TAURUS_DEMO: dict[str, Any] = {"distance": DEFAULT_DISTANCE_PC, "tau0": 0.3, "beta": 10.0, "h_p": 0.07,
+                               "masses": (0.1, 0.3, 1.0, 3.0), "wavelength": 1.33e-3}
 """The Taurus demo: disc distance [pc], the scanned family (tau0, beta, H/r, masses [M_th]) of the
 default bank, made for the ``taurus`` preset's wavelength [m]."""
 

@@ -97,9 +97,9 @@ def scan_differences(result: ScanResult, vis, axisymmetric, templates=None, r_p=
         if names != [t.name for t in templates]:
             diffs.append("the templates (names)")
         elif key.get("templates"):
-            now = [content_hash(np.asarray(t.x), np.asarray(t.phi), np.asarray(t.delta), template_metadata(t))
-                   for t in templates]
-            if now != list(key["templates"]):
+            now_templates = [content_hash(np.asarray(t.x), np.asarray(t.phi), np.asarray(t.delta),
+                                          template_metadata(t)) for t in templates]
+            if now_templates != list(key["templates"]):
                 diffs.append("the templates (content)")
     if r_p is not None and (result.r_p.shape != np.shape(r_p) or not np.allclose(result.r_p, r_p)):
         diffs.append("the planet radii")

@@ -63,6 +63,8 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     result = sample_posterior(vis, axisym, templates, scan_result=scan_result,
                               priors=prior_settings.priors(axisym), settings=sampling, chains_dir=out_dir / "chains",
                               progress=progress)
+    if result is None:  # only an MPI worker rank gets none, and a configuration cannot choose MPI (pool)
+        raise RuntimeError("sample_posterior returned no result, as on an MPI worker rank")
     result.save(out_dir / f"{run_name}_posterior.h5")
     summary = {**result.to_dict(), "summary": _summary_with_units(result.percentiles())}
     _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))

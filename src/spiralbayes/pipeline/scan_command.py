@@ -9,10 +9,11 @@ from pathlib import Path
 from .._provenance import data_hash
 from ..config import describe_config
 from ..exceptions import InputError
-from ..inference.detection.alternatives import fit_alternatives
+from ..calibration import GainSolution
+from ..inference.detection.alternatives import AlternativesResult, fit_alternatives
 from ..inference.detection.settings import AlternativesSettings
 from ..inference.detection.follow_up import GeometryFollowUp, rescan_at_fitted_geometry
-from ..inference.detection.verdict import detect_with_planet_peak
+from ..inference.detection.verdict import Verdict, detect_with_planet_peak
 from ..inference.detection.verdict import DELTA_BIC_THRESHOLD
 from ..inference.scan.run import ScanResult, scan
 from ..inference.scan.settings import ScanSettings
@@ -31,12 +32,12 @@ class ScanRun:
     """What :func:`run_scan` produced: the verdict, scan, alternatives, geometry follow-up, files, and the
     antenna gain solution (None unless ``[calibration] solve`` asked for one)."""
 
-    verdict: object
-    scan: object
-    alternatives: object
+    verdict: Verdict
+    scan: ScanResult
+    alternatives: AlternativesResult | None
     follow_up: GeometryFollowUp | None
     files: list
-    gains: object = None
+    gains: GainSolution | None = None
 
 
 def run_scan_config(config: dict, *, progress: bool = True, force_resume: bool = False):

@@ -99,7 +99,6 @@ def plot_residual_comparison(vis, axisymmetric, scan_result, alternatives, templ
     axes[1, 0].text(0.02, 0.5, _score_text(scan_result, alternatives, amplitude), va="center", family="monospace",
                     fontsize=8, transform=axes[1, 0].transAxes)
     slots = [axes[0, 0], axes[0, 1], axes[0, 2], axes[1, 1], axes[1, 2]]
-    mesh = None
     for ax, (title, image) in zip(slots, images.items()):
         mesh = ax.imshow(image, origin="lower", extent=extent, cmap=cmap, vmin=-vmax, vmax=vmax)
         ax.set_title(title, fontsize=9)

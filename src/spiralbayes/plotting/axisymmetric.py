@@ -68,7 +68,8 @@ def plot_profile(model: AxisymmetricModel, truth: Callable | tuple | None = None
     if distance is not None:
         if not (np.isfinite(distance) and distance > 0):
             raise InputError(f"distance = {distance!r} pc must be positive")
-        top = ax.secondary_xaxis("top", functions=(lambda r: r * distance, lambda a: a / distance))
+        d = float(distance)
+        top = ax.secondary_xaxis("top", functions=(lambda r: np.asarray(r) * d, lambda a: np.asarray(a) / d))
         top.set_xlabel("r [au]")
     ax.legend(fontsize=8)
     return fig

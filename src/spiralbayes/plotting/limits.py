@@ -52,7 +52,6 @@ def plot_excluded_fraction(limits, family=None, *, unit: str = "au"):
     axes = np.atleast_1d(fig.subplots(1, len(hands), sharey=True))
     r_edges = _edges(limits.r_p) * scale
     m_edges = _log_edges(fam.masses)
-    mesh = None
     for ax, hand in zip(axes, hands):
         values = np.full((len(fam.masses), limits.r_p.size), np.nan)
         for k, index in enumerate(fam.members[hand]):

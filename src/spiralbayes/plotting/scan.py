@@ -7,6 +7,8 @@ convention of :mod:`spiralbayes.geometry`.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -102,7 +104,6 @@ def plot_template_grid_heatmaps(result, *, hand: str = "R", beta=None, amplitude
     norm = _norm(dchi2[chosen])
     fig = Figure(figsize=(3 * len(taus), 3 * len(masses)), layout="constrained")
     axes = fig.subplots(len(masses), len(taus), squeeze=False)
-    mesh = None
     for i in chosen:
         m = result.templates[i]
         ax = axes[masses.index(m.get("mass")), taus.index(m.get("tau0"))]
@@ -132,7 +133,8 @@ def plot_chi2_vs_rp(result, templates=None, *, quantity: str = "chi2_SA", amplit
     for t in idx:
         name = result.templates[t]["name"]
         # a template and its mirror have nearly the same chi2_SA: L dashed over a wider R stays visible
-        style = {"ls": "--", "lw": 1.2} if result.templates[t].get("hand") == "L" else {"ls": "-", "lw": 2.2}
+        style: dict[str, Any] = ({"ls": "--", "lw": 1.2} if result.templates[t].get("hand") == "L"
+                                 else {"ls": "-", "lw": 2.2})
         if quantity == "chi2_SA":
             power = result.power[t]
             (line,) = ax.plot(r, power.mean(axis=1), label=name, **style)

@@ -174,14 +174,10 @@ def sinc_interpolation_error(half_width: int = SINC_HALF_WIDTH, oversample: floa
 def choose_radial_basis(x0: float, x1: float, kappa: float, radial: str, tolerance: float):
     """The basis with fewest nodes for phases up to ``kappa`` per unit x on ``[x0, x1]``, and its bound."""
     phase = max(kappa * (x1 - x0), 1e-300)
-    options = []
+    options: list[tuple[GaussPanels | SincGrid, float]] = []
     if radial in ("auto", "gauss"):
-        best = None
-        for p in range(4, 65):
-            n_pan = max(1, int(np.ceil(phase / _gauss_panel_width(p, tolerance))))
-            if best is None or n_pan * p < best[0]:
-                best = (n_pan * p, p, n_pan)
-        _, p, n_pan = best
+        panels = [(max(1, int(np.ceil(phase / _gauss_panel_width(p, tolerance)))), p) for p in range(4, 65)]
+        n_pan, p = min(panels, key=lambda c: c[0] * c[1])  # the fewest nodes; the lowest order among equals
         basis = GaussPanels(np.linspace(x0, x1, n_pan + 1), int(p))
         options.append((basis, gauss_interpolation_bound(p, phase / n_pan)))
     if radial in ("auto", "sinc"):

@@ -11,7 +11,7 @@ import numpy as np
 from .._threads import blas_threads
 from ..units import ARCSEC, TWO_PI
 from .angular import PHI_TOLERANCE, TemplateSpectrum, _angular_n, bessel_tail
-from .radial import KERNEL_TOLERANCE, choose_radial_basis
+from .radial import KERNEL_TOLERANCE, GaussPanels, SincGrid, choose_radial_basis
 
 __all__ = ["FINE_ORDER", "ProductQuadrature", "make_product_quadrature"]
 
@@ -62,7 +62,7 @@ class ProductQuadrature:
     x_template: np.ndarray
     x: np.ndarray
     groups: tuple
-    basis: object
+    basis: GaussPanels | SincGrid
     kernel_bound: float
     uv_max: float
     support: float | None = None

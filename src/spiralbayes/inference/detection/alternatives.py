@@ -51,6 +51,7 @@ from ...results import ResultMixin, fields_dict
 from ...geometry import DiscGeometry
 from ...settings import with_overrides
 from ...units import ARCSEC
+from ...visibilities import Visibilities
 from .settings import AlternativesSettings
 from .starts import candidate_starts
 from ..scan.statistics import bic_threshold, chi2
@@ -217,7 +218,7 @@ def _emission_radius(axisymmetric, fraction: float = 0.995) -> float:
 class _Problem:
     """The data side of every fit: residual, weights and the transforms."""
 
-    vis: object
+    vis: Visibilities
     R: np.ndarray
     weights: np.ndarray
     chi2_AO: float

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -38,7 +39,7 @@ class GeometryFollowUp:
     """The geometry used, the refitted frank model, the new scan, alternatives and verdict."""
 
     geometry: DiscGeometry
-    axisymmetric: object
+    axisymmetric: Any  # an AxisymmetricModel, or what ``refit`` returned (e.g. an exact model in injection tests)
     scan: ScanResult
     alternatives: AlternativesResult | None
     verdict: Verdict

@@ -55,6 +55,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..._threads import blas_threads
+from ...exceptions import InputError
 from ...alternatives import FIELD_MODELS, HankelTable, geometry_visibilities, offset_geometry
 from ..scan.statistics import N_SPIRAL_PARAMETERS, chi2
 from .alternatives import PARAM_SCALES, _objective, _setup
@@ -236,6 +237,9 @@ def _best_linear(spirals, res, hypotheses) -> tuple[float, _Spiral, str]:
             gain = sp.solve(res, h)[0] - HYPOTHESES[h][2] * ln_n
             if best is None or gain > best[0]:
                 best = (gain, sp, h)
+    if best is None:
+        raise InputError("the nested fit needs at least one spiral position and one hypothesis "
+                         f"(got {len(spirals)} positions, hypotheses {list(hypotheses)})")
     return best
 
 
@@ -321,13 +325,12 @@ def nested_fit(name: str, alternatives, spirals: list[_Spiral], template: str, v
     # keep the joint parameters only where they do better; the alternative alone at them may do better too
     chi2_alone = min(chi2_alone, chi2(res_joint, 0.0, prob.weights))
     candidates = [(theta_alone, res_alone), (theta, res_joint)]
-    best = None
+    fits = []
     for th, res in candidates:
-        gain, sp, h = _best_linear(spirals, res, hypotheses)
-        chi2_joint = chi2(res, 0.0, prob.weights) - sp.solve(res, h)[0]
-        if best is None or chi2_joint + HYPOTHESES[h][2] * ln_n < best[0] + HYPOTHESES[best[3]][2] * ln_n:
-            best = (chi2_joint, th, sp, h)
-    chi2_joint, theta, spiral, hypothesis = best
+        _, sp, h = _best_linear(spirals, res, hypotheses)
+        fits.append((chi2(res, 0.0, prob.weights) - sp.solve(res, h)[0], th, sp, h))
+    # a tie keeps the first candidate: the alternative's own parameters
+    chi2_joint, theta, spiral, hypothesis = min(fits, key=lambda f: f[0] + HYPOTHESES[f[3]][2] * ln_n)
     _, amp, flux = spiral.solve(_alternative_residual(name, theta, prob, axisymmetric), hypothesis)
     k_s = HYPOTHESES[hypothesis][2]
     spiral_alone = spiral.solve(prob.R, hypothesis)[0]

@@ -24,6 +24,7 @@ import dataclasses
 
 import numpy as np
 
+from ...exceptions import InputError
 from ...units import ARCSEC
 from ..scan.statistics import bic_threshold, chi2
 
@@ -102,6 +103,8 @@ def spiral_with_planet_peak(result, vis, axisymmetric, templates, geometry, *, t
                 out = {"delta_chi2": float(total), "delta_bic": float(total - bic_threshold(result.n_data, 7)),
                        "spiral_delta_chi2": float(spiral), "peak_flux": float(rp / pp if pp > 0 else 0.0),
                        "width": width, "template": best.template, "r_p": r_p, "phi_p": phi_p}
+    if out is None:  # only a negative d_rp or d_phi leaves the neighbourhood empty
+        raise InputError(f"spiral_with_planet_peak: d_rp = {d_rp} and d_phi = {d_phi} must be >= 0")
     return out
 
 

@@ -108,7 +108,7 @@ def _same_place(a, b, name: str, min_sep: float) -> bool:
 
 def _distinct(cands, name, top: int, min_sep: float):
     """The ``top`` best candidates, skipping any too close (:func:`_same_place`) to a better one."""
-    chosen = []
+    chosen: list = []
     for _score, theta in sorted(cands, key=lambda c: -c[0]):
         if any(_same_place(theta, t, name, min_sep) for t in chosen):
             continue
@@ -134,8 +134,7 @@ def linear_amplitudes(model, thetas, ctx: ProfileContext, transform: FieldTransf
             t0[0] = 1.0  # the arc's Jacobian in A is its shape at any A
         J = model.field_and_jacobian(t0, ctx)[1]
         basis.append(J[idx])
-    basis = np.concatenate(basis)
-    dV = transform.visibilities(basis).reshape(len(thetas), len(idx), -1)
+    dV = transform.visibilities(np.concatenate(basis)).reshape(len(thetas), len(idx), -1)
     out = []
     for theta, V in zip(thetas, dV):
         M = np.einsum("ik,jk,k->ij", V.conj(), V, weights).real

@@ -57,6 +57,7 @@ from __future__ import annotations
 import warnings
 from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -168,7 +169,7 @@ def _local_maxima(values: np.ndarray, top: int) -> list[tuple[int, int]]:
                 is_max &= values >= shifted
     idx = np.argwhere(is_max)
     order = np.argsort(values[is_max])[::-1][:top]
-    return [tuple(int(k) for k in idx[o]) for o in order]
+    return [(int(idx[o][0]), int(idx[o][1])) for o in order]
 
 
 def best_handed_candidate(result, amplitude=None, *, neighbourhood: int = DetectionSettings.neighbourhood,
@@ -342,7 +343,7 @@ class Verdict(ResultMixin):
         text += nested_sentence(self) if self.test3_method == "nested" else self._test3_sentence()
         text += calibration_sentence(self)
         if self.candidate is not None:
-            text += self._candidate_sentence()
+            text += self._candidate_sentence(self.candidate)
         text += " A planet-driven spiral is detected." if self.detected else " No planet-driven spiral is claimed."
         return text + (f" The data were corrected first: {self.gains_solved}." if self.gains_solved else "")
 
@@ -361,6 +362,8 @@ class Verdict(ResultMixin):
         if self.test3_passed is None:
             return " Test 3 (competing asymmetry models, sb.fit_alternatives) was not run."
         label, margin, thr = self.best_alternative_label, self.delta_bic_vs_alternative, self.alternative_threshold
+        if margin is None:
+            raise InputError("Verdict: test3_passed is set but delta_bic_vs_alternative is None (test 3's margin)")
         own = f"Delta BIC = {self.alternative_delta_bic:.1f} against the axisymmetric model"
         if self.test3_spiral_model == "spiral + compact peak at the planet":
             own += ("; the spiral hypothesis scored as spiral + compact peak at the planet "
@@ -384,8 +387,7 @@ class Verdict(ResultMixin):
             text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
         return text
 
-    def _candidate_sentence(self) -> str:
-        c = self.candidate
+    def _candidate_sentence(self, c: dict) -> str:
         return (f" The best handed, compact candidate is {c['template']} at {self._where(c['r_p'], c['phi_p_deg'])} "
                 f"(Delta chi^2 = {c['delta_chi2']:.1f}, Delta BIC = {c['delta_bic']:.1f}, mirror ratio "
                 f"{c['handedness_ratio']:.2f}, {100 * c['localisation']:.1f} % of the area); follow it up with the "
@@ -478,8 +480,9 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
     test1 = bool(best.delta_bic > bic_threshold_value)
     test2 = bool(np.isfinite(ratio) and ratio < max_handedness_ratio and loc < max_localisation)
     # a mass is worth reporting only for a significant spiral
-    extra = {"alternative_threshold": float(alternative_threshold),
-             "mass_range": mass_range(result, amplitude, band=mass_band, mstar=mstar) if test1 else None}
+    extra: dict[str, Any] = {
+        "alternative_threshold": float(alternative_threshold),
+        "mass_range": mass_range(result, amplitude, band=mass_band, mstar=mstar) if test1 else None}
     if alternatives is not None:
         _check_same_data(result, alternatives)
         alt = alternatives.best

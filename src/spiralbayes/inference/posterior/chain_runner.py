@@ -16,7 +16,9 @@ import contextlib
 import logging
 import os
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -36,7 +38,7 @@ log = logging.getLogger(__name__)
 
 
 # -- worker-side globals (load the log-posterior once per process, emcee #199) ----------------------
-_WORKER_LOGPOST = None
+_WORKER_LOGPOST: Callable[[np.ndarray], Any] | None = None
 
 
 def _pin_threads() -> None:
@@ -52,6 +54,8 @@ def _init_worker(logpost) -> None:
 
 
 def _worker_log_prob(theta):
+    if _WORKER_LOGPOST is None:
+        raise RuntimeError("this worker process holds no log posterior: make_pool did not initialise it")
     return _WORKER_LOGPOST(theta)
 
 
@@ -147,8 +151,8 @@ class WalkerPool:
         True on an MPI worker rank, which only serves the master and runs nothing itself.
     """
 
-    pool: object
-    log_prob: object
+    pool: Any  # anything with emcee's ``map`` (multiprocessing, schwimmbad's MPIPool), or None
+    log_prob: Callable[..., Any] | None
     is_worker: bool = False
 
     @property

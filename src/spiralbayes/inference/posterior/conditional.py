@@ -103,6 +103,8 @@ class SpiralLikelihood:
         tables are shared (see :mod:`spiralbayes.inference.posterior.interpolation`), nothing is built.
     """
 
+    perturbation: FastPerturbation  # declared because a mirror reads its partner's (``mirror_of``) while building
+
     def __init__(self, vis, axisymmetric, template, r_range, *, reference_geometry: DiscGeometry | None = None,
                  epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
                  rp_step: float | None = None, cell_factor: float = DEFAULT_CELL_FACTOR, progress: bool = False,

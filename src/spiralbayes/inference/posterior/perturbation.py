@@ -47,6 +47,12 @@ class FastPerturbation:
         same profile and baselines): its table is shared and one coordinate flipped.
     """
 
+    # declared because a mirror reads them from its partner (``mirror_of``) before assigning its own
+    _cells: _Cells
+    _delta: float
+    table: PerturbationTable
+    quadrature_error: float
+
     def __init__(self, u, v, weights, profile, template, r_range, reference_geometry: DiscGeometry, *,
                  epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
                  rp_step: float | None = None, cell_factor: float = 20.0, progress: bool = False,
@@ -195,7 +201,7 @@ def _refine(fp: FastPerturbation, builder: _TableBuilder, rp_step, tol, progress
             cache[key] = builder(r)
         return cache[key]
 
-    history = []
+    history: list[dict] = []
     name = getattr(fp.template, "name", "template")
     while True:
         nodes = _lattice(r_lo, r_hi, h, order)

@@ -21,6 +21,7 @@ the same geometry, so their evidences compare like with like.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -123,7 +124,8 @@ class Priors:
         unknown = set(d) - {"r_p", "inc", "PA", "dRA", "dDec", "amplitude_max"}
         if unknown:
             raise InputError(f"unknown prior keys {sorted(unknown)}: use r_p, inc, PA, dRA, dDec, amplitude_max")
-        return cls(**{k: (v if k == "amplitude_max" else tuple(v)) for k, v in d.items()})
+        values: dict[str, Any] = {k: (v if k == "amplitude_max" else tuple(v)) for k, v in d.items()}
+        return cls(**values)
 
     def to_dict(self) -> dict:
         return {k: (v if k == "amplitude_max" else list(v)) for k, v in asdict(self).items()}

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -382,8 +383,8 @@ class PosteriorResult(ResultMixin):
         if not by_mass:
             return None
         masses, p_mass = _credible_set(by_mass, level)
-        out = {"mth": [min(masses), max(masses)], "mjup": None, "level": float(level), "mstar": float(mstar),
-               "probability": {"mth": p_mass, "mjup": None}}
+        out: dict[str, Any] = {"mth": [min(masses), max(masses)], "mjup": None, "level": float(level),
+                               "mstar": float(mstar), "probability": {"mth": p_mass, "mjup": None}}
         if by_pair:
             pairs, p_pair = _credible_set(by_pair, level)
             mj = [m * h**3 * mstar * M_SUN / M_JUP for m, h in pairs]
@@ -414,7 +415,7 @@ class PosteriorResult(ResultMixin):
         """A template's run by name or index (default: the most probable)."""
         if template is None:
             probs = self.template_probabilities
-            template = max(probs, key=probs.get)
+            template = max(probs, key=lambda name: probs[name])
         if isinstance(template, (int, np.integer)):
             return self.runs[int(template)]
         for r in self.runs:

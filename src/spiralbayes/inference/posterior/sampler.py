@@ -60,6 +60,7 @@ from __future__ import annotations
 import logging
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -70,7 +71,7 @@ from ..._threads import blas_threads
 from ..._version import __version__
 from ...axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
 from ...axisymmetric.gp import ProfilePrior
-from ...exceptions import InputError
+from ...exceptions import DataFileError, InputError
 from ...geometry import DiscGeometry
 from ...templates.template import template_metadata
 from ...units import wrap_angle
@@ -135,6 +136,14 @@ def _template_hash(template) -> str:
 # ---------------------------------------------------------------------------------------------
 # the no-planet hypothesis
 # ---------------------------------------------------------------------------------------------
+def _saved_samples(saved: ChainState, store: ChainStore) -> np.ndarray:
+    """The samples of a finished group (every finished group is written with them)."""
+    if saved.samples is None:
+        raise DataFileError(f"chain file {store.path}: group {store.group} is finished but holds no samples "
+                            "(damaged?): delete it or choose another run_name to start afresh")
+    return saved.samples
+
+
 def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed, n_draws, likelihood_kwargs):
     """The no-planet posterior and evidence; returns (NullRun, the re-centred ProfileMarginal)."""
     t0 = time.perf_counter()
@@ -144,7 +153,7 @@ def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed,
     saved = store.read()
     store.check_inputs(saved, inputs)
     if saved is not None and saved.result is not None:
-        null = NullRun.from_record(saved.result, saved.samples)
+        null = NullRun.from_record(saved.result, _saved_samples(saved, store))
         log.info("no planet: read back from %s (ln Z0 = %.2f)", store.path, null.ln_evidence)
         return null, base0.centred_at(DiscGeometry(*null.geometry_map))
     g_map, cov, lp_map = fit_null_geometry(base0.log_likelihood, priors)
@@ -237,7 +246,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     store.check_inputs(saved, inputs)
     if saved is not None and saved.result is not None:
         log.info("%s: finished earlier, read back from %s", name, chain_path)
-        return TemplateRun.from_record(saved.result, saved.samples), None
+        return TemplateRun.from_record(saved.result, _saved_samples(saved, store)), None
     likelihood = _build_likelihood(base, template, r_range, null, priors, s["likelihood_kwargs"], partners,
                                    s["progress"])
     logpost = LogPosterior(likelihood, priors)
@@ -302,7 +311,7 @@ def _final_state(store, run, samples):
 # ---------------------------------------------------------------------------------------------
 def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: Priors | None = None,
                      settings: SamplingSettings | None = None, chains_dir="chains", progress: bool = True,
-                     **overrides) -> PosteriorResult:
+                     **overrides) -> PosteriorResult | None:
     """Sample the posterior of every template, the no-planet hypothesis, and combine them.
 
     Parameters
@@ -334,8 +343,9 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
 
     Returns
     -------
-    PosteriorResult
-        ``p_planet``, ``ln_bayes_factor``, ``verdict``, per-template runs and the ``null`` run.
+    PosteriorResult or None
+        ``p_planet``, ``ln_bayes_factor``, ``verdict``, per-template runs and the ``null`` run; None on an
+        MPI worker rank (``pool="mpi"``), which only serves the master.
 
     Examples
     --------
@@ -389,7 +399,8 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
                                {**common, "evidence_draws": int(evidence_draws)}, seed, evidence_draws,
                                likelihood_kwargs)
-        runs, partners = [], {}
+        runs: list[TemplateRun] = []
+        partners: dict[str, FastPerturbation | Callable[[], FastPerturbation]] = {}  # mirror name -> its table
         for template in templates:
             mode = "mcmc" if template.name in selected else "laplace"
             steps = "tables, optimum, chain" if mode == "mcmc" else "tables, optimum, Laplace evidence"

@@ -80,6 +80,8 @@ class StoppingRule:
         Allow rule 2 (default True); False tests every parameter, as before.
     """
 
+    _last: tuple[tuple, dict]  # (key of the chain diagnosed last, its diagnostics); unset before the first call
+
     def __init__(self, null, priors, scales, *, min_ess: float, n_draws: int, seed: int, name: str,
                  planet_free_rule: bool = True):
         self.null, self.priors, self.scales = null, priors, np.asarray(scales, float)

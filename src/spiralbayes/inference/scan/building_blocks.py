@@ -51,6 +51,7 @@ import numpy as np
 
 from ..._threads import blas_threads
 from ...quadrature import ProductQuadrature, TemplateSpectrum
+from ...templates.template import SpiralTemplate
 from ...templates.variants import Variant
 from .engine import (
     CHECK_SAFETY,
@@ -78,7 +79,7 @@ class Generator:
     """A generator template ``T`` and its variants: ``members`` are ``(index, s, a)``, the row of the
     scan, the factor on ``T`` and the factor on the group's ``B``."""
 
-    template: object
+    template: SpiralTemplate
     members: list = field(default_factory=list)
 
 
@@ -86,7 +87,7 @@ class Generator:
 class VariantGroup:
     """One near-planet peak ``B`` (None when every member has ``a = 0``) and the generators using it."""
 
-    blob: object
+    blob: SpiralTemplate | None
     generators: list
 
     @property
@@ -152,7 +153,7 @@ def building_block_groups(templates) -> tuple[list[VariantGroup], list[int]]:
         for n, width in enumerate(widths):  # members with a = 0 go with the first peak
             chosen = [m for m in members if m[2] != 0.0 and m[3] == width] + (zero if n == 0 else [])
             by_blob.setdefault((mass, tau0, h_p, width, grid), []).append((hand, T, chosen))
-    groups = []
+    groups: list[VariantGroup] = []
     for gens in by_blob.values():
         groups.extend(g for g in _build_groups(templates, gens, plain) if g.indices)
     return groups, sorted(plain)
@@ -327,6 +328,8 @@ def _assemble(context: ScanContext, quad, rows: dict, i: int, gen: Generator,
             cross, power, bound = s * t.cross, (s * s) * t.power, abs(s) * t.bound
             scale = (s * s) * np.maximum(t.power, 0.0)
         else:
+            if b is None:  # a group whose members have a != 0 always has its blob
+                raise RuntimeError(f"scan row {index}: blob amplitude {a} but no blob block for its group")
             cross = s * t.cross + a * b.cross
             power = (s * s) * t.power + (2 * s * a) * tb + (a * a) * b.power
             bound = abs(s) * t.bound + abs(a) * b.bound

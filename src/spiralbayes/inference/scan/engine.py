@@ -165,6 +165,9 @@ class TemplateTerms(tuple):
     estimates as the attributes ``cross_error`` and ``power_error`` (same shape; NaN when the rule
     has none). Unpacks as a pair."""
 
+    cross_error: np.ndarray
+    power_error: np.ndarray
+
     def __new__(cls, cross, power, cross_error=None, power_error=None):
         self = super().__new__(cls, (cross, power))
         self.cross_error = np.full(np.shape(cross), np.nan) if cross_error is None else cross_error

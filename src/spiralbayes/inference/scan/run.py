@@ -152,17 +152,26 @@ class ScanResult(ResultMixin):
     power_error: np.ndarray | None = field(default=None, metadata={"units": DATASET_UNITS["power_error"]})
 
     def __post_init__(self):
-        for name in ("cross_error", "power_error"):
-            if getattr(self, name) is None:
-                setattr(self, name, np.full(np.shape(self.cross), np.nan))
+        if self.cross_error is None:
+            self.cross_error = np.full(np.shape(self.cross), np.nan)
+        if self.power_error is None:
+            self.power_error = np.full(np.shape(self.cross), np.nan)
         shape = (len(self.templates), np.size(self.r_p), np.size(self.phi_p))
         if any(np.shape(a) != shape for a in (self.cross, self.power, self.cross_error, self.power_error)):
             raise InputError(f"ScanResult: arrays of shape {np.shape(self.cross)} / {np.shape(self.power)} do not "
                              f"match {shape[0]} templates x {shape[1]} radii x {shape[2]} azimuths")
 
+    def _error_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(cross_error, power_error)``, arrays since construction (NaN where there is no estimate)."""
+        if self.cross_error is None or self.power_error is None:
+            raise InputError("ScanResult: cross_error and power_error were set to None; they must be arrays "
+                             "(NaN where there is no estimate)")
+        return self.cross_error, self.power_error
+
     def delta_chi2_error(self) -> np.ndarray:
         """Error estimate of :meth:`delta_chi2` (the paper's fixed amplitude): ``2 cross_error + power_error``."""
-        return 2 * self.cross_error + self.power_error
+        cross_error, power_error = self._error_arrays()
+        return 2 * cross_error + power_error
 
     def accuracy_violations(self, tolerance=TOLERANCE) -> np.ndarray:
         """Where the error estimate exceeds ``tolerance[0] + tolerance[1] |Δχ²|`` (boolean, like ``cross``)."""
@@ -197,10 +206,11 @@ class ScanResult(ResultMixin):
     def peak(self, template: int | str | None = None, amplitude=None) -> ScanPeak:
         """The best instance of one template (default: of the whole scan), for ``amplitude``."""
         dchi2 = self.delta_chi2(amplitude)
-        t_index = self.template_index(template) if template is not None else None
-        if t_index is None:
-            t_index, i, j = np.unravel_index(np.nanargmax(dchi2), dchi2.shape)
+        if template is None:
+            t, i, j = np.unravel_index(np.nanargmax(dchi2), dchi2.shape)
+            t_index = int(t)
         else:
+            t_index = self.template_index(template)
             i, j = np.unravel_index(np.nanargmax(dchi2[t_index]), dchi2.shape[1:])
         value = float(dchi2[t_index, i, j])
         return ScanPeak(self.templates[t_index]["name"], int(t_index), float(self.r_p[i]), float(self.phi_p[j]),
@@ -541,11 +551,13 @@ def resume_from_checkpoint(checkpoint, fresh: ScanResult, force: bool = False) -
         log.warning("force-resuming %s although %s differ", checkpoint, "; ".join(diffs))
     rows = {m["name"]: i for i, m in enumerate(old.templates)}
     kept = []
+    fresh_cross_error, fresh_power_error = fresh._error_arrays()
+    old_cross_error, old_power_error = old._error_arrays()
     for i, meta in enumerate(fresh.templates):
         j = rows.get(meta["name"])
         if j is not None and old.completed[j]:
             fresh.cross[i], fresh.power[i] = old.cross[j], old.power[j]
-            fresh.cross_error[i], fresh.power_error[i] = old.cross_error[j], old.power_error[j]
+            fresh_cross_error[i], fresh_power_error[i] = old_cross_error[j], old_power_error[j]
             kept.append(meta["name"])
     if diffs:
         fresh = _record_forced_resume(fresh, old, checkpoint, diffs, kept)
@@ -577,8 +589,9 @@ def _record_forced_resume(fresh: ScanResult, old: ScanResult, checkpoint, diffs,
 def store_template_terms(result: ScanResult, index: int, terms, checkpoint) -> None:
     """Keep one template's :class:`~.engine.TemplateTerms` (and checkpoint)."""
     result.cross[index], result.power[index] = terms
-    result.cross_error[index] = getattr(terms, "cross_error", np.nan)
-    result.power_error[index] = getattr(terms, "power_error", np.nan)
+    cross_error, power_error = result._error_arrays()
+    cross_error[index] = getattr(terms, "cross_error", np.nan)
+    power_error[index] = getattr(terms, "power_error", np.nan)
     if checkpoint is not None:
         result.save(checkpoint)
 

@@ -22,8 +22,10 @@ from __future__ import annotations
 import logging
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -84,13 +86,13 @@ def _simulate(setup: CalibrationSetup, truth: dict, template, coverage, seed: in
 
     geometry = DiscGeometry(truth["inc"], truth["PA"], truth["dRA"], truth["dDec"])
     disc = DiscModel(distance=setup.distance, tau_ref=setup.template[1])
+    perturbation: Callable[[Any, Any], Any] | None = None
     if truth["A"] > 0:
         A, r_p, phi_p = truth["A"], truth["r_p"], truth["phi_p"]
 
-        def perturbation(r, phi):
+        def planet(r, phi):
             return A * template.evaluate(r, phi, r_p, phi_p)
-    else:
-        perturbation = None
+        perturbation = planet
     return simulate_observation(setup.preset, disc, geometry, perturbation, seed=seed, coverage=coverage)
 
 
@@ -125,6 +127,8 @@ def run_dataset(setup: CalibrationSetup, index: int, workdir, *, planet: bool = 
         result = sample_posterior(vis, model, [template], priors=setup.priors(), run_name=f"d{index:03d}_{int(planet)}",
                                   chains_dir=Path(workdir), convergence="ignore", progress=False,
                                   seed=int(rng.integers(2 ** 31)), processes=processes, **setup.sampler)
+    if result is None:  # an MPI worker rank (pool="mpi" in setup.sampler) has no result to record
+        raise RuntimeError("sample_posterior returned no result, as on an MPI worker rank")
     run = result.runs[0]
     r = ranks(run.samples, truth)
     record = {"index": index, "planet": planet, "truth": truth, "ranks": r,
@@ -148,7 +152,7 @@ def summarise(records: list, bins: int = 5) -> dict:
         n = rk.size
         if n == 0:
             continue
-        row = {"n": int(n)}
+        row: dict[str, Any] = {"n": int(n)}
         for level, key in ((0.68, "inside68"), (0.95, "inside95")):
             k = sum(r[key][name] for r in planets if name in r[key])
             p = k / n

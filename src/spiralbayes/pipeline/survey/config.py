@@ -190,10 +190,11 @@ def parse_survey(user: dict, root: Path = Path("."), *, source: str = "") -> Sur
     except InputError as exc:
         raise ConfigError(str(exc)) from None
     bank = merge_section("bank", user.pop("bank"), BANK_SCHEMA) if "bank" in user else None
-    unknown_variants = [v for v in (bank or {}).get("morphologies", []) if v not in VARIANTS]
-    if unknown_variants or bank is not None and not bank["morphologies"]:
-        raise ConfigError(f"bank.morphologies = {bank['morphologies']!r}: give one or more of {sorted(VARIANTS)} "
-                          f"(default {list(DEFAULT_VARIANTS)})")
+    if bank is not None:
+        unknown_variants = [v for v in bank.get("morphologies", []) if v not in VARIANTS]
+        if unknown_variants or not bank["morphologies"]:
+            raise ConfigError(f"bank.morphologies = {bank['morphologies']!r}: give one or more of {sorted(VARIANTS)} "
+                              f"(default {list(DEFAULT_VARIANTS)})")
     cluster = user.pop("cluster", {})
     if not isinstance(cluster, dict):
         raise ConfigError("[cluster] must be a table of dask-jobqueue options (cores, memory, walltime, jobs, ...)")
@@ -215,7 +216,7 @@ def parse_survey(user: dict, root: Path = Path("."), *, source: str = "") -> Sur
     if bank is not None:
         for job in jobs:
             job.bank_key = content_hash(bank)
-    seen = {}
+    seen: dict[str, str] = {}  # folder name -> disc name
     for job in jobs:
         if job.slug in seen:
             raise ConfigError(f"discs {seen[job.slug]!r} and {job.name!r} share the folder name {job.slug!r}: "

@@ -21,7 +21,9 @@ from __future__ import annotations
 import logging
 import time
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 from ..._threads import blas_threads
 from ...cluster import describe_scheduler
@@ -41,7 +43,7 @@ class Ref:
 @dataclass
 class Task:
     key: str
-    func: object
+    func: Callable[..., Any]
     args: tuple
     disc: str | None = None
     stage: str = ""
@@ -83,7 +85,9 @@ class Engine:
     def _run_serial(self, tasks, wanted, progress) -> Outcome:
         from tqdm.auto import tqdm
 
-        results, errors, seconds = {}, {}, {}
+        results: dict[str, Any] = {}
+        errors: dict[str, str] = {}
+        seconds: dict[str, float] = {}
         for task in tqdm(tasks, desc="survey tasks", unit="task", disable=not progress):
             failed = [a.key for a in task.args if isinstance(a, Ref) and a.key in errors]
             if failed:
@@ -110,7 +114,7 @@ class Engine:
         from tqdm.auto import tqdm
 
         token = uuid.uuid4().hex[:8]
-        futures = {}
+        futures: dict[str, Any] = {}  # distributed.Future by task key
         with get_task_stream(self.client) as stream:
             for task in tasks:
                 args = [futures[a.key] if isinstance(a, Ref) else a for a in task.args]
@@ -127,7 +131,7 @@ class Engine:
                 else:
                     exc = future.exception()
                     errors[key] = " ".join(str(exc).split()) or type(exc).__name__
-        seconds = {}
+        seconds: dict[str, float] = {}
         for record in stream.data:
             key = str(record.get("key", ""))
             base = key.rsplit("-", 1)[0]

@@ -113,7 +113,7 @@ def clear(out_dir, folder: str, *, where: str = "[survey] output") -> list[str]:
     return names
 
 
-def begin(out_dir, stage: str, key: str) -> dict[str, str]:
+def begin(out_dir, stage: str, key: str) -> dict[str, dict[str, str]]:
     """Mark ``stage`` as running with ``key``; return the folder's files before it (for :func:`mark`).
 
     The marker keeps the files its earlier run recorded and the folder as it was when the stage

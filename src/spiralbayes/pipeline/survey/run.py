@@ -79,8 +79,9 @@ def _count(templates: list) -> int:
     return len(templates)
 
 
-def _template_tasks(spec: SurveySpec) -> tuple[list[Task], dict]:
-    tasks, keys = [], {}
+def _template_tasks(spec: SurveySpec) -> tuple[list[Task], dict[str, str]]:
+    tasks: list[Task] = []
+    keys: dict[str, str] = {}  # disc folder name -> key of its templates task
     bank_ref = None
     if spec.bank is not None:
         tasks.append(Task("bank", stage_bank, (spec.bank, str(spec.out_dir / "bank.h5")), stage="bank"))
@@ -124,7 +125,7 @@ def _disc_tasks(job, templates_key: str, n_templates: int, settings: dict) -> li
 def _per_disc_seconds(spec: SurveySpec, seconds: dict) -> dict:
     out = {}
     for job in spec.discs:
-        stages = {}
+        stages: dict[str, float] = {}
         for key, t in seconds.items():
             if key.startswith(job.slug + "_"):
                 stage = key[len(job.slug) + 1:].rstrip("0123456789")

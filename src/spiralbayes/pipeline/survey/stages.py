@@ -24,6 +24,7 @@ import shutil
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +32,11 @@ from ..._provenance import content_hash, data_hash
 from ...config import describe_config
 from ...exceptions import ResumeMismatchError, SpiralbayesError
 from .files import begin, check_folder, claim, clear, done, mark, superseded, write_text
+
+if TYPE_CHECKING:  # the stages import the inference modules when they run, on the worker
+    from ...inference.scan.engine import ScanContext, TemplateTerms
+    from ...inference.scan.run import ScanResult
+    from ...visibilities import Visibilities
 
 __all__ = ["StageError", "stage_alternatives", "stage_bank", "stage_detect", "stage_frank", "stage_limits",
            "stage_posterior", "stage_prepare", "stage_row", "stage_scan_chunk", "stage_scan_setup",
@@ -74,7 +80,7 @@ def _staged(name: str):
 class Prepared:
     """The disc's data on a worker, with its content hash and the stage keys that depend on it."""
 
-    vis: object
+    vis: Visibilities
     data_key: str
     scan_key: str
 
@@ -83,8 +89,8 @@ class Prepared:
 class ScanSetup:
     """The scan of one disc ready to be split: context, the result being filled, what is left."""
 
-    context: object
-    result: object
+    context: ScanContext | None  # None when the scan stage was already done
+    result: ScanResult
     todo: list
     finished: bool
     key: str
@@ -112,11 +118,11 @@ def stage_bank(bank: dict, path: str) -> str:
     from ...templates import TemplateBank
     from ...templates.variants import variant_template
 
-    path = Path(path)
+    file = Path(path)
     key = content_hash(bank)
-    if done(path.parent, "bank", key, path.name) is not None:
-        return str(path)
-    claim(path.parent, [path.name])
+    if done(file.parent, "bank", key, file.name) is not None:
+        return str(file)
+    claim(file.parent, [file.name])
     templates = []
     for h_p in bank["h_p"]:
         for tau0 in bank["tau0"]:
@@ -126,9 +132,9 @@ def stage_bank(bank: dict, path: str) -> str:
                         right = variant_template(mass, tau0, beta, "R", variant, h_p=h_p,
                                                  wavelength=bank["wavelength"])
                         templates += [right, right.mirror()]
-    TemplateBank(templates, provenance={"survey_bank": bank}).save(path)
-    mark(path.parent, "bank", key, written=[path.name])
-    return str(path)
+    TemplateBank(templates, provenance={"survey_bank": bank}).save(file)
+    mark(file.parent, "bank", key, written=[file.name])
+    return str(file)
 
 
 @_staged("templates")
@@ -262,9 +268,11 @@ def stage_scan_chunk(job, setup: ScanSetup, templates, indices) -> dict:
     from ...inference.scan.building_blocks import unit_rows
     from ...inference.scan.run import run_unit
 
-    out = {}
+    out: dict[int, TemplateTerms] = {}
     if setup.finished:
         return out
+    if setup.context is None:
+        raise RuntimeError(f"scan of {job.name}: the set-up of an unfinished scan has no context")
     chunk = set(indices)
     for unit in setup.units:
         if min(unit_rows(unit)) not in chunk:
