@@ -13,9 +13,10 @@ baseline phase scatter ``σ``), and an amplitude solve against it puts that loss
 antennas' amplitudes; phase rounds first give the amplitude solve a model fitted to phase-corrected
 data, the usual order of self-calibration (e.g. the ALMA and CASA self-calibration guides, Brogan
 et al. 2018, arXiv 1805.05266). Measured on the fiducial observation with a 1 M_th planet, 5 %
-amplitude errors and 10° (30°) rms antenna phase errors, as χ²/N of the corrected data against the error-free, noise-free visibilities
-(1 is noise alone): uncorrected 6.11 (39.3), two phase rounds 1.38 (1.59), amplitude and phase in
-both rounds 1.20 (10.7), a phase round then an amplitude-and-phase round 1.03 (1.24) (docs/calibration.md).
+amplitude errors and 10° (30°) rms antenna phase errors, as χ²/N of the corrected data against the
+error-free, noise-free visibilities (1 is noise alone): uncorrected 6.11 (39.3), two phase rounds
+1.38 (1.59), amplitude and phase in both rounds 1.20 (10.7), a phase round then an
+amplitude-and-phase round 1.03 (1.24) (docs/calibration.md).
 
 The prior that keeps the solve from absorbing a spiral:
 
