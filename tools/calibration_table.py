@@ -66,11 +66,13 @@ def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, k
            "phi_p_deg": v.phi_p_deg, "delta_bic": v.delta_bic,
            "keep_position": keep_position, "min_snr": min_snr, "test1": v.test1_passed, "test2": v.test2_passed,
            "test3": v.test3_passed, "best_alternative": v.best_alternative,
-           "alternative_delta_bic": v.alternative_delta_bic, "time_s": time.perf_counter() - t0,
+           "alternative_delta_bic": v.alternative_delta_bic, "explanation": v.explanation,
+           "time_s": time.perf_counter() - t0,
            "refit": None if follow is None else {
                "detected": bool(follow.detected), "template": follow.template, "r_p_au": follow.r_p * DISTANCE,
                "phi_p_deg": follow.phi_p_deg, "delta_bic": follow.delta_bic,
-               "best_alternative": follow.best_alternative, "alternative_delta_bic": follow.alternative_delta_bic}}
+               "best_alternative": follow.best_alternative, "alternative_delta_bic": follow.alternative_delta_bic,
+               "explanation": follow.explanation}}
     # the residual errors against the truth: the diagnostic on the corrected data and the noise-free,
     # error-free observation (a per-integration solve against frank's fit to them finds nothing by construction)
     truth = simulate(planet, 0.0, seed, noise=False)
@@ -84,21 +86,24 @@ def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, k
 
 def markdown(rows: list) -> str:
     lines = ["| data | phase rms [deg] | seed | solve | claimed | best template (r_p au, phi_p deg) | Delta BIC | "
-             "tests 1/2/3 | test 3's best alternative (Delta BIC) | after the geometry refit | solved rms [deg] | "
-             "residual rms [deg] |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "tests 1/2/3 | test 3's best alternative (Delta BIC) | explanation | after the geometry refit | "
+             "solved rms [deg] | residual rms [deg] |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         tests = "/".join({True: "p", False: "f", None: "-"}[r[k]] for k in ("test1", "test2", "test3"))
         solved = "-" if r["solved_phase_rms"] is None else f"{r['solved_phase_rms']:.1f}"
         f = r["refit"]
         refit = "-" if f is None else (f"{'claimed' if f['detected'] else 'not claimed'}: {f['template']} "
                                        f"({f['r_p_au']:.0f}, {f['phi_p_deg']:.0f}), Delta BIC {f['delta_bic']:.0f}; "
-                                       f"{f['best_alternative']} ({f['alternative_delta_bic']:.0f})")
+                                       f"{f['best_alternative']} ({f['alternative_delta_bic']:.0f}); "
+                                       f"explanation {f.get('explanation')}")
         solve = r["solve"] + ("" if r.get("keep_position", True) else ", keep_position false") + \
             ("" if r.get("min_snr") is None else f", min_snr {r['min_snr']:g}")
         lines.append(f"| {'1 M_th planet' if r['planet'] else 'no planet'} | {r['phase_rms']:g} | {r['seed']} | "
                      f"{solve} | {'yes' if r['detected'] else 'no'} | {r['template']} ({r['r_p_au']:.0f}, "
                      f"{r['phi_p_deg']:.0f}) | {r['delta_bic']:.0f} | {tests} | {r['best_alternative']} "
-                     f"({r['alternative_delta_bic']:.0f}) | {refit} | {solved} | {r['residual_phase_rms']:.1f} |")
+                     f"({r['alternative_delta_bic']:.0f}) | {r.get('explanation')} | {refit} | {solved} | "
+                     f"{r['residual_phase_rms']:.1f} |")
     return "\n".join(lines) + "\n"
 
 

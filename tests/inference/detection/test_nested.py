@@ -124,3 +124,9 @@ def test_gain_errors_are_named_as_the_explanation(pair):
     text = verdict.summary()
     assert "antenna gain errors rather than a disc asymmetry" in text and "[calibration] solve" in text
     assert verdict.to_dict()["calibration"]["phase_rms_deg"] == pytest.approx(20.0, rel=0.5)
+    # data that record their antennas are diagnosed by default (what `spiralbayes scan` gets), the same
+    # numbers as the explicit diagnostic; calibration=False leaves it out
+    result, alts, by_default = _verdict(vis, axisym, pair)
+    assert by_default.to_dict() == verdict.to_dict()
+    skipped = detect_with_planet_peak(result, vis, axisym, pair, GEOMETRY, alternatives=alts, calibration=False)
+    assert skipped.calibration is None and skipped.explanation != "calibration"

@@ -61,6 +61,7 @@ from typing import Any
 
 import numpy as np
 
+from ...calibration.diagnostics import diagnose_calibration
 from ...exceptions import InputError
 from ...io.argument_checks import check_scan_result
 from ...results import ResultMixin, fields_dict
@@ -436,9 +437,11 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
         that single-model comparison with the bare spiral.
     geometry : DiscGeometry, optional
         Where the joint fits place the models (default: the axisymmetric model's).
-    calibration : CalibrationDiagnostic, optional
+    calibration : CalibrationDiagnostic or False, optional
         :func:`spiralbayes.calibration.diagnose_calibration` of the same data and model; when it
-        warns and no spiral is claimed, the verdict names calibration as the explanation.
+        warns and no spiral is claimed, the verdict names calibration as the explanation. By
+        default it is measured here when ``vis`` records its antennas (a Measurement Set, a
+        spiralbayes HDF5 file, a simulation) and ``axisymmetric`` is given; ``False`` skips it.
     **overrides
         Fields of :class:`DetectionSettings` replacing those of ``settings`` (e.g.
         ``bic_threshold_value=15``, ``mstar=1.2``).
@@ -510,6 +513,9 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
     if len(missing) != 3 and missing:
         raise InputError(f"detect: give vis, axisymmetric and templates together (missing {', '.join(missing)}) "
                          "so that test 3 can fit the spiral jointly with the alternatives, or none of them")
+    if calibration is None and not missing and getattr(vis, "has_antennas", False):
+        calibration = diagnose_calibration(vis, axisymmetric)
+    calibration = calibration or None
     if not missing and alternatives is not None:
         verdict = rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry,
                                            alternatives=alternatives)
