@@ -71,6 +71,25 @@ def test_scan_solves_the_gains_and_says_so(tmp_path, capsys):
     assert "[calibration] settings (interval_s: 60.0 -> 120.0)" in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
+def test_sample_applies_the_scans_gain_solution(tmp_path):
+    """`spiralbayes sample` after `spiralbayes scan` samples the corrected data with the saved solution
+    (not a new one) and says so in its summary (~40 s)."""
+    data = tmp_path / "obs.h5"
+    assert main(["-q", "simulate", "--preset", "taurus", "--out", str(data), "--seed", "4", "--phase-rms", "15",
+                 "--gain-coherence", "600"]) == 0
+    config = _config(tmp_path, "obs.h5", 'solve = "phase"\nn_iterations = 1')
+    with open(config, "a") as f:
+        f.write("[sample]\nn_walkers = 14\nn_steps = 20\nevidence_draws = 50\nconvergence = \"ignore\"\n")
+    assert main(["-q", "scan", config]) == 0
+    gains = tmp_path / "out" / "gains.h5"
+    stamp = gains.stat().st_mtime_ns
+    assert main(["-q", "sample", config]) == 0
+    assert gains.stat().st_mtime_ns == stamp  # reused, not solved again
+    summary = json.loads(next((tmp_path / "out").glob("*_summary.json")).read_text())
+    assert summary["gains_solved"] == GainSolution.load(gains).note()
+
+
 def test_data_without_antennas_are_refused_naming_the_option(tmp_path, capsys):
     data = tmp_path / "obs.txt"  # a uvtable keeps no antennas
     assert main(["-q", "simulate", "--preset", "taurus", "--out", str(data), "--seed", "1"]) == 0

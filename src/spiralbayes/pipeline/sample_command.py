@@ -35,7 +35,8 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     corrected data: ``OUTPUT/gains.h5`` is applied when it was solved from these data with these
     settings, else the gains are solved here (:mod:`.calibrate`). Writes, in ``[output] dir``:
     ``chains/<run_name>.h5`` (the chains), ``<run_name>_posterior.h5`` (the result),
-    ``<run_name>_summary.json`` (with the verdict: P(planet | data), the Bayes factor),
+    ``<run_name>_summary.json`` (with the verdict: P(planet | data), the Bayes factor, and
+    ``gains_solved``: the gain solution's note when the data were corrected),
     ``<run_name>_corner.png`` (r_p in au at ``[geometry] distance``), ``<run_name>_hypotheses.png``,
     ``<run_name>_templates.png`` and ``<run_name>_config.toml`` (the configuration used).
     """
@@ -66,7 +67,8 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     if result is None:  # only an MPI worker rank gets none, and a configuration cannot choose MPI (pool)
         raise RuntimeError("sample_posterior returned no result, as on an MPI worker rank")
     result.save(out_dir / f"{run_name}_posterior.h5")
-    summary = {**result.to_dict(), "summary": _summary_with_units(result.percentiles())}
+    summary = {**result.to_dict(), "summary": _summary_with_units(result.percentiles()),
+               "gains_solved": None if gains is None else gains.note()}
     _write_text(out_dir / f"{run_name}_summary.json", to_json(summary, indent=2))
     _save_figure(plot_corner(result, distance=config["geometry"]["distance"]), out_dir / f"{run_name}_corner.png")
     _save_figure(plot_hypotheses(result), out_dir / f"{run_name}_hypotheses.png")
