@@ -130,3 +130,27 @@ def test_gain_errors_are_named_as_the_explanation(pair):
     assert by_default.to_dict() == verdict.to_dict()
     skipped = detect_with_planet_peak(result, vis, axisym, pair, GEOMETRY, alternatives=alts, calibration=False)
     assert skipped.calibration is None and skipped.explanation != "calibration"
+
+
+def test_a_spiral_in_data_with_antenna_phase_errors_is_not_claimed(pair):
+    """A 1 M_th planet with 6 deg rms antenna phase errors (5-minute coherence): tests 1-3 pass at the
+    right place, but phase errors remain with the spiral in the model, so it is not claimed and the
+    verdict says to solve the gains; without gain errors the same planet is claimed."""
+    axisym = ExactAxisymmetric(DISC, WAVELENGTH, GEOMETRY)
+
+    def planted(gains):
+        vis = simulate_observation("fiducial", DISC, GEOMETRY, perturbation=pair[0], r_p=R_PLANET, phi_p=0.0, seed=2,
+                                   gains=gains)
+        return vis.subset(np.arange(0, vis.V.size, 4))
+
+    vis = planted(GainErrors(6.0, 0.0, 300.0, seed=2))
+    result, alts, verdict = _verdict(vis, axisym, pair)
+    unguarded = detect_with_planet_peak(result, vis, axisym, pair, GEOMETRY, alternatives=alts, calibration=False)
+    assert unguarded.detected and unguarded.r_p == pytest.approx(R_PLANET, abs=0.04)
+    assert not verdict.detected and verdict.test1_passed and verdict.test2_passed and verdict.test3_passed
+    assert verdict.calibration["withheld"] and verdict.explanation == "calibration"
+    assert verdict.calibration["with_alternative"]["model"] == "spiral"
+    assert verdict.calibration["with_alternative"]["phase_rms_deg"] > 5.0
+    assert "the spiral is not claimed" in verdict.summary() and "[calibration] solve" in verdict.summary()
+    clean = _verdict(planted(None), axisym, pair)[2]
+    assert clean.detected and not clean.calibration.get("withheld")

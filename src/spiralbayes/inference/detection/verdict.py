@@ -34,8 +34,10 @@ each on its own) are in the model, fitted jointly with the spiral, does the spir
 BIC by more than ``nested_threshold``? Then "which single model is best" (the comparison above,
 with the planet's compact peak, :mod:`.planet_peak`) is kept as information. An alternative that
 is significant on its own and survives the joint fit is named as also present. With a calibration
-diagnostic that warns (:func:`spiralbayes.calibration.diagnose_calibration`) and no spiral claimed,
-the verdict names calibration errors, not a disc asymmetry, as the explanation.
+diagnostic that warns (:func:`spiralbayes.calibration.diagnose_calibration`, measured by default
+when the data record their antennas) and no spiral claimed, the verdict names calibration errors, not
+a disc asymmetry, as the explanation; a spiral is not claimed while antenna phase errors remain with
+it in the model (:mod:`.explanation`).
 
 When the global peak fails test 2, :func:`detect` also looks for the best *handed, compact*
 candidate — the highest local maximum of any template that passes test 1 and whose mirror ratio
@@ -68,7 +70,8 @@ from ...results import ResultMixin, fields_dict
 from ...settings import with_overrides
 from .settings import DELTA_BIC_THRESHOLD, AlternativesSettings, DetectionSettings
 from .planet_peak import rescore_with_planet_peak
-from .explanation import calibration_sentence, explain, nested_sentence, rediagnose
+from .explanation import (calibration_sentence, explain, nested_sentence, phase_warns, rediagnose,
+                          rediagnose_with_spiral, withhold)
 from .nested import apply_nested
 from .mass import mass_range
 
@@ -520,6 +523,12 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
         verdict = rescore_with_planet_peak(verdict, result, vis, axisymmetric, templates, geometry,
                                            alternatives=alternatives)
         verdict = apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s)
+        if calibration is not None and verdict.detected and phase_warns(calibration):
+            best = result.peak(amplitude=amplitude)
+            again = rediagnose_with_spiral(vis, axisymmetric, list(templates)[best.template_index], best.r_p,
+                                           best.phi_p, geometry)
+            if phase_warns(again):
+                return explain(withhold(verdict), calibration, again, "spiral", withheld=True)
         if calibration is not None and calibration.warning and not verdict.detected:
             again = rediagnose(calibration, vis, axisymmetric, geometry, alternatives)
             return explain(verdict, calibration, again, alternatives.best.name)
