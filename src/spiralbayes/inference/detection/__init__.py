@@ -25,7 +25,8 @@ from .verdict import (
 )
 from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, NESTED_THRESHOLD, AlternativesSettings, DetectionSettings
 from .nested import HYPOTHESES, NestedFit, also_present_phrase, apply_nested, nested_fit, nested_test
-from .explanation import calibration_explains, calibration_sentence, explain, nested_sentence, rediagnose
+from .explanation import (calibration_explains, calibration_sentence, explain, nested_sentence, phase_warns, rediagnose,
+                          rediagnose_with_spiral, withhold)
 from .starts import candidate_starts, linear_amplitudes
 from .alternatives import (
     ALTERNATIVES_KIND,
@@ -56,6 +57,9 @@ __all__ = [
     "explain",
     "nested_sentence",
     "rediagnose",
+    "rediagnose_with_spiral",
+    "phase_warns",
+    "withhold",
     "rescore_with_planet_peak",
     "spiral_with_planet_peak",
     "apply_planet_peak",
