@@ -1,7 +1,8 @@
 """What antenna gain errors do to the verdict, with and without ``[calibration] solve``.
 
 For each antenna phase rms and noise seed, the fiducial preset (C-4 + C-7, 36,120 visibilities, default
-disc at 140 pc, inc 30 deg, PA 60 deg) is simulated without a planet and with a 1 M_th planet (the
+disc at 140 pc, inc 30 deg, PA 60 deg; ``--preset taurus`` for the faint Taurus set-up) is simulated
+without a planet and with a 1 M_th planet (``--planet-mass``; the
 command line's ``simulate --planet-mass 1``: the compromise template tau0 = 3, beta = 10, at 50 au,
 phi_p = 0), corrupted by antenna gains (phase rms as given, 5 % amplitudes; 180-s phase and 600-s
 amplitude coherence, as in the measurement that motivated the solve), and run through ``spiralbayes
@@ -15,6 +16,7 @@ written to ``OUT/table.md``.
 
     python tools/calibration_table.py --out /tmp/caltable                 # 0, 10, 30 deg, seed 1, solve phase
     python tools/calibration_table.py --phase-rms 0 3 10 30 60 --seeds 1 2 3 --solve none phase
+    python tools/calibration_table.py --preset taurus --planet-mass 3 --phase-rms 0 10 30 --solve none phase
 """
 
 from __future__ import annotations
@@ -37,10 +39,14 @@ log = logging.getLogger("calibration_table")
 PLANET_AU, DISTANCE = 50.0, 140.0
 
 
+PRESET = "fiducial"
+PLANET_MASS = 1.0
+
+
 def simulate(planet: bool, phase_rms: float, seed: int, noise: bool = True):
-    perturbation = make_template(1.0, 3.0, 10.0, "R") if planet else None
+    perturbation = make_template(PLANET_MASS, 3.0, 10.0, "R") if planet else None
     gains = GainErrors(phase_rms, 0.05, coherence_s=180.0, amp_coherence_s=600.0, seed=seed) if noise else None
-    return simulate_observation("fiducial", perturbation=perturbation, r_p=PLANET_AU / DISTANCE if planet else None,
+    return simulate_observation(PRESET, perturbation=perturbation, r_p=PLANET_AU / DISTANCE if planet else None,
                                 phi_p=0.0 if planet else None, seed=seed, gains=gains, add_noise=noise)
 
 
@@ -64,7 +70,8 @@ def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, k
     row = {"case": name, "planet": planet, "phase_rms": phase_rms, "seed": seed, "solve": solve,
            "detected": bool(v.detected), "template": v.template, "r_p_au": v.r_p * DISTANCE,
            "phi_p_deg": v.phi_p_deg, "delta_bic": v.delta_bic,
-           "keep_position": keep_position, "min_snr": min_snr, "test1": v.test1_passed, "test2": v.test2_passed,
+           "keep_position": keep_position, "min_snr": min_snr, "preset": PRESET, "planet_mass": PLANET_MASS,
+           "test1": v.test1_passed, "test2": v.test2_passed,
            "test3": v.test3_passed, "best_alternative": v.best_alternative,
            "alternative_delta_bic": v.alternative_delta_bic, "explanation": v.explanation,
            "time_s": time.perf_counter() - t0,
@@ -99,7 +106,7 @@ def markdown(rows: list) -> str:
                                        f"explanation {f.get('explanation')}")
         solve = r["solve"] + ("" if r.get("keep_position", True) else ", keep_position false") + \
             ("" if r.get("min_snr") is None else f", min_snr {r['min_snr']:g}")
-        lines.append(f"| {'1 M_th planet' if r['planet'] else 'no planet'} | {r['phase_rms']:g} | {r['seed']} | "
+        lines.append(f"| {'planet' if r['planet'] else 'no planet'} | {r['phase_rms']:g} | {r['seed']} | "
                      f"{solve} | {'yes' if r['detected'] else 'no'} | {r['template']} ({r['r_p_au']:.0f}, "
                      f"{r['phi_p_deg']:.0f}) | {r['delta_bic']:.0f} | {tests} | {r['best_alternative']} "
                      f"({r['alternative_delta_bic']:.0f}) | {r.get('explanation')} | {refit} | {solved} | "
@@ -115,7 +122,11 @@ def main(argv=None) -> None:
     parser.add_argument("--solve", nargs="+", default=["phase"], choices=["none", "phase", "amplitude+phase"])
     parser.add_argument("--no-keep-position", action="store_true", help="[calibration] keep_position = false")
     parser.add_argument("--min-snr", type=float, default=None, help="[calibration] min_snr (default: the package's)")
+    parser.add_argument("--preset", default=PRESET, help="observation preset (fiducial, taurus, ...)")
+    parser.add_argument("--planet-mass", type=float, default=PLANET_MASS, help="planet mass [M_th]")
     args = parser.parse_args(argv)
+    global PRESET, PLANET_MASS
+    PRESET, PLANET_MASS = args.preset, args.planet_mass
     logging.basicConfig(level=logging.WARNING)
     args.out.mkdir(parents=True, exist_ok=True)
     keep = not args.no_keep_position
