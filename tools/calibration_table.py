@@ -43,22 +43,23 @@ PRESET = "fiducial"
 PLANET_MASS = 1.0
 
 
-def simulate(planet: bool, phase_rms: float, seed: int, noise: bool = True):
-    perturbation = make_template(PLANET_MASS, 3.0, 10.0, "R") if planet else None
+def simulate(planet: bool, phase_rms: float, seed: int, noise: bool = True, preset: str = PRESET,
+             mass: float = PLANET_MASS):
+    perturbation = make_template(mass, 3.0, 10.0, "R") if planet else None
     gains = GainErrors(phase_rms, 0.05, coherence_s=180.0, amp_coherence_s=600.0, seed=seed) if noise else None
-    return simulate_observation(PRESET, perturbation=perturbation, r_p=PLANET_AU / DISTANCE if planet else None,
+    return simulate_observation(preset, perturbation=perturbation, r_p=PLANET_AU / DISTANCE if planet else None,
                                 phi_p=0.0 if planet else None, seed=seed, gains=gains, add_noise=noise)
 
 
 def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, keep_position: bool = True,
-             min_snr: float | None = None) -> dict:
+             min_snr: float | None = None, preset: str = PRESET, mass: float = PLANET_MASS) -> dict:
     name = f"{'planet' if planet else 'free'}_{phase_rms:g}deg_seed{seed}_{solve.replace('+', '')}" + \
         ("" if keep_position else "_nokeep") + ("" if min_snr is None else f"_snr{min_snr:g}")
     calibration = {"solve": solve, "keep_position": keep_position}
     if min_snr is not None:
         calibration["min_snr"] = min_snr
     folder = out / name
-    data = save_visibilities(simulate(planet, phase_rms, seed), out / f"{name}.h5")
+    data = save_visibilities(simulate(planet, phase_rms, seed, preset=preset, mass=mass), out / f"{name}.h5")
     config = merge_config({"data": {"path": str(data)}, "geometry": {"inc": 30.0, "PA": 60.0, "distance": DISTANCE},
                            "calibration": calibration,
                            "templates": {"tau0": [3.0]},
@@ -70,7 +71,7 @@ def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, k
     row = {"case": name, "planet": planet, "phase_rms": phase_rms, "seed": seed, "solve": solve,
            "detected": bool(v.detected), "template": v.template, "r_p_au": v.r_p * DISTANCE,
            "phi_p_deg": v.phi_p_deg, "delta_bic": v.delta_bic,
-           "keep_position": keep_position, "min_snr": min_snr, "preset": PRESET, "planet_mass": PLANET_MASS,
+           "keep_position": keep_position, "min_snr": min_snr, "preset": preset, "planet_mass": mass,
            "test1": v.test1_passed, "test2": v.test2_passed,
            "test3": v.test3_passed, "best_alternative": v.best_alternative,
            "alternative_delta_bic": v.alternative_delta_bic, "explanation": v.explanation,
@@ -82,7 +83,7 @@ def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, k
                "explanation": follow.explanation}}
     # the residual errors against the truth: the diagnostic on the corrected data and the noise-free,
     # error-free observation (a per-integration solve against frank's fit to them finds nothing by construction)
-    truth = simulate(planet, 0.0, seed, noise=False)
+    truth = simulate(planet, 0.0, seed, noise=False, preset=preset, mass=mass)
     raw = load_visibilities(data)
     corrected = raw if run.gains is None else run.gains.apply(raw)
     row.update(solved_phase_rms=None if run.gains is None else run.gains.phase_rms_deg,
@@ -125,12 +126,11 @@ def main(argv=None) -> None:
     parser.add_argument("--preset", default=PRESET, help="observation preset (fiducial, taurus, ...)")
     parser.add_argument("--planet-mass", type=float, default=PLANET_MASS, help="planet mass [M_th]")
     args = parser.parse_args(argv)
-    global PRESET, PLANET_MASS
-    PRESET, PLANET_MASS = args.preset, args.planet_mass
     logging.basicConfig(level=logging.WARNING)
     args.out.mkdir(parents=True, exist_ok=True)
     keep = not args.no_keep_position
-    rows = [run_case(args.out, planet, rms, seed, solve, keep, args.min_snr) for solve in args.solve
+    rows = [run_case(args.out, planet, rms, seed, solve, keep, args.min_snr, args.preset, args.planet_mass)
+            for solve in args.solve
             for planet in (False, True) for rms in args.phase_rms for seed in args.seeds]
     (args.out / "table.md").write_text(markdown(rows))
     (args.out / "rows.json").write_text(json.dumps(rows, indent=1))
