@@ -524,9 +524,7 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
                                            alternatives=alternatives)
         verdict = apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s)
         if calibration is not None and verdict.detected and phase_warns(calibration):
-            best = result.peak(amplitude=amplitude)
-            again = rediagnose_with_spiral(vis, axisymmetric, list(templates)[best.template_index], best.r_p,
-                                           best.phi_p, geometry)
+            again = rediagnose_with_spiral(vis, axisymmetric, list(templates)[t], best.r_p, best.phi_p, geometry)
             if phase_warns(again):
                 return explain(withhold(verdict), calibration, again, "spiral", withheld=True)
         if calibration is not None and calibration.warning and not verdict.detected:
