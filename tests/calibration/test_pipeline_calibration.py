@@ -52,6 +52,10 @@ def test_scan_solves_the_gains_and_says_so(tmp_path, capsys):
     out = tmp_path / "out"
     solution = GainSolution.load(out / "gains.h5")
     assert solution.mode == "phase" and solution.n_intervals == 7  # 7 one-minute integrations, 60-s intervals
+    # the second solve, against the disc plus the first scan's best spiral, from rows down to S/N 1
+    assert solution.min_snr == 1.0
+    candidate = solution.provenance["candidate"]
+    assert 0.2 <= candidate["r_p_arcsec"] <= 0.6 and "the scan's best spiral, " in solution.note()
     assert solution.phase_rms_deg == pytest.approx(15.0, rel=0.35)
     assert (out / "gains.png").exists()
     text = (out / "verdict.txt").read_text()
@@ -104,3 +108,28 @@ def test_a_bad_value_is_refused_when_the_file_is_read(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "calibration.solve = 'gains' must be one of 'none', 'phase', 'amplitude+phase'" in err
     assert np.all([not p.exists() for p in (tmp_path / "out",)])
+
+
+def test_the_candidate_spiral_is_the_scans_best_instance():
+    """The spiral put in the model of the second solve is the scan's best instance: removing it from the
+    residual lowers chi2 by the scan's (free-amplitude) Δχ² there, computed independently by the scan's
+    tables, to the scan's accuracy tolerance."""
+    import spiralbayes as sb
+    from spiralbayes.inference.scan.accuracy import TOLERANCE
+    from spiralbayes.pipeline.calibrate import candidate_spiral
+
+    template = make_template(3.0, 0.3, 10.0, "R", n_x=60, n_phi=180)
+    vis = sb.simulate_observation("taurus", perturbation=template, r_p=0.36, phi_p=0.5, seed=2)
+    disc = sb.fit_axisymmetric(vis, sb.DiscGeometry(np.radians(30.0), np.radians(60.0)), progress=False)
+    bank = [template, template.mirror()]
+    result = sb.scan(vis, disc, bank, r_p_min=0.2, r_p_max=0.5, n_r_p=4, n_phi_p=24, progress=False)
+    for amplitude in ("free", None):
+        dv, about = candidate_spiral(result, vis, disc, bank, amplitude)
+        peak = result.peak(amplitude=amplitude)
+        assert about["template"] == peak.template and about["r_p_arcsec"] == peak.r_p
+        s = vis.standardised()
+        residual = s.V - disc.visibilities(s.u, s.v)
+        exact = float(np.sum(s.weights * (np.abs(residual) ** 2 - np.abs(residual - dv) ** 2)))
+        assert peak.delta_chi2 > 100  # a clear planet: the check is not of noise
+        assert abs(exact - peak.delta_chi2) < TOLERANCE[0] + TOLERANCE[1] * abs(peak.delta_chi2) + 1e-3 * peak.delta_chi2
+    assert candidate_spiral(result, vis, disc, bank, 0.5)[1]["amplitude"] == 0.5

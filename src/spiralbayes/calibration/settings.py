@@ -43,6 +43,10 @@ class CalibrationSettings:
                                        "average over the observation (the disc's offset is the geometry's dRA, dDec; "
                                        "a spiral's centroid offset is not absorbed); shifts that vary between "
                                        "intervals stay in the gains")
+    candidate_min_snr: float = option(1.0, "after the scan, solve again from the original data against the "
+                                           "axisymmetric model plus the scan's best spiral (at its fitted "
+                                           "amplitude), using visibilities down to this model S/N, and scan the "
+                                           "data corrected so; 0: no second solve (spiralbayes scan)")
     amp_iterations: int = option(3, "amplitude iterations of each solve (1: the first-order estimate)", config=False)
 
     def __post_init__(self):
@@ -52,6 +56,9 @@ class CalibrationSettings:
             raise InputError(f"interval_s = {self.interval_s!r} must be a positive time [s], e.g. 60")
         if not (is_finite_number(self.min_snr) and self.min_snr > 0):
             raise InputError(f"min_snr = {self.min_snr!r} must be a positive signal-to-noise ratio, e.g. 5")
+        if not (is_finite_number(self.candidate_min_snr) and self.candidate_min_snr >= 0):
+            raise InputError(f"candidate_min_snr = {self.candidate_min_snr!r} must be a signal-to-noise ratio >= 0 "
+                             "(0: no second solve), e.g. 1")
         if not is_integer(self.n_iterations) or self.n_iterations < 1:
             raise InputError(f"n_iterations = {self.n_iterations!r} must be an integer >= 1")
         if self.refant is not None and (not is_integer(self.refant) or self.refant < 0):

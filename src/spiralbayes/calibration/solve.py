@@ -157,8 +157,13 @@ class GainSolution(ResultMixin):
         return f"{self.mode}, {interval}, {self.phase_rms_deg:.2g} deg rms{amp}"
 
     def note(self) -> str:
-        """The sentence a verdict or limits summary carries: ``antenna gains solved (...)``."""
-        return f"antenna gains solved ({self.describe()})"
+        """The sentence a verdict or limits summary carries: ``antenna gains solved (...)``, and the spiral
+        that was in the model solved against, if any."""
+        c = (self.provenance or {}).get("candidate")
+        spiral = "" if not c else (f"; against the disc plus the scan's best spiral, {c['template']} at r_p = "
+                                   f"{c['r_p_arcsec']:.3g} arcsec, phi_p = {c['phi_p_deg']:.0f} deg, from "
+                                   f"visibilities of model S/N >= {self.min_snr:g}")
+        return f"antenna gains solved ({self.describe()}{spiral})"
 
     def summary(self) -> str:
         solved = np.isfinite(self.gains)

@@ -15,6 +15,10 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from dataclasses import replace
+
+import numpy as np
+
 from .._provenance import data_hash
 from ..axisymmetric import FrankSettings
 from ..calibration import CalibrationSettings, GainSolution, selfcal
@@ -22,7 +26,8 @@ from ..exceptions import InputError, ResumeMismatchError
 from ..settings import from_config
 from .outputs import save_figure
 
-__all__ = ["GAINS_FILE", "calibration_settings", "check_calibration_input", "reusable_gains", "run_calibration"]
+__all__ = ["GAINS_FILE", "calibration_settings", "candidate_spiral", "check_calibration_input", "reusable_gains",
+           "run_calibration", "run_candidate_calibration"]
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +52,7 @@ def check_calibration_input(config: dict, vis) -> None:
 def _solution_key(vis, s: CalibrationSettings) -> dict:
     return {"data": data_hash(vis.u, vis.v, vis.V, vis.weights), "settings": {
         k: getattr(s, k) for k in ("solve", "interval_s", "min_snr", "n_iterations", "refant", "keep_position",
-                                   "amp_iterations")}}
+                                   "candidate_min_snr", "amp_iterations")}}
 
 
 def run_calibration(config: dict, vis, axisymmetric, out_dir, *, progress: bool = True):
@@ -62,9 +67,64 @@ def run_calibration(config: dict, vis, axisymmetric, out_dir, *, progress: bool 
     check_calibration_input(config, vis)
     frank = from_config(FrankSettings, config["frank"])
     result = selfcal(vis, axisymmetric.geometry, settings=s, model=axisymmetric, frank=frank, progress=progress)
+    return _save(config, vis, result, out_dir)
+
+
+def candidate_spiral(scan_result, vis, axisymmetric, templates, amplitude=None) -> tuple[np.ndarray, dict]:
+    """The visibilities [Jy] of a scan's best spiral and what it is.
+
+    The best instance of ``scan_result`` for ``amplitude`` (None: the paper's fixed amplitude 1;
+    ``"free"``: the fitted ``max(cross / power, 0)``), transformed exactly
+    (:func:`spiralbayes.model.perturbation_visibilities`) at the baselines of ``vis`` with
+    ``axisymmetric``'s profile and geometry. Returns ``(ΔV, description)``, the description holding the
+    template, ``r_p_arcsec``, ``phi_p_deg``, ``amplitude`` and the peak's ``delta_bic``.
+    """
+    from ..model import perturbation_visibilities
+
+    peak = scan_result.peak(amplitude=amplitude)
+    t, i, j = peak.template_index, peak.i_rp, peak.i_phi
+    if amplitude == "free":
+        power = float(scan_result.power[t, i, j])
+        a = max(float(scan_result.cross[t, i, j]) / power, 0.0) if power > 0 else 0.0
+    else:
+        a = 1.0 if amplitude is None else float(amplitude)
+    vis = vis.standardised()
+    dv = perturbation_visibilities(vis.u, vis.v, axisymmetric.geometry, axisymmetric.brightness, list(templates)[t],
+                                   peak.r_p, peak.phi_p)
+    about = {"template": peak.template, "r_p_arcsec": peak.r_p, "phi_p_deg": float(np.degrees(peak.phi_p)),
+             "amplitude": a, "delta_bic": peak.delta_bic}
+    return a * dv, about
+
+
+def run_candidate_calibration(config: dict, vis, axisymmetric, scan_result, templates, out_dir, *,
+                              amplitude=None, progress: bool = True):
+    """Solve the gains of the original data ``vis`` again, against ``axisymmetric`` plus the best spiral of
+    ``scan_result`` (a scan of the data corrected by :func:`run_calibration`), down to
+    ``[calibration] candidate_min_snr``, and save the solution in ``out_dir``.
+
+    With the candidate in the model the solve does not take it for a gain error, so it can use the
+    faint visibilities (long baselines), where a spiral is bright against the disc and where, at
+    ``min_snr``, antennas are left unsolved (docs/calibration.md). Returns ``(corrected visibilities,
+    frank fit to them, GainSolution)``.
+    """
+    s = calibration_settings(config)
+    spiral, about = candidate_spiral(scan_result, vis, axisymmetric, templates, amplitude)
+    log.info("second gain solve (model S/N >= %g) with the scan's best spiral in the model: %s at r_p = %.3g arcsec, "
+             "phi_p = %.0f deg, amplitude %.3g", s.candidate_min_snr, about["template"], about["r_p_arcsec"],
+             about["phi_p_deg"], about["amplitude"])
+    frank = from_config(FrankSettings, config["frank"])
+    result = selfcal(vis, axisymmetric.geometry, settings=replace(s, min_snr=s.candidate_min_snr),
+                     model=axisymmetric, spiral=spiral, frank=frank, progress=progress)
+    return _save(config, vis, result, out_dir, candidate=about)
+
+
+def _save(config: dict, vis, result, out_dir, candidate: dict | None = None):
+    s = calibration_settings(config)
     model = result.model.nonnegative() if config["frank"]["nonnegative"] else result.model
     solution = result.solution
     solution.provenance = {"solved_from": _solution_key(vis, s), "phase_rms_deg_by_round": result.phase_rms_deg}
+    if candidate is not None:
+        solution.provenance["candidate"] = candidate
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     solution.save(out_dir / GAINS_FILE)

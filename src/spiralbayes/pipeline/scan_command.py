@@ -18,7 +18,7 @@ from ..inference.detection.verdict import DELTA_BIC_THRESHOLD
 from ..inference.scan.run import ScanResult, scan
 from ..inference.scan.settings import ScanSettings
 from ..settings import from_config
-from .calibrate import calibration_settings, check_calibration_input, run_calibration
+from .calibrate import calibration_settings, check_calibration_input, run_calibration, run_candidate_calibration
 from .inputs import _geometry, load_axisymmetric, load_data, load_templates
 from .outputs import _write_text, check_output_folder, write_scan_outputs
 
@@ -62,7 +62,9 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
     (:func:`~spiralbayes.inference.detection.follow_up.rescan_at_fitted_geometry`), with their outputs and
     ``axisymmetric.h5`` in ``OUTPUT/refit_geometry/``. With ``[calibration] solve`` set, antenna gains are
     solved after the frank fit (:mod:`.calibrate`; ``OUTPUT/gains.h5``) and everything after runs on the
-    corrected data with frank's fit to them; the verdict says so. An ``[output] dir`` holding a scan of other
+    corrected data with frank's fit to them; the verdict says so. Unless ``[calibration] candidate_min_snr``
+    is 0, the corrected data are scanned once first and the gains solved again with that scan's best
+    spiral in the model (:func:`~spiralbayes.pipeline.calibrate.run_candidate_calibration`). An ``[output] dir`` holding a scan of other
     data is refused before frank and the scan run, unless ``overwrite``
     (:func:`~spiralbayes.pipeline.outputs.check_output_folder`).
     """
@@ -78,12 +80,19 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
     check_calibration_input(config, vis)
     check_output_folder(out_dir, data_hash(vis.u, vis.v, vis.V, vis.weights), overwrite)
     axisym = load_axisymmetric(config, vis, progress=progress)
+    raw = vis
     vis, axisym, gains = run_calibration(config, vis, axisym, out_dir, progress=progress)
     templates = load_templates(config["templates"])
     out_dir.mkdir(parents=True, exist_ok=True)
     amplitude = settings.free_amplitude
-    result = scan(vis, axisym, templates, axisym.geometry, settings=settings, distance=config["geometry"]["distance"],
-                  checkpoint=checkpoint, scheduler=scheduler, progress=progress, force_resume=force_resume)
+    scan_kwargs = {"settings": settings, "distance": config["geometry"]["distance"], "scheduler": scheduler,
+                   "progress": progress, "force_resume": force_resume}
+    if gains is not None and calibration_settings(config).candidate_min_snr > 0:
+        first = scan(vis, axisym, templates, axisym.geometry, **scan_kwargs,
+                     checkpoint=None if checkpoint is None else out_dir / "selfcal_scan_checkpoint.h5")
+        vis, axisym, gains = run_candidate_calibration(config, raw, axisym, first, templates, out_dir,
+                                                       amplitude=amplitude, progress=progress)
+    result = scan(vis, axisym, templates, axisym.geometry, checkpoint=checkpoint, **scan_kwargs)
     a = config["alternatives"]
     alt_kwargs = {"settings": from_config(AlternativesSettings, a, nthreads=settings.nthreads), "progress": progress}
     alts = fit_alternatives(vis, axisym, axisym.geometry, **alt_kwargs) if a["fit"] else None

@@ -70,6 +70,9 @@ def nested_sentence(verdict) -> str:
                  "axisymmetric disc).")
         if f["alternative"] == "geometry":
             text += " Refit the geometry and scan again (sb.rescan_at_fitted_geometry)."
+            if getattr(verdict, "gains_solved", None):
+                text += (" After a gain solve an offset of the disc is also what the calibration errors' mean phase "
+                         "gradient leaves in the data: [calibration] keep_position leaves it to the sky model.")
     if verdict.delta_bic_vs_alternative is not None:
         peak = " + compact peak" if verdict.test3_spiral_model != "spiral" else ""
         text += (f" As single models the best spiral{peak} scores Delta BIC = "
