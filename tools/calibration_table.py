@@ -17,6 +17,7 @@ written to ``OUT/table.md``.
     python tools/calibration_table.py --out /tmp/caltable                 # 0, 10, 30 deg, seed 1, solve phase
     python tools/calibration_table.py --phase-rms 0 3 10 30 60 --seeds 1 2 3 --solve none phase
     python tools/calibration_table.py --preset taurus --planet-mass 3 --phase-rms 0 10 30 --solve none phase
+    python tools/calibration_table.py --phase-rms 30 --candidate-min-snr 0   # the first solve only
 """
 
 from __future__ import annotations
@@ -52,10 +53,14 @@ def simulate(planet: bool, phase_rms: float, seed: int, noise: bool = True, pres
 
 
 def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, keep_position: bool = True,
-             min_snr: float | None = None, preset: str = PRESET, mass: float = PLANET_MASS) -> dict:
+             min_snr: float | None = None, preset: str = PRESET, mass: float = PLANET_MASS,
+             candidate_min_snr: float | None = None) -> dict:
     name = f"{'planet' if planet else 'free'}_{phase_rms:g}deg_seed{seed}_{solve.replace('+', '')}" + \
-        ("" if keep_position else "_nokeep") + ("" if min_snr is None else f"_snr{min_snr:g}")
+        ("" if keep_position else "_nokeep") + ("" if min_snr is None else f"_snr{min_snr:g}") + \
+        ("" if candidate_min_snr is None else f"_cand{candidate_min_snr:g}")
     calibration = {"solve": solve, "keep_position": keep_position}
+    if candidate_min_snr is not None:
+        calibration["candidate_min_snr"] = candidate_min_snr
     if min_snr is not None:
         calibration["min_snr"] = min_snr
     folder = out / name
@@ -72,6 +77,7 @@ def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, k
            "detected": bool(v.detected), "template": v.template, "r_p_au": v.r_p * DISTANCE,
            "phi_p_deg": v.phi_p_deg, "delta_bic": v.delta_bic,
            "keep_position": keep_position, "min_snr": min_snr, "preset": preset, "planet_mass": mass,
+           "candidate_min_snr": candidate_min_snr,
            "test1": v.test1_passed, "test2": v.test2_passed,
            "test3": v.test3_passed, "best_alternative": v.best_alternative,
            "alternative_delta_bic": v.alternative_delta_bic, "explanation": v.explanation,
@@ -106,7 +112,8 @@ def markdown(rows: list) -> str:
                                        f"{f['best_alternative']} ({f['alternative_delta_bic']:.0f}); "
                                        f"explanation {f.get('explanation')}")
         solve = r["solve"] + ("" if r.get("keep_position", True) else ", keep_position false") + \
-            ("" if r.get("min_snr") is None else f", min_snr {r['min_snr']:g}")
+            ("" if r.get("min_snr") is None else f", min_snr {r['min_snr']:g}") + \
+            ("" if r.get("candidate_min_snr") is None else f", candidate_min_snr {r['candidate_min_snr']:g}")
         lines.append(f"| {'planet' if r['planet'] else 'no planet'} | {r['phase_rms']:g} | {r['seed']} | "
                      f"{solve} | {'yes' if r['detected'] else 'no'} | {r['template']} ({r['r_p_au']:.0f}, "
                      f"{r['phi_p_deg']:.0f}) | {r['delta_bic']:.0f} | {tests} | {r['best_alternative']} "
@@ -123,15 +130,21 @@ def main(argv=None) -> None:
     parser.add_argument("--solve", nargs="+", default=["phase"], choices=["none", "phase", "amplitude+phase"])
     parser.add_argument("--no-keep-position", action="store_true", help="[calibration] keep_position = false")
     parser.add_argument("--min-snr", type=float, default=None, help="[calibration] min_snr (default: the package's)")
+    parser.add_argument("--candidate-min-snr", type=float, default=None,
+                        help="[calibration] candidate_min_snr (the second solve; 0: none; default: the package's)")
+    parser.add_argument("--data", choices=["both", "no-planet", "planet"], default="both",
+                        help="which simulations to run (default both)")
     parser.add_argument("--preset", default=PRESET, help="observation preset (fiducial, taurus, ...)")
     parser.add_argument("--planet-mass", type=float, default=PLANET_MASS, help="planet mass [M_th]")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
     args.out.mkdir(parents=True, exist_ok=True)
     keep = not args.no_keep_position
-    rows = [run_case(args.out, planet, rms, seed, solve, keep, args.min_snr, args.preset, args.planet_mass)
+    rows = [run_case(args.out, planet, rms, seed, solve, keep, args.min_snr, args.preset, args.planet_mass,
+                     args.candidate_min_snr)
             for solve in args.solve
-            for planet in (False, True) for rms in args.phase_rms for seed in args.seeds]
+            for planet in {"both": (False, True), "no-planet": (False,), "planet": (True,)}[args.data]
+            for rms in args.phase_rms for seed in args.seeds]
     (args.out / "table.md").write_text(markdown(rows))
     (args.out / "rows.json").write_text(json.dumps(rows, indent=1))
     print(markdown(rows))

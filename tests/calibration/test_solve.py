@@ -173,6 +173,9 @@ def test_bad_input(fiducial):
         solve_gains(vis, model, interval_s=0.0)
     with pytest.raises(TypeError, match="unknown keyword"):
         solve_gains(vis, model, intervals=60.0)
+    with pytest.raises(InputError, match="candidate_min_snr = -1.0 must be a signal-to-noise ratio >= 0"):
+        CalibrationSettings(candidate_min_snr=-1.0)
+    assert CalibrationSettings(candidate_min_snr=0).candidate_min_snr == 0  # 0: no second solve
 
 
 def test_plot_gain_phases(fiducial):

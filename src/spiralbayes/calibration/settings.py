@@ -43,10 +43,10 @@ class CalibrationSettings:
                                        "average over the observation (the disc's offset is the geometry's dRA, dDec; "
                                        "a spiral's centroid offset is not absorbed); shifts that vary between "
                                        "intervals stay in the gains")
-    candidate_min_snr: float = option(1.0, "after the scan, solve again from the original data against the "
-                                           "axisymmetric model plus the scan's best spiral (at its fitted "
-                                           "amplitude), using visibilities down to this model S/N, and scan the "
-                                           "data corrected so; 0: no second solve (spiralbayes scan)")
+    candidate_min_snr: float = option(1.0, "after a scan of the corrected data, solve again from the original data "
+                                           "against the axisymmetric model plus that scan's best spiral (at its "
+                                           "fitted amplitude), using visibilities down to this model S/N, and scan "
+                                           "the data corrected so; 0: one solve only (spiralbayes scan)")
     amp_iterations: int = option(3, "amplitude iterations of each solve (1: the first-order estimate)", config=False)
 
     def __post_init__(self):

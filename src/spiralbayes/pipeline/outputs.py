@@ -69,11 +69,14 @@ def check_output_folder(out_dir, data_hash: str | None, overwrite: bool = False,
         return
     load = ScanResult.load if filename == "scan.h5" else AxisymmetricModel.load
     try:
-        old = load(previous).provenance.get("data_hash")
+        provenance = load(previous).provenance
     except (SpiralbayesError, OSError) as exc:  # unreadable: nothing a rerun could lose; the writers check its kind
         log.debug("not comparing with %s: %s", previous, exc)
         return
-    if old and old.rstrip("*") != data_hash.rstrip("*"):
+    old = provenance.get("data_hash")
+    # a scan of gain-corrected data records the data it was corrected from as well
+    same = {h.rstrip("*") for h in (old, provenance.get("uncorrected_data_hash")) if h}
+    if old and data_hash.rstrip("*") not in same:
         raise InputError(f"{previous.parent} holds the results of a run on other data ({filename}: data hash {old}; "
                          f"this run's data: {data_hash}): refusing to overwrite them; give another {option}, "
                          "or --overwrite (overwrite=True) to replace them")

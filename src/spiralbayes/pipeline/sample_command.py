@@ -33,7 +33,8 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     made from these data, geometry and frank settings (:mod:`.reuse`); otherwise the run is refused
     before any sampling, naming what differs. With ``[calibration] solve`` set the posterior is of the
     corrected data: ``OUTPUT/gains.h5`` is applied when it was solved from these data with these
-    settings, else the gains are solved here (:mod:`.calibrate`). Writes, in ``[output] dir``:
+    settings, else the gains are solved here (:mod:`.calibrate`; the first solve only: the second, against
+    a candidate spiral, needs the scan that ``spiralbayes scan`` makes). Writes, in ``[output] dir``:
     ``chains/<run_name>.h5`` (the chains), ``<run_name>_posterior.h5`` (the result),
     ``<run_name>_summary.json`` (with the verdict: P(planet | data), the Bayes factor, and
     ``gains_solved``: the gain solution's note when the data were corrected),

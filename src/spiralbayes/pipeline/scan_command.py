@@ -18,7 +18,8 @@ from ..inference.detection.verdict import DELTA_BIC_THRESHOLD
 from ..inference.scan.run import ScanResult, scan
 from ..inference.scan.settings import ScanSettings
 from ..settings import from_config
-from .calibrate import calibration_settings, check_calibration_input, run_calibration, run_candidate_calibration
+from .calibrate import (calibration_settings, check_calibration_input, run_calibration,
+                        run_candidate_calibration)
 from .inputs import _geometry, load_axisymmetric, load_data, load_templates
 from .outputs import _write_text, check_output_folder, write_scan_outputs
 
@@ -64,8 +65,8 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
     solved after the frank fit (:mod:`.calibrate`; ``OUTPUT/gains.h5``) and everything after runs on the
     corrected data with frank's fit to them; the verdict says so. Unless ``[calibration] candidate_min_snr``
     is 0, the corrected data are scanned once first and the gains solved again with that scan's best
-    spiral in the model (:func:`~spiralbayes.pipeline.calibrate.run_candidate_calibration`). An ``[output] dir`` holding a scan of other
-    data is refused before frank and the scan run, unless ``overwrite``
+    spiral in the model (:func:`~spiralbayes.pipeline.calibrate.run_candidate_calibration`). An
+    ``[output] dir`` holding a scan of other data is refused before frank and the scan run, unless ``overwrite``
     (:func:`~spiralbayes.pipeline.outputs.check_output_folder`).
     """
     out_dir = Path(config["output"]["dir"])
@@ -101,6 +102,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
                                       **detect_kwargs)
     if gains is not None:
         verdict.gains_solved = gains.note()
+        result.provenance["uncorrected_data_hash"] = data_hash(raw.u, raw.v, raw.V, raw.weights)
     plots = config["output"]["plots"]
     files = write_scan_outputs(result, verdict, out_dir, plots, amplitude, alternatives=alts, vis=vis,
                                axisymmetric=axisym, templates=templates)
