@@ -283,6 +283,18 @@ def calibration_source(case) -> str:
     return "library_gas"
 
 
+FIT_EXCLUDED = {
+    "fargo3dlib:h0.07_mu1_st0.1_orbits200": (
+        "a dust ring (11.9x the initial surface density at 1.3 r_p) and a cavity inside the orbit carry 96 % of "
+        "the map's power after the fiducial beam, none of it in the gas image, while its arms lie on the gas "
+        "run's; fitted with the spiral references, the variants' arm and blob amplitudes take up the ring, and "
+        "leave-one-source-out then wrongly excludes 5 of 7 held-out sources (up to 100 %); without it in the "
+        "fit every source is at most 3.7 % (docs/limits.md 4d). It is still planted as a held-out reference."),
+}
+"""Reference cases planted in the checks (detection, leave-one-source-out) but not fitted by the
+variants, and why: the variants model a planet's arms and near-planet peak, not a ring."""
+
+
 def reference_rows(cases=None) -> list:
     """(case, tau0, gram) for every acceptance case × each τ0 it was reduced for."""
     return [(c, t, case_gram(c, t)) for c in (cases if cases is not None else F.acceptance_cases()) for t in c.taus]
@@ -292,8 +304,10 @@ def fit_variants(rows) -> dict:
     """The refitted variants from ``rows``: ``hydro`` from every non-wakeflow row (scale slope
     fitted, with the broad wake), ``wakeflow`` from the wakeflow rows (one scale; T and B only:
     wakeflow's wakes are the narrow ones, and a variant without W keeps the scan's shared peak
-    recoverable, :mod:`spiralbayes.inference.scan.building_blocks`); a source without rows gives none."""
+    recoverable, :mod:`spiralbayes.inference.scan.building_blocks`); a source without rows gives none.
+    Rows of :data:`FIT_EXCLUDED` cases are left out."""
     out = {}
+    rows = [r for r in rows if r[0].label not in FIT_EXCLUDED]
     hydro = [r for r in rows if r[0].source != "wakeflow"]
     wake = [r for r in rows if r[0].source == "wakeflow"]
     if hydro:
