@@ -79,15 +79,12 @@ def candidate_spiral(scan_result, vis, axisymmetric, templates, amplitude=None) 
     ``axisymmetric``'s profile and geometry. Returns ``(ΔV, description)``, the description holding the
     template, ``r_p_arcsec``, ``phi_p_deg``, ``amplitude`` and the peak's ``delta_bic``.
     """
+    from ..inference.scan.statistics import fitted_amplitude
     from ..model import perturbation_visibilities
 
     peak = scan_result.peak(amplitude=amplitude)
     t, i, j = peak.template_index, peak.i_rp, peak.i_phi
-    if amplitude == "free":
-        power = float(scan_result.power[t, i, j])
-        a = max(float(scan_result.cross[t, i, j]) / power, 0.0) if power > 0 else 0.0
-    else:
-        a = 1.0 if amplitude is None else float(amplitude)
+    a = float(fitted_amplitude(scan_result.cross[t, i, j], scan_result.power[t, i, j], amplitude))
     vis = vis.standardised()
     dv = perturbation_visibilities(vis.u, vis.v, axisymmetric.geometry, axisymmetric.brightness, list(templates)[t],
                                    peak.r_p, peak.phi_p)

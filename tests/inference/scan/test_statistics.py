@@ -8,6 +8,7 @@ from spiralbayes.inference.scan.statistics import (
     chi2,
     delta_bic,
     delta_chi2_from_terms,
+    fitted_amplitude,
     gaussian_log_likelihood,
 )
 
@@ -51,5 +52,10 @@ def test_decomposition_equals_direct_chi2_difference():
     grid = [chi2(VA, VO, w) - chi2(VA + a * dV, VO, w) for a in np.linspace(0, 2, 401)]
     assert best >= max(grid) - 1e-9
     assert best == pytest.approx(max(grid), rel=1e-4)
+    amplitudes = np.linspace(0, 2, 401)
+    a_best = fitted_amplitude(cross, power, "free")
+    assert abs(a_best - amplitudes[int(np.argmax(grid))]) <= amplitudes[1]  # the brute-force argmax
+    assert fitted_amplitude(cross, power) == 1.0 and fitted_amplitude(cross, power, 0.5) == 0.5
+    assert fitted_amplitude(-cross, power, "free") == 0.0  # anti-correlated: no spiral
     with pytest.raises(ValueError, match="amplitude"):
         delta_chi2_from_terms(cross, power, "best")

@@ -20,6 +20,7 @@ __all__ = [
     "chi2",
     "delta_bic",
     "delta_chi2_from_terms",
+    "fitted_amplitude",
     "gaussian_log_likelihood",
 ]
 
@@ -57,21 +58,31 @@ def delta_bic(delta_chi2, n_data: int, n_params: int = N_SPIRAL_PARAMETERS):
     return np.asarray(delta_chi2) - bic_threshold(n_data, n_params)
 
 
+def fitted_amplitude(cross, power, amplitude=None):
+    """The spiral amplitude ``A`` a Δχ² uses: 1 (None, the paper's), the number given, or with
+    ``"free"`` the best non-negative ``max(cross / power, 0)`` (0 where ``power`` is 0)."""
+    if amplitude is None:
+        return np.ones(np.shape(cross)) if np.ndim(cross) else 1.0
+    if isinstance(amplitude, str):
+        if amplitude != "free":
+            raise InputError(f"amplitude must be a number or 'free', got {amplitude!r}")
+        cross = np.asarray(cross, dtype=float)
+        power = np.asarray(power, dtype=float)
+        return np.where(power > 0, np.maximum(cross, 0) / np.where(power > 0, power, 1), 0.0)
+    return amplitude
+
+
 def delta_chi2_from_terms(cross, power, amplitude=None):
     """Δχ² of adding ``A ΔV`` to a model, from ``cross = Re sum w R* ΔV`` and ``power = sum w |ΔV|^2``.
 
     ``R = V_O - V_A`` is the residual of the model without the perturbation. With a fixed
     amplitude ``A`` (default 1, the paper's choice) Δχ² = 2 A cross - A² power. With
     ``amplitude="free"`` the best non-negative amplitude ``A = max(cross / power, 0)`` is used,
-    giving ``cross^2 / power`` where ``cross > 0`` and 0 elsewhere.
+    giving ``cross^2 / power`` where ``cross > 0`` and 0 elsewhere (:func:`fitted_amplitude`).
     """
     cross = np.asarray(cross, dtype=float)
     power = np.asarray(power, dtype=float)
     if amplitude is None:
         return 2 * cross - power
-    if isinstance(amplitude, str):
-        if amplitude != "free":
-            raise InputError(f"amplitude must be a number or 'free', got {amplitude!r}")
-        best = np.where(power > 0, np.maximum(cross, 0) / np.where(power > 0, power, 1), 0.0)
-        return 2 * best * cross - best ** 2 * power
-    return 2 * amplitude * cross - amplitude ** 2 * power
+    a = fitted_amplitude(cross, power, amplitude)
+    return 2 * a * cross - a ** 2 * power
