@@ -42,6 +42,7 @@ from .scan import (  # not ``scan``: that name is the subpackage
     delta_chi2_from_terms,
     direct_delta_chi2,
     exact_terms,
+    fitted_amplitude,
     gaussian_log_likelihood,
     grid_radii,
     level_radii,

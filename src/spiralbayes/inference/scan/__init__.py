@@ -16,6 +16,7 @@ from .statistics import (
     chi2,
     delta_bic,
     delta_chi2_from_terms,
+    fitted_amplitude,
     gaussian_log_likelihood,
 )
 from .uv_levels import UVLevel, build_level, level_radii, power_all_phi, theta_count, uv_weight_coefficients
@@ -58,6 +59,7 @@ __all__ = [
     "delta_chi2_from_terms",
     "direct_delta_chi2",
     "exact_terms",
+    "fitted_amplitude",
     "gaussian_log_likelihood",
     "level_radii",
     "perturbation_spectrum",
