@@ -55,11 +55,13 @@ def _solution_key(vis, s: CalibrationSettings) -> dict:
                                    "candidate_min_snr", "amp_iterations")}}
 
 
-def run_calibration(config: dict, vis, axisymmetric, out_dir, *, progress: bool = True):
-    """Self-calibrate ``vis`` starting from ``axisymmetric`` and save the solution in ``out_dir``.
+def run_calibration(config: dict, vis, axisymmetric, out_dir, *, progress: bool = True, save: bool = True):
+    """Self-calibrate ``vis`` starting from ``axisymmetric`` and (with ``save``) save the solution in ``out_dir``.
 
     Returns ``(corrected visibilities, frank fit to them, GainSolution)``; with ``solve = "none"``
-    ``(vis, axisymmetric, None)``.
+    ``(vis, axisymmetric, None)``. ``save=False`` when a second solve
+    (:func:`run_candidate_calibration`) will replace it: an interrupted scan then leaves no first
+    solution that ``limits`` or ``sample`` would take for the final one.
     """
     s = calibration_settings(config)
     if not s.enabled:
@@ -67,7 +69,7 @@ def run_calibration(config: dict, vis, axisymmetric, out_dir, *, progress: bool 
     check_calibration_input(config, vis)
     frank = from_config(FrankSettings, config["frank"])
     result = selfcal(vis, axisymmetric.geometry, settings=s, model=axisymmetric, frank=frank, progress=progress)
-    return _save(config, vis, result, out_dir)
+    return _save(config, vis, result, out_dir, write=save)
 
 
 def candidate_spiral(scan_result, vis, axisymmetric, templates, amplitude=None) -> tuple[np.ndarray, dict]:
@@ -115,13 +117,16 @@ def run_candidate_calibration(config: dict, vis, axisymmetric, scan_result, temp
     return _save(config, vis, result, out_dir, candidate=about)
 
 
-def _save(config: dict, vis, result, out_dir, candidate: dict | None = None):
+def _save(config: dict, vis, result, out_dir, candidate: dict | None = None, write: bool = True):
     s = calibration_settings(config)
     model = result.model.nonnegative() if config["frank"]["nonnegative"] else result.model
     solution = result.solution
     solution.provenance = {"solved_from": _solution_key(vis, s), "phase_rms_deg_by_round": result.phase_rms_deg}
     if candidate is not None:
         solution.provenance["candidate"] = candidate
+    log.info("%s", result.summary())
+    if not write:
+        return result.corrected, model, solution
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     solution.save(out_dir / GAINS_FILE)
@@ -129,7 +134,6 @@ def _save(config: dict, vis, result, out_dir, candidate: dict | None = None):
         from ..plotting.calibration import plot_gain_phases
 
         save_figure(plot_gain_phases(solution), out_dir / "gains.png")
-    log.info("%s", result.summary())
     return result.corrected, model, solution
 
 

@@ -82,13 +82,14 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
     check_output_folder(out_dir, data_hash(vis.u, vis.v, vis.V, vis.weights), overwrite)
     axisym = load_axisymmetric(config, vis, progress=progress)
     raw = vis
-    vis, axisym, gains = run_calibration(config, vis, axisym, out_dir, progress=progress)
+    second_solve = calibration_settings(config).enabled and calibration_settings(config).candidate_min_snr > 0
+    vis, axisym, gains = run_calibration(config, vis, axisym, out_dir, progress=progress, save=not second_solve)
     templates = load_templates(config["templates"])
     out_dir.mkdir(parents=True, exist_ok=True)
     amplitude = settings.free_amplitude
     scan_kwargs = {"settings": settings, "distance": config["geometry"]["distance"], "scheduler": scheduler,
                    "progress": progress, "force_resume": force_resume}
-    if gains is not None and calibration_settings(config).candidate_min_snr > 0:
+    if second_solve:
         first = scan(vis, axisym, templates, axisym.geometry, **scan_kwargs,
                      checkpoint=None if checkpoint is None else out_dir / "selfcal_scan_checkpoint.h5")
         vis, axisym, gains = run_candidate_calibration(config, raw, axisym, first, templates, out_dir,
