@@ -29,6 +29,7 @@ from .inference.limits.forecasting import Forecast, forecast
 from .inference.limits.recovery import CompletenessResult, completeness
 from .inference.limits.settings import CompletenessSettings, ForecastSettings, LimitSettings
 from .inference.posterior.conditional import SpiralLikelihood
+from .inference.posterior.mass import MassPrior
 from .inference.posterior.priors import Priors
 from .inference.posterior.results import PosteriorResult
 from .inference.posterior.sampler import sample_posterior
@@ -83,7 +84,8 @@ DETECTION = ["Verdict", "DetectionSettings", "detect", "AlternativesResult", "Al
 LIMITS = ["ExclusionLimits", "LimitSettings", "compute_limits", "CompletenessResult", "CompletenessSettings",
           "completeness", "Forecast", "ForecastSettings", "forecast"]
 """Limits: exclusion limits, completeness, forecasts."""
-POSTERIOR = ["PosteriorResult", "Priors", "PriorSettings", "SamplingSettings", "SpiralLikelihood", "sample_posterior"]
+POSTERIOR = ["PosteriorResult", "Priors", "MassPrior", "PriorSettings", "SamplingSettings", "SpiralLikelihood",
+             "sample_posterior"]
 """Posterior: the sampled posterior and its parts."""
 PLOTTING = ["plotting"]
 """Plotting: ``spiralbayes.plotting`` (Matplotlib, imported on first use)."""

@@ -64,7 +64,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))
     result = sample_posterior(vis, axisym, templates, scan_result=scan_result,
                               priors=prior_settings.priors(axisym), settings=sampling, chains_dir=out_dir / "chains",
-                              progress=progress)
+                              progress=progress, mass_prior=prior_settings.mass_prior())
     if result is None:  # only an MPI worker rank gets none, and a configuration cannot choose MPI (pool)
         raise RuntimeError("sample_posterior returned no result, as on an MPI worker rank")
     result.save(out_dir / f"{run_name}_posterior.h5")

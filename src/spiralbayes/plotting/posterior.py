@@ -14,7 +14,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..inference.posterior.conditional import PARAMETER_NAMES
-from ..inference.posterior.results import SAMPLE_NAMES
+from ..inference.posterior.results import MASS_SAMPLE_NAMES, SAMPLE_NAMES
 from ..units import wrap_angle
 
 __all__ = ["plot_corner", "plot_hypotheses", "plot_template_probabilities", "plot_trace"]
@@ -25,16 +25,18 @@ def _figure(**kwargs):
     return Figure(**kwargs)
 
 
-def _columns(distance: float | None):
-    """Per sample column: (label, unit, factor from the stored unit); 1 arcsec at 1 pc is 1 au."""
+def _columns(distance: float | None, mass: bool = False):
+    """Per sample column: (label, unit, factor from the stored unit); 1 arcsec at 1 pc is 1 au.
+    ``mass``: a continuous-mass run's ``M_p`` [M_th] and ``M_p_MJup`` columns follow."""
     r = ("r_p", "au", float(distance)) if distance else ("r_p", "arcsec", 1.0)
-    return [r, (r"\phi_p", "deg", 180.0 / np.pi), ("A", "", 1.0), ("i", "deg", 1.0), ("PA", "deg", 1.0),
+    cols = [r, (r"\phi_p", "deg", 180.0 / np.pi), ("A", "", 1.0), ("i", "deg", 1.0), ("PA", "deg", 1.0),
             (r"\Delta RA", "mas", 1e3), (r"\Delta Dec", "mas", 1e3)]
+    return cols + [("M_p", "M_th", 1.0), ("M_p", "M_Jup", 1.0)] if mass else cols
 
 
 def _display(samples: np.ndarray, distance: float | None) -> np.ndarray:
     out = samples.astype(float).copy()
-    for j, (_, _, factor) in enumerate(_columns(distance)):
+    for j, (_, _, factor) in enumerate(_columns(distance, samples.shape[1] == len(MASS_SAMPLE_NAMES))):
         out[:, j] *= factor
     return out
 
@@ -43,21 +45,24 @@ def _truth_vector(truths, samples: np.ndarray, distance: float | None):
     """Truths in display units (phi_p wrapped next to the samples); keys of :data:`SAMPLE_NAMES`."""
     if truths is None:
         return None
+    mass = samples.shape[1] == len(MASS_SAMPLE_NAMES)
+    names = MASS_SAMPLE_NAMES if mass else SAMPLE_NAMES
     if isinstance(truths, dict):
-        unknown = set(truths) - set(SAMPLE_NAMES)
+        unknown = set(truths) - set(names)
         if unknown:
-            raise InputError(f"unknown truth keys {sorted(unknown)}: use {SAMPLE_NAMES}")
-        vec = [truths.get(n) for n in SAMPLE_NAMES]
+            raise InputError(f"unknown truth keys {sorted(unknown)}: use {names}")
+        vec = [truths.get(n) for n in names]
     else:
         vec = list(truths)
         if len(vec) == len(PARAMETER_NAMES):  # (r_p, phi_p, inc, PA, dRA, dDec): no amplitude
             vec = vec[:2] + [None] + vec[2:]
-        if len(vec) != len(SAMPLE_NAMES):
+        vec += [None] * (len(names) - len(vec)) if len(vec) == len(SAMPLE_NAMES) else []
+        if len(vec) != len(names):
             raise InputError(f"truths needs {len(SAMPLE_NAMES)} values ({SAMPLE_NAMES}) or {len(PARAMETER_NAMES)}")
     if vec[1] is not None:
         mu = float(np.angle(np.mean(np.exp(1j * samples[:, 1]))))
         vec[1] = float(wrap_angle(vec[1], mu - np.pi))
-    factors = [c[2] for c in _columns(distance)]
+    factors = [c[2] for c in _columns(distance, mass)]
     return [None if v is None else float(v) * f for v, f in zip(vec, factors)]
 
 
@@ -79,8 +84,9 @@ def plot_corner(result, template=None, *, truths=None, distance: float | None = 
     result : PosteriorResult or TemplateRun
     truths : dict or sequence, optional
         Injected values in the package's units: ``{"r_p": arcsec, "phi_p": rad, "A": ..., "inc": deg,
-        "PA": deg, "dRA": arcsec, "dDec": arcsec}`` (None entries skipped), or 7 (or 6, without
-        ``A``) numbers in that order. Drawn as lines.
+        "PA": deg, "dRA": arcsec, "dDec": arcsec}`` (None entries skipped; a continuous-mass run also
+        takes ``"M_p"`` [M_th] and ``"M_p_MJup"``), or 7 (or 6, without ``A``) numbers in that order.
+        Drawn as lines. A continuous-mass run's corner has ``M_p`` in M_th and in M_Jup.
     distance : float, optional
         Distance [pc]: ``r_p`` is shown in au (arcsec otherwise; the title gives both).
     summary_panel : bool
@@ -92,10 +98,11 @@ def plot_corner(result, template=None, *, truths=None, distance: float | None = 
 
     run = result.run(template) if hasattr(result, "run") else result
     samples = run.samples
-    if samples.shape[1] != len(SAMPLE_NAMES):
+    mass = samples.shape[1] == len(MASS_SAMPLE_NAMES)
+    if samples.shape[1] != len(SAMPLE_NAMES) and not mass:
         raise InputError(f"samples have {samples.shape[1]} columns, expected {len(SAMPLE_NAMES)} ({SAMPLE_NAMES})")
     data = _display(samples, distance)
-    cols = _columns(distance)
+    cols = _columns(distance, mass)
     keep = [j for j in range(data.shape[1]) if np.ptp(data[:, j]) > 0]  # A = 1 fixed: no column
     labels = [f"${c[0]}$" + (f" [{c[1]}]" if c[1] else "") for c in cols]
     truth = _truth_vector(truths, samples, distance)

@@ -10,7 +10,9 @@
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files (an emcee backend) and the chain loop;
 * :mod:`.diagnostics` — convergence; :mod:`.stopping` — when a chain may stop (every parameter, or
   the geometry and the evidence when the planet is not preferred);
-* :mod:`.results` — :class:`PosteriorResult` and its runs.
+* :mod:`.results` — :class:`PosteriorResult` and its runs;
+* :mod:`~spiralbayes.inference.posterior.mass`, :mod:`.family_run` — the planet mass sampled within a template family
+  (``mass="continuous"``).
 """
 
 from .likelihood import (
@@ -26,17 +28,39 @@ from .perturbation import FastPerturbation
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 from .moves import WrappedDEMove, default_moves
 from .diagnostics import TAU_FACTOR, arviz_diagnostics, chain_inference_data, convergence_diagnostics
-from .results import SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun, wrap_phi
+from .results import MASS_SAMPLE_NAMES, SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun, wrap_phi
 from .chains import CHAIN_KIND, ChainBackend, ChainState, ChainStore
 from .chain_runner import WalkerPool, initial_walkers, make_pool, run_chain, streams, walker_pool
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .optimise import find_map, fit_null_geometry
 from .stopping import MAX_LN_B_ERROR, StoppingRule, template_evidence
-from .settings import CONVERGENCE_POLICIES, PriorSettings, SamplingSettings
+from .settings import CONVERGENCE_POLICIES, MASS_MODES, PriorSettings, SamplingSettings
+from .mass import (
+    MASS_PARAMETER_NAMES,
+    FamilyPerturbation,
+    MassLikelihood,
+    MassLogPosterior,
+    MassPrior,
+    family_of,
+    group_families,
+)
+from .family_run import family_metadata, family_name, sample_family
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
     "AxisymmetricTable",
+    "FamilyPerturbation",
+    "MASS_MODES",
+    "MASS_PARAMETER_NAMES",
+    "MASS_SAMPLE_NAMES",
+    "MassLikelihood",
+    "MassLogPosterior",
+    "MassPrior",
+    "family_metadata",
+    "family_name",
+    "family_of",
+    "group_families",
+    "sample_family",
     "CHAIN_KIND",
     "ChainBackend",
     "ChainState",

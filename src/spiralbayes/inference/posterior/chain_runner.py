@@ -29,7 +29,6 @@ from .chains import ChainBackend
 from .diagnostics import convergence_diagnostics
 from .conditional import PARAMETER_NAMES
 from .moves import default_moves
-from .priors import N_DIM
 from .settings import SamplingSettings
 
 __all__ = ["WalkerPool", "initial_walkers", "make_pool", "run_chain", "streams", "walker_pool"]
@@ -110,8 +109,8 @@ def initial_walkers(logpost, theta_map, cov, priors, n_walkers, rng, initial=Non
     """Walkers around the optimum (Laplace covariance / 4), redrawn where ln p = -inf."""
     if initial is not None:
         p0 = np.array(initial, dtype=float)
-        if p0.shape != (n_walkers, N_DIM):
-            raise InputError(f"initial walkers have shape {p0.shape}, expected ({n_walkers}, {N_DIM})")
+        if p0.shape != (n_walkers, len(theta_map)):
+            raise InputError(f"initial walkers have shape {p0.shape}, expected ({n_walkers}, {len(theta_map)})")
     else:
         p0 = rng.multivariate_normal(theta_map, cov * 0.25, size=n_walkers)
     p0[:, 1] = wrap_angle(p0[:, 1], 0.0)
@@ -203,10 +202,10 @@ def run_chain(backend: ChainBackend, saved, walkers: WalkerPool, theta_map, cov,
         state = backend.get_last_sample()
         log.info("%s: resuming %s at step %d", name, backend.store.path, saved.iteration)
     else:
-        backend.reset(n_walkers, N_DIM)
+        backend.reset(n_walkers, len(theta_map))
         p0 = initial_walkers(_as_scalar(logpost), theta_map, cov, priors, n_walkers, rng_init, initial)
         state = State(p0, random_state=np.random.RandomState(emcee_seed).get_state())
-    sampler = emcee.EnsembleSampler(n_walkers, N_DIM, walkers.log_prob, pool=walkers.pool, backend=backend,
+    sampler = emcee.EnsembleSampler(n_walkers, len(theta_map), walkers.log_prob, pool=walkers.pool, backend=backend,
                                     moves=moves if moves is not None else default_moves())
     target = n_steps if n_steps is not None else max_steps
     bar = _bar(progress, target, backend.iteration, name)

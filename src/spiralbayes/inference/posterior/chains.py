@@ -226,3 +226,11 @@ def _random_state(items) -> tuple:
 def _canonical(d: dict) -> dict:
     """``d`` as it reads back from JSON (tuples as lists, numpy scalars as numbers)."""
     return json.loads(json.dumps(d, default=json_default))
+
+
+def _saved_samples(saved: ChainState, store: ChainStore) -> np.ndarray:
+    """The samples of a finished group (every finished group is written with them)."""
+    if saved.samples is None:
+        raise DataFileError(f"chain file {store.path}: group {store.group} is finished but holds no samples "
+                            "(damaged?): delete it or choose another run_name to start afresh")
+    return saved.samples

@@ -108,12 +108,12 @@ def arviz_diagnostics(idata) -> dict:
     out: dict = {}
     try:
         table = az.summary(idata, kind="diagnostics")
-        for name in PARAMETER_NAMES:
+        for name in idata.posterior.data_vars:
             row = table.loc[name]
             out[name] = {k: float(row[k]) for k in ("r_hat", "ess_bulk", "ess_tail") if k in row}
         return out
     except Exception:  # pragma: no cover - arviz API drift (1.x)
         rhat, ess = az.rhat(idata), az.ess(idata)
-        for name in PARAMETER_NAMES:
+        for name in idata.posterior.data_vars:
             out[name] = {"r_hat": float(np.asarray(rhat[name])), "ess_bulk": float(np.asarray(ess[name]))}
         return out

@@ -375,12 +375,12 @@ class MarginalSpiralLikelihood:
         """``(ln L0, c1, c2)``: ``ln L(A) = ln L0 + A c1 - A^2 c2 / 2`` at ``theta`` (6 values)."""
         from scipy.linalg import cho_solve
 
-        r_p, phi_p, inc, PA, dRA, dDec = (float(t) for t in theta)
+        r_p, _, inc, PA, dRA, dDec = (float(t) for t in theta[:6])
         self.perturbation.check_r_p(r_p)
         if not 0.0 <= inc < 90.0:
             raise InputError(f"inc = {inc} deg is outside [0, 90)")
         g = self.base.raw_terms((inc, PA, dRA, dDec))
-        p = self.perturbation.disc_frame(r_p, phi_p, inc, PA).astype(np.complex128)
+        p = self.spiral_visibilities(theta).astype(np.complex128)
         w = self.base.weights
         wp = w * p.real
         j_p = g.cos_inc * self.base.projector.project(self.base.projector.spread(g.first, g.weights, wp))
@@ -390,6 +390,11 @@ class MarginalSpiralLikelihood:
         c1 = cross - float(j_p @ g.Kinv_b0)
         c2 = max(power - float(j_p @ Kinv_jp), 0.0)
         return g.log_like, c1, c2
+
+    def spiral_visibilities(self, theta) -> np.ndarray:
+        """``cos i P_hat`` at the data [Jy] for ``theta`` (de-phased; from the tables)."""
+        r_p, phi_p, inc, PA = (float(t) for t in theta[:4])
+        return self.perturbation.disc_frame(r_p, phi_p, inc, PA)
 
     def log_likelihood_at(self, theta, amplitude: float) -> float:
         """``ln L`` at a given amplitude ``A`` (``theta``: the six continuous parameters)."""

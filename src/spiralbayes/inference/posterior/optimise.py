@@ -142,3 +142,12 @@ def find_map(logpost, priors: Priors, scan, name: str, geometry: np.ndarray, geo
     out = optima[best].copy()
     out[1] = wrap_angle(out[1], 0.0)
     return out
+
+
+def _scales(priors: Priors, null):
+    """Optimiser/Hessian scales and flat-direction variances of ``(r_p, phi_p, inc, PA, dRA, dDec)``."""
+    g_sigma = np.sqrt(np.clip(np.diag(null.covariance), 1e-30, None))
+    span = priors.r_p[1] - priors.r_p[0]
+    scales = np.concatenate([[span / np.sqrt(12.0), np.pi / np.sqrt(3.0)], g_sigma * 10])
+    max_var = np.concatenate([[span ** 2 / 12.0, np.pi ** 2 / 3.0], priors.geometry_widths ** 2])
+    return g_sigma, scales, max_var

@@ -16,6 +16,10 @@ planet mass as a credible range over the templates (:meth:`PosteriorResult.mass_
 marginal ``P(M_p | data, planet)`` summed over morphology variants, H/r, τ0, β and hand, because
 no single template's label is the planet's mass).
 
+Why this module is long: the three results (a template's or family's run, the no-planet run and
+their combination) are written to and read from one file format together, and the combination's
+summaries (verdict, mass range, mass posterior, marginals) read every run.
+
 Samples (``SAMPLE_NAMES``): ``r_p`` [arcsec], ``phi_p`` [rad, wrapped around its circular
 mean], ``A`` (drawn exactly from its conditional posterior for each sample), ``inc``, ``PA``
 [deg], ``dRA``, ``dDec`` [arcsec].
@@ -34,7 +38,9 @@ from ...exceptions import InputError
 from ...results import ResultMixin
 from ...settings import DEFAULT_MSTAR_MSUN
 from ...units import M_JUP, M_SUN, wrap_angle
+from .conditional import PARAMETER_NAMES
 from .diagnostics import chain_inference_data
+from .likelihood import draw_amplitude
 from .priors import GEOMETRY_NAMES, Priors
 
 INCONCLUSIVE_LN_B = 1.0
@@ -42,11 +48,14 @@ INCONCLUSIVE_LN_B = 1.0
 MASS_LEVEL = 0.95
 """Credibility of the reported mass range."""
 
-__all__ = ["SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
+__all__ = ["MASS_SAMPLE_NAMES", "SAMPLE_NAMES", "NullRun", "PosteriorResult", "TemplateRun", "wrap_phi"]
 
 RESULT_KIND = "spiralbayes.PosteriorResult"
 SAMPLE_NAMES = ("r_p", "phi_p", "A", "inc", "PA", "dRA", "dDec")
 """Columns of ``TemplateRun.samples``."""
+MASS_SAMPLE_NAMES = (*SAMPLE_NAMES, "M_p", "M_p_MJup")
+"""Columns of a continuous-mass family run's samples (:mod:`~spiralbayes.inference.posterior.mass`):
+``M_p`` [M_th], ``M_p_MJup`` [M_Jup]."""
 
 
 def wrap_phi(samples: np.ndarray, column: int = 1) -> tuple[np.ndarray, float]:
@@ -83,11 +92,12 @@ class TemplateRun(ResultMixin):
         Template metadata (mass, tau0, beta, hand, ...).
     mode : {'mcmc', 'laplace'}
         Whether a chain was run or only the Laplace approximation.
-    samples : ndarray, shape (n, 7)
-        Post-burn-in, thinned samples of ``SAMPLE_NAMES``.
-    theta_map : ndarray, shape (6,)
-        The optimum before sampling, ``(r_p, phi_p, inc, PA, dRA, dDec)``.
-    covariance : ndarray, shape (6, 6)
+    samples : ndarray, shape (n, 7) or (n, 9)
+        Post-burn-in, thinned samples of ``sample_names`` (``SAMPLE_NAMES``, and for a
+        continuous-mass family run ``MASS_SAMPLE_NAMES``: ``M_p`` [M_th] and ``M_p_MJup`` added).
+    theta_map : ndarray, shape (6,) or (7,)
+        The optimum before sampling, ``(r_p, phi_p, inc, PA, dRA, dDec)`` (and ``ln M_p`` for a family).
+    covariance : ndarray, shape (6, 6) or (7, 7)
         Laplace covariance at ``theta_map``.
     ln_evidence, ln_evidence_err : float
         Adopted ln Z and its error (importance sampling when a chain exists, else Laplace); same
@@ -116,15 +126,26 @@ class TemplateRun(ResultMixin):
     KIND = "spiralbayes.TemplateRun"
     WHAT = "template posterior"
 
+    @property
+    def continuous_mass(self) -> bool:
+        """True for a family run with the planet mass sampled (:mod:`~spiralbayes.inference.posterior.mass`)."""
+        return self.samples.ndim == 2 and self.samples.shape[1] == len(MASS_SAMPLE_NAMES)
+
+    @property
+    def sample_names(self) -> tuple:
+        """Names of the columns of ``samples``."""
+        return MASS_SAMPLE_NAMES if self.continuous_mass else SAMPLE_NAMES
+
     def percentiles(self) -> dict:
-        """Median, 16/84 and 2.5/97.5 percentiles and std of each of ``SAMPLE_NAMES``."""
-        return _stats(self.samples, SAMPLE_NAMES)
+        """Median, 16/84 and 2.5/97.5 percentiles and std of each of :attr:`sample_names`."""
+        return _stats(self.samples, self.sample_names)
 
     def summary(self) -> str:
         """The template, how it was sampled, ln Z, and the percentiles of every parameter."""
+        mass = ", M_p [M_th], M_p_MJup [M_Jup]" if self.continuous_mass else ""
         return (f"Template {self.name} ({self.mode}, {len(self.samples)} samples): ln Z = {self.ln_evidence:.2f} "
                 f"+- {self.ln_evidence_err:.2f} (Laplace {self.ln_evidence_laplace:.2f}); r_p [arcsec], phi_p [rad], "
-                f"inc, PA [deg], dRA, dDec [arcsec]:\n" + _format_stats(self.percentiles()))
+                f"inc, PA [deg], dRA, dDec [arcsec]{mass}:\n" + _format_stats(self.percentiles()))
 
     def __repr__(self) -> str:
         return (f"TemplateRun({self.name!r}, {self.mode}, {len(self.samples)} samples, "
@@ -142,14 +163,29 @@ class TemplateRun(ResultMixin):
                                  thin=d.get("thin", 1) if thin is None else thin)
 
     def inference_data(self):
-        """arviz ``InferenceData`` (walkers as chains; caveat: emcee walkers are not independent)."""
+        """arviz ``InferenceData`` (walkers as chains; caveat: emcee walkers are not independent).
+
+        A continuous-mass run's posterior also holds ``M_p`` [M_th] and ``M_p_MJup`` [M_Jup] (one
+        stellar mass drawn from its prior per draw, seeded by the run's name)."""
+        import zlib
+
         import emcee
 
         backend = emcee.backends.HDFBackend(self.chain_path, name=self.group, read_only=True)
         d = self.diagnostics
         chain = backend.get_chain(discard=d.get("burn_in", 0), thin=d.get("thin", 1))
         lp = backend.get_log_prob(discard=d.get("burn_in", 0), thin=d.get("thin", 1))
-        return chain_inference_data(wrap_phi(chain)[0], lp)
+        if chain.shape[2] == len(PARAMETER_NAMES):
+            return chain_inference_data(wrap_phi(chain)[0], lp)
+        from .mass import MASS_PARAMETER_NAMES, MassPrior
+
+        mass = np.exp(chain[..., 6])
+        m = self.metadata
+        prior = MassPrior(tuple(m["mass_range_mth"]), m["mstar_msun"], m["mstar_sigma_msun"])
+        rng = np.random.default_rng(zlib.crc32(self.name.encode()))
+        mjup = prior.to_mjup(mass.ravel(), float(m["h_p"]), rng).reshape(mass.shape)
+        full = np.concatenate([wrap_phi(chain)[0], mass[..., None], mjup[..., None]], axis=2)
+        return chain_inference_data(full, lp, names=(*MASS_PARAMETER_NAMES, "M_p", "M_p_MJup"))
 
     def to_dict(self) -> dict:
         """Everything but the samples (which stay in the HDF5 file) as JSON-safe values, with the
@@ -343,6 +379,12 @@ class PosteriorResult(ResultMixin):
                 + self._mass_clause())
 
     def _mass_clause(self) -> str:
+        post = self.mass_posterior()
+        if post is not None:
+            t, j = post["mth"], post["mjup"]
+            return (f"; planet mass {t['median']:.2g} M_th (68 %: {t['lo']:.2g}-{t['hi']:.2g}, 95 %: "
+                    f"{t['lo95']:.2g}-{t['hi95']:.2g}) = {j['median']:.2g} M_Jup (95 %: {j['lo95']:.2g}-"
+                    f"{j['hi95']:.2g}; M_* = {post['mstar']:g} +- {post['mstar_sigma']:.2g} M_sun), M_p sampled")
         m = self.mass_range()
         if m is None:
             return ""
@@ -390,6 +432,35 @@ class PosteriorResult(ResultMixin):
             mj = [m * h**3 * mstar * M_SUN / M_JUP for m, h in pairs]
             out["mjup"], out["probability"]["mjup"] = [min(mj), max(mj)], p_pair
         return out
+
+    def mass_posterior(self, seed: int = 0) -> dict | None:
+        """The planet mass's posterior given a planet, from the continuous-mass family runs
+        (:mod:`~spiralbayes.inference.posterior.mass`).
+
+        The families' samples are mixed in proportion to their probabilities
+        (:attr:`template_probabilities`, renormalised over the family runs).
+
+        Returns
+        -------
+        dict or None
+            ``mth`` [M_th] and ``mjup`` [M_Jup], each with ``median``, ``lo``/``hi`` (16/84 %) and
+            ``lo95``/``hi95`` (2.5/97.5 %); ``mstar``, ``mstar_sigma`` [M_sun] of the conversion's
+            prior (of the most probable family); ``n_samples``. None without a family run.
+        """
+        runs = [r for r in self.runs if r.continuous_mass]
+        if not runs:
+            return None
+        probs = self.template_probabilities
+        p = np.array([probs[r.name] for r in runs])
+        p = p / p.sum() if p.sum() > 0 else np.full(len(runs), 1.0 / len(runs))
+        rng = np.random.default_rng(seed)
+        n = sum(len(r.samples) for r in runs)
+        counts = rng.multinomial(n, p)
+        pooled = np.concatenate([r.samples[rng.integers(0, len(r.samples), k)] for r, k in zip(runs, counts) if k])
+        stats = _stats(pooled[:, 7:9], ("mth", "mjup"))
+        best = runs[int(np.argmax(p))].metadata
+        return {**stats, "mstar": float(best["mstar_msun"]), "mstar_sigma": float(best["mstar_sigma_msun"]),
+                "n_samples": int(n)}
 
     def marginals(self) -> dict:
         """``P(value | data, planet)`` of each value of hand, mass, beta, tau0, h_p and morphology variant
@@ -448,7 +519,7 @@ class PosteriorResult(ResultMixin):
                           "provenance": self.provenance, "planet_prior": self.planet_prior, "verdict": self.verdict,
                           "p_planet": self.p_planet, "ln_bayes_factor": self.ln_bayes_factor,
                           "template_probabilities": self.template_probabilities, "marginals": self.marginals(),
-                          "mass_range": self.mass_range(),
+                          "mass_range": self.mass_range(), "mass_posterior": self.mass_posterior(),
                           "null": None if self.null is None else self.null.to_dict(),
                           "runs": [r.to_dict() for r in self.runs]})
 
@@ -477,3 +548,10 @@ def _credible_set(probabilities: dict, level: float) -> tuple[list, float]:
         if total >= level * (1 - 1e-12):
             break
     return chosen, float(total)
+
+
+def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.ndarray:
+    """``(r_p, phi_p, A, inc, PA, dRA, dDec)``: ``A`` drawn from its conditional posterior per sample."""
+    A = np.ones(len(samples6)) if priors.amplitude_max is None else draw_amplitude(c1, c2, priors.amplitude_max, rng)
+    out = np.column_stack([samples6[:, :2], A, samples6[:, 2:]])
+    return wrap_phi(out)[0]

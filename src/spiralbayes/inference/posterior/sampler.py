@@ -71,20 +71,22 @@ from ..._threads import blas_threads
 from ..._version import __version__
 from ...axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
 from ...axisymmetric.gp import ProfilePrior
-from ...exceptions import DataFileError, InputError
+from ...exceptions import InputError
 from ...geometry import DiscGeometry
 from ...templates.template import template_metadata
 from ...units import wrap_angle
 from .chain_runner import _set_mpi_rank, _writes_files, run_chain, walker_pool
 from .chain_runner import streams as chain_streams
-from .chains import ChainBackend, ChainState, ChainStore
+from .chains import ChainBackend, ChainState, ChainStore, _saved_samples
 from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, chain_inference_data
 from .evidence import StudentT, hessian_cov, importance_evidence, laplace_evidence, savage_dickey_log_bayes
-from .likelihood import MarginalSpiralLikelihood, ProfileMarginal, draw_amplitude
-from .optimise import find_map, fit_null_geometry
+from .likelihood import MarginalSpiralLikelihood, ProfileMarginal
+from .optimise import _scales, find_map, fit_null_geometry
+from .family_run import family_name, sample_family
+from .mass import MassPrior, group_families
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
-from .results import NullRun, PosteriorResult, TemplateRun, wrap_phi
+from .results import NullRun, PosteriorResult, TemplateRun, _with_amplitude, wrap_phi
 from .settings import SamplingSettings
 from .stopping import StoppingRule, template_evidence
 
@@ -136,14 +138,6 @@ def _template_hash(template) -> str:
 # ---------------------------------------------------------------------------------------------
 # the no-planet hypothesis
 # ---------------------------------------------------------------------------------------------
-def _saved_samples(saved: ChainState, store: ChainStore) -> np.ndarray:
-    """The samples of a finished group (every finished group is written with them)."""
-    if saved.samples is None:
-        raise DataFileError(f"chain file {store.path}: group {store.group} is finished but holds no samples "
-                            "(damaged?): delete it or choose another run_name to start afresh")
-    return saved.samples
-
-
 def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed, n_draws, likelihood_kwargs):
     """The no-planet posterior and evidence; returns (NullRun, the re-centred ProfileMarginal)."""
     t0 = time.perf_counter()
@@ -204,15 +198,6 @@ def _build_likelihood(base, template, r_range, null, priors, likelihood_kwargs, 
     return MarginalSpiralLikelihood(base, fp, amplitude_max=priors.amplitude_max)
 
 
-def _scales(priors: Priors, null: NullRun):
-    """Optimiser/Hessian scales and flat-direction variances of ``(r_p, phi_p, inc, PA, dRA, dDec)``."""
-    g_sigma = np.sqrt(np.clip(np.diag(null.covariance), 1e-30, None))
-    span = priors.r_p[1] - priors.r_p[0]
-    scales = np.concatenate([[span / np.sqrt(12.0), np.pi / np.sqrt(3.0)], g_sigma * 10])
-    max_var = np.concatenate([[span ** 2 / 12.0, np.pi ** 2 / 3.0], priors.geometry_widths ** 2])
-    return g_sigma, scales, max_var
-
-
 def _laplace(logpost, theta_map, priors, null):
     g_sigma, scales, max_var = _scales(priors, null)
     lo, hi = priors.r_p
@@ -225,13 +210,6 @@ def _laplace(logpost, theta_map, priors, null):
     cov = hessian_cov(f, theta, scales * 1e-2, room=room, max_var=max_var)
     lp = f(theta)
     return theta, cov, lp, laplace_evidence(lp, cov)
-
-
-def _with_amplitude(samples6: np.ndarray, c1, c2, priors: Priors, rng) -> np.ndarray:
-    """``(r_p, phi_p, A, inc, PA, dRA, dDec)``: ``A`` drawn from its conditional posterior per sample."""
-    A = np.ones(len(samples6)) if priors.amplitude_max is None else draw_amplitude(c1, c2, priors.amplitude_max, rng)
-    out = np.column_stack([samples6[:, :2], A, samples6[:, 2:]])
-    return wrap_phi(out)[0]
 
 
 def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_range, partners, settings):
@@ -311,7 +289,7 @@ def _final_state(store, run, samples):
 # ---------------------------------------------------------------------------------------------
 def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: Priors | None = None,
                      settings: SamplingSettings | None = None, chains_dir="chains", progress: bool = True,
-                     **overrides) -> PosteriorResult | None:
+                     mass_prior: MassPrior | None = None, **overrides) -> PosteriorResult | None:
     """Sample the posterior of every template, the no-planet hypothesis, and combine them.
 
     Parameters
@@ -338,8 +316,15 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
         Folder of the chain files.
     progress : bool
         Progress bars for the table builds and the steps (default True).
+    mass_prior : MassPrior, optional
+        With ``mass="continuous"``: the planet mass's log-uniform range [M_th] and the stellar mass's
+        prior [M_sun] (default :class:`~.mass.MassPrior`: 0.1-3 M_th, 0.8 +- 0.08 M_sun).
     **overrides
         Fields of :class:`SamplingSettings` replacing those of ``settings`` (e.g. ``n_walkers=48``).
+        ``mass="continuous"`` samples the planet mass within each family of the templates (variant,
+        τ0, β, hand, H/r) instead of treating each bank mass as its own hypothesis
+        (:mod:`~spiralbayes.inference.posterior.mass`): every family is one run whose samples add
+        ``M_p`` [M_th] and ``M_p_MJup`` [M_Jup].
 
     Returns
     -------
@@ -384,16 +369,25 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
     chain_path = Path(chains_dir) / f"{check_output_name(run_name, 'run_name')}.h5"
     chain_path.parent.mkdir(parents=True, exist_ok=True)
     selected = _select_mcmc(names, scan_result, s.mcmc_templates, s.prune_delta_lnL)
+    families: list = []
+    if s.mass == "continuous":
+        if template_prior is not None:
+            raise InputError("template_prior is per template; with mass='continuous' the families share the prior "
+                             "equally: leave template_prior unset")
+        families = group_families(templates, mass_prior or MassPrior())
+        prior_t = np.full(len(families), 1.0 / len(families))
+        log.info("mass = 'continuous': %d templates in %d families, M_p log-uniform on %s M_th", len(templates),
+                 len(families), (mass_prior or MassPrior()).mass_range)
     likelihood_kwargs = dict(likelihood_kwargs or {})
     profile_prior = ProfilePrior.from_model(axisymmetric)
-    common = {"data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights), "n_data": int(vis.n),
+    common = {"data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights), "n_data": int(vis.n), "mass": s.mass,
               "model_hash": _model_hash(axisymmetric, profile_prior), "priors": priors.to_dict(), "seed": int(seed),
               "likelihood_kwargs": likelihood_kwargs, "spiralbayes": __version__}
     run_settings = {"inputs": {**common, "n_walkers": int(n_walkers), "evidence_draws": int(evidence_draws),
                                "moves": "wrapped DE, joint and block moves" if moves is None else repr(moves)},
                     "sampling": s, "progress": progress, "likelihood_kwargs": likelihood_kwargs}
     _set_mpi_rank(pool)
-    overall = _Stages(len(templates) + 1, progress)
+    overall = _Stages((len(families) or len(templates)) + 1, progress)
     with blas_threads(1, all_pools=True):
         overall.start("no planet: geometry mode and evidence")
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
@@ -401,7 +395,17 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
                                likelihood_kwargs)
         runs: list[TemplateRun] = []
         partners: dict[str, FastPerturbation | Callable[[], FastPerturbation]] = {}  # mirror name -> its table
-        for template in templates:
+        for family, members in families:
+            best = max(members, key=lambda t: _peak(scan_result, t.name))
+            mode = "mcmc" if any(t.name in selected for t in members) else "laplace"
+            overall.start(f"family {family_name(family)}: M_p continuous ({mode})")
+            r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, best.name)
+            run, _ = sample_family(vis, base, null, family, members, priors, mass_prior or MassPrior(),
+                                   scan=scan_result, chain_path=chain_path, settings=run_settings, mode=mode,
+                                   r_range=r_range)
+            if run is not None:
+                runs.append(run)
+        for template in templates if not families else []:
             mode = "mcmc" if template.name in selected else "laplace"
             steps = "tables, optimum, chain" if mode == "mcmc" else "tables, optimum, Laplace evidence"
             overall.start(f"template {template.name} ({steps})")
@@ -491,6 +495,16 @@ def _laplace_window(priors: Priors, scan, name: str) -> tuple:
     step = float(np.median(np.diff(scan.r_p))) if scan.r_p.size > 1 else 0.1 * (hi - lo)
     r_lo, r_hi = max(lo, scan.r_p[i] - 2 * step), min(hi, scan.r_p[i] + 2 * step)
     return (r_lo, r_hi) if r_hi > r_lo else priors.r_p
+
+
+def _peak(scan, name: str) -> float:
+    """The template's best scan Delta chi2 (-inf without a scan or the template)."""
+    if scan is None:
+        return -np.inf
+    try:
+        return float(np.nanmax(scan.delta_chi2()[scan.template_index(name)]))
+    except (KeyError, IndexError):
+        return -np.inf
 
 
 def _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL) -> set:

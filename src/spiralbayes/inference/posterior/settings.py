@@ -8,11 +8,15 @@ from dataclasses import dataclass
 from ..._provenance import check_output_name
 from ...exceptions import InputError
 from ...settings import documented, is_finite_number, is_integer, option
+from ...settings import DEFAULT_MSTAR_MSUN
 from .likelihood import DEFAULT_AMPLITUDE_MAX
+from .mass import MassPrior
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 
-__all__ = ["CONVERGENCE_POLICIES", "PriorSettings", "SamplingSettings"]
+__all__ = ["MASS_MODES", "CONVERGENCE_POLICIES", "PriorSettings", "SamplingSettings"]
 
+MASS_MODES = ("bank", "continuous")
+"""How the planet mass enters the posterior (``[sample] mass``)."""
 CONVERGENCE_POLICIES = ("raise", "warn", "ignore")
 """What a run does with a chain shorter than 50 autocorrelation times."""
 
@@ -44,6 +48,8 @@ class SamplingSettings:
     flush_every: int = option(100, "steps between atomic writes of the chain file (a kill loses at most these)")
     planet_prior: float = option(0.5, "prior probability that the disc hosts a planet (against the no-planet "
                                       "hypothesis)")
+    mass: str = option("bank", "'bank': every template is its own hypothesis, the mass a label; 'continuous': the "
+                               "planet mass is sampled within each family (variant, tau0, beta, hand, H/r)")
     stop_when_planet_free: bool = option(True, "also stop a chain once its geometry has converged and its Bayes "
                                                "factor says the planet is not preferred (ln B + 2 sigma < 1)")
     # code only: objects a TOML file cannot hold
@@ -88,6 +94,8 @@ class SamplingSettings:
             raise InputError(f"planet_prior = {self.planet_prior!r} must lie strictly between 0 and 1")
         if int(self.flush_every) < 1:
             raise InputError(f"flush_every = {self.flush_every!r} must be a positive number of steps")
+        if self.mass not in MASS_MODES:
+            raise InputError(f"mass = {self.mass!r}: choose one of {MASS_MODES}")
 
 
 @documented
@@ -110,8 +118,20 @@ class PriorSettings:
     dDec_sigma: float = option(DEFAULT_WIDTHS["dDec"], "width of the Gaussian prior on the Dec offset [arcsec]")
     amplitude_max: float = option(DEFAULT_AMPLITUDE_MAX, "spiral amplitude A uniform on [0, amplitude_max] (A = 1: "
                                                          "the template as simulated; 0: fix A = 1)")
+    mass_min: float = option(0.1, "smallest planet mass [M_th] of the log-uniform prior (mass = 'continuous')")
+    mass_max: float = option(3.0, "largest planet mass [M_th] of the log-uniform prior (mass = 'continuous')")
+    mstar: float = option(DEFAULT_MSTAR_MSUN, "stellar mass [M_sun]: mean of its Gaussian prior, for M_p in M_Jup")
+    mstar_sigma: float = option(0.1, "fractional width of the stellar-mass prior (0: M_* fixed)")
 
     def __post_init__(self):
+        if not is_finite_number(self.mass_min) or self.mass_min <= 0:
+            raise InputError(f"mass_min = {self.mass_min!r} must be a positive planet mass [M_th]")
+        if not is_finite_number(self.mass_max) or self.mass_max <= self.mass_min:
+            raise InputError(f"mass_max = {self.mass_max!r} must be a planet mass [M_th] above mass_min = "
+                             f"{self.mass_min!r}")
+        if not is_finite_number(self.mstar) or self.mstar <= 0:
+            raise InputError(f"mstar = {self.mstar!r} must be a positive stellar mass [M_sun]")
+        self.mstar_sigma_msun  # noqa: B018 - validates mstar_sigma
         for name in ("r_p_min", "r_p_max"):
             value = getattr(self, name)
             if value is not None and (not is_finite_number(value) or value <= 0):
@@ -131,6 +151,17 @@ class PriorSettings:
     def widths(self) -> dict:
         """``{"inc": deg, "PA": deg, "dRA": arcsec, "dDec": arcsec}``: the geometry priors' sigmas."""
         return {name: float(getattr(self, f"{name}_sigma")) for name in GEOMETRY_NAMES}
+
+    @property
+    def mstar_sigma_msun(self) -> float:
+        """The stellar-mass prior's standard deviation [M_sun]."""
+        if not is_finite_number(self.mstar_sigma) or self.mstar_sigma < 0:
+            raise InputError(f"mstar_sigma = {self.mstar_sigma!r} must be a fraction >= 0 of mstar (0: M_* fixed)")
+        return float(self.mstar_sigma) * float(self.mstar)
+
+    def mass_prior(self) -> MassPrior:
+        """The :class:`~.mass.MassPrior` of a continuous-mass run."""
+        return MassPrior((self.mass_min, self.mass_max), self.mstar, self.mstar_sigma_msun)
 
     def priors(self, axisymmetric, *, geometry=None) -> Priors:
         """The :class:`Priors` of ``axisymmetric`` (its extent for unset radii, its geometry as the centre

@@ -1,0 +1,87 @@
+"""Cost of the continuous-mass likelihood against one fixed template's, on the same data.
+
+Prints the time per likelihood call of :class:`~spiralbayes.inference.posterior.MassLikelihood` (four
+mass nodes' grids summed, one NUFFT) and of :class:`~spiralbayes.inference.posterior.MarginalSpiralLikelihood`
+for one template, their ratio, and the table build per mass node against one template's build.
+
+    python benchmarks/bench_mass.py --n-vis 100000
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+
+import numpy as np
+
+from spiralbayes.axisymmetric import AxisymmetricModel
+from spiralbayes.geometry import DiscGeometry
+from spiralbayes.inference.posterior import (
+    FamilyPerturbation,
+    MarginalSpiralLikelihood,
+    MassLikelihood,
+    ProfileMarginal,
+    family_of,
+)
+from spiralbayes.inference.posterior.perturbation import FastPerturbation
+from spiralbayes.templates import make_template
+from spiralbayes.visibilities import Visibilities
+
+
+def observation(n: int, uv_max: float, seed: int = 0):
+    geometry = DiscGeometry(40.0, 70.0, 0.0, 0.0)
+    model = AxisymmetricModel.from_profile(lambda r: 5e10 * np.exp(-np.asarray(r) / 0.3 - (np.asarray(r) / 0.8) ** 6),
+                                           geometry, N=150)
+    rng = np.random.default_rng(seed)
+    q = uv_max * np.sqrt(rng.uniform(1e-4, 1, n))
+    th = rng.uniform(0, 2 * np.pi, n)
+    u, v = q * np.cos(th), q * np.sin(th)
+    V = model.visibilities(u, v, geometry) + 0.01 * (rng.normal(size=n) + 1j * rng.normal(size=n))
+    return Visibilities(u, v, V, np.full(n, 1e4)), model, geometry
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--n-vis", type=int, default=100_000)
+    parser.add_argument("--uv-max", type=float, default=2e6)
+    parser.add_argument("--repeat", type=int, default=40)
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    vis, model, geometry = observation(args.n_vis, args.uv_max)
+    base = ProfileMarginal(vis, model)
+    r_range = (0.15, 0.6)
+    template = make_template(1.0, 0.3, 0.0, "R")
+    t0 = time.perf_counter()
+    fixed = MarginalSpiralLikelihood(base, FastPerturbation(vis.u, vis.v, vis.weights, model.brightness, template,
+                                                            r_range, geometry))
+    t_fixed_build = time.perf_counter() - t0
+    family = family_of(template)
+    fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, r_range, geometry)
+    mass = MassLikelihood(base, fp)
+    rng = np.random.default_rng(1)
+    thetas = np.column_stack([rng.uniform(0.2, 0.55, args.repeat), rng.uniform(0, 2 * np.pi, args.repeat),
+                              rng.normal(40, 0.3, args.repeat), rng.normal(70, 0.3, args.repeat),
+                              np.zeros(args.repeat), np.zeros(args.repeat)])
+    ln_m = rng.uniform(np.log(0.7), np.log(1.4), args.repeat)
+    for th, lm in zip(thetas, ln_m):  # build the nodes the calls need before timing
+        mass.amplitude_terms(np.append(th, lm))
+    n_nodes = len(fp.tables)
+    per_node = fp.build_time_s / n_nodes
+
+    def timed(f, xs):
+        t = time.perf_counter()
+        for x in xs:
+            f(x)
+        return (time.perf_counter() - t) / len(xs)
+
+    t_fixed = timed(fixed.amplitude_terms, thetas)
+    t_mass = timed(mass.amplitude_terms, [np.append(th, lm) for th, lm in zip(thetas, ln_m)])
+    print(f"{args.n_vis} visibilities, {args.repeat} calls each")
+    print(f"fixed template:   {1e3 * t_fixed:.2f} ms per call; table build {t_fixed_build:.1f} s")
+    print(f"continuous mass:  {1e3 * t_mass:.2f} ms per call; {n_nodes} mass-node tables, {per_node:.1f} s each")
+    print(f"ratio per call (continuous / fixed): {t_mass / t_fixed:.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,288 @@
+"""The planet's mass as a sampled parameter: one template family with ``M_p`` continuous.
+
+Within a family (morphology variant, τ0, β, hand and one ``H/r``) the template at any mass is a fixed
+linear combination of at most four node templates (:class:`~spiralbayes.templates.family.TemplateFamily`:
+Lagrange-4 interpolation in ``ln M_p``). The visibilities are linear in ``δ``, and so are the
+Fourier-series tables of :mod:`.interpolation`, so for the interpolated template
+
+    cos i P_hat(q; r_p, phi_p, M_p) = sum_j w_j(M_p) cos i P_hat_j(q; r_p, phi_p)
+
+holds exactly: :class:`FamilyPerturbation` adds the (``r_p``-interpolated) grids of the four nodes
+with their weights and evaluates the series at the data with one type-2 NUFFT — one template's call
+plus three grid sums. A node's table is built the first time a walker needs it.
+
+Parameters of a family run (:data:`MASS_PARAMETER_NAMES`): ``(r_p, phi_p, inc, PA, dRA, dDec,
+lnM_p)``, with ``ln M_p`` uniform on ``[ln M_min, ln M_max]`` (``M_p`` log-uniform over the family's
+range, by default the bank's 0.1–3 M_th). The amplitude ``A`` stays what it is for a fixed template:
+integrated over its uniform prior (``[0, amplitude_max]``), or fixed at 1 when ``amplitude_max`` is
+None. The samples (:data:`.results.MASS_SAMPLE_NAMES`) add ``M_p`` [M_th] and ``M_p_MJup`` [M_Jup] to the
+template columns: ``M_p,Jup = M_p h_p³ M_* / M_Jup`` with ``h_p`` the family's ``H/r`` at ``r_p``
+(``M_th = h_p³ M_*``) and ``M_*`` drawn for every sample from its prior
+(:class:`MassPrior`: a Gaussian truncated at zero).
+
+The template at an arbitrary mass is what the generator would make there only to the family's
+interpolation accuracy (docs/templates.md, "Continuous family"); :meth:`FamilyPerturbation.exact_template`
+gives the interpolated template so tests compare the fast path with a table built for it.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...exceptions import InputError
+from ...geometry import DiscGeometry
+from ...settings import DEFAULT_MSTAR_MSUN
+from ...units import ARCSEC, M_JUP, M_SUN
+from .conditional import PARAMETER_NAMES
+from .likelihood import MarginalSpiralLikelihood
+from .perturbation import FastPerturbation
+from .priors import Priors
+
+__all__ = ["MASS_PARAMETER_NAMES", "FamilyPerturbation", "MassLikelihood", "MassLogPosterior", "MassPrior",
+           "family_of", "group_families"]
+
+log = logging.getLogger(__name__)
+
+MASS_PARAMETER_NAMES = (*PARAMETER_NAMES, "lnM_p")
+"""emcee's coordinates in a family run: the template's six and ``ln(M_p / M_th)``."""
+
+
+@dataclass(frozen=True)
+class MassPrior:
+    """Prior of the planet mass in a family run, and of the stellar mass that converts it to M_Jup.
+
+    Parameters
+    ----------
+    mass_range : (float, float)
+        ``M_p`` log-uniform on ``[M_min, M_max]`` [M_th]; default the bank's range.
+    mstar : float
+        Stellar mass [M_sun], the mean of its Gaussian prior.
+    mstar_sigma : float or None
+        Its standard deviation [M_sun] (truncated at zero); None: 10 % of ``mstar``, a typical
+        dynamical-mass uncertainty; 0 fixes ``M_*``.
+    """
+
+    mass_range: tuple = (0.1, 3.0)
+    mstar: float = DEFAULT_MSTAR_MSUN
+    mstar_sigma: float | None = None
+
+    def __post_init__(self):
+        lo, hi = (float(m) for m in self.mass_range)
+        if not (0 < lo < hi and np.isfinite(hi)):
+            raise InputError(f"mass_range = {self.mass_range!r}: need 0 < M_min < M_max [M_th]")
+        object.__setattr__(self, "mass_range", (lo, hi))
+        if not (np.isfinite(self.mstar) and self.mstar > 0):
+            raise InputError(f"mstar = {self.mstar!r} must be a positive stellar mass [M_sun]")
+        if self.mstar_sigma is not None and not (np.isfinite(self.mstar_sigma) and self.mstar_sigma >= 0):
+            raise InputError(f"mstar_sigma = {self.mstar_sigma!r} must be >= 0 [M_sun] (or None: 10 % of mstar)")
+
+    @property
+    def sigma(self) -> float:
+        return 0.1 * self.mstar if self.mstar_sigma is None else float(self.mstar_sigma)
+
+    @property
+    def ln_range(self) -> tuple[float, float]:
+        return float(np.log(self.mass_range[0])), float(np.log(self.mass_range[1]))
+
+    def log_prior(self, ln_mass: float) -> float:
+        """Normalised log density of ``ln M_p`` (uniform; ``-inf`` outside)."""
+        lo, hi = self.ln_range
+        return -float(np.log(hi - lo)) if lo <= ln_mass <= hi else -np.inf
+
+    def draw_mstar(self, n: int, rng) -> np.ndarray:
+        """``n`` stellar masses [M_sun] from the prior (a Gaussian truncated at zero)."""
+        if self.sigma == 0:
+            return np.full(n, float(self.mstar))
+        from scipy.stats import truncnorm
+
+        a = -self.mstar / self.sigma
+        return truncnorm.rvs(a, np.inf, loc=self.mstar, scale=self.sigma, size=n, random_state=rng)
+
+    def to_mjup(self, mass_mth: np.ndarray, h_p: float, rng) -> np.ndarray:
+        """Masses [M_Jup] of ``mass_mth`` [M_th] at aspect ratio ``h_p``, one ``M_*`` draw per mass."""
+        mass_mth = np.asarray(mass_mth, float)
+        return mass_mth * h_p ** 3 * self.draw_mstar(mass_mth.size, rng) * M_SUN / M_JUP
+
+    def to_dict(self) -> dict:
+        return {"mass_range_mth": list(self.mass_range), "mass_prior": "log-uniform", "mstar_msun": self.mstar,
+                "mstar_sigma_msun": self.sigma}
+
+
+def family_of(template, mass_range=(0.1, 3.0), n_masses: int | None = None):
+    """The :class:`~spiralbayes.templates.family.TemplateFamily` of a generator or variant template.
+
+    The family has the template's morphology, τ0, β, hand and ``H/r``, and the generator settings
+    recorded in its provenance (grid, disc); ``template`` is checked to be what the family's node
+    maker gives at its mass, so a template the generator did not make (a hydrodynamic map) is refused.
+    """
+    from ...templates.family import N_MASS_NODES, TemplateFamily
+
+    prov = getattr(template, "provenance", {}) or {}
+    settings = dict(prov.get("settings") or {})
+    if "builtin" not in str(prov.get("generator", "")) or not settings:
+        raise InputError(f"template {template.name!r} was not made by the built-in generator: a continuous mass "
+                         "needs a family the generator can make at any mass (pass mass='bank')")
+    h_p = float(settings.pop("h_p", template.h_p))
+    if "x_min" in settings and "x_max" in settings:
+        settings["x_range"] = (settings.pop("x_min"), settings.pop("x_max"))
+    allowed = _generator_options()
+    settings = {k: v for k, v in settings.items() if k in allowed}
+    variant = prov.get("variant", "compromise")
+    family = TemplateFamily.build(template.tau0, template.beta, variant, template.hand, h_p=h_p,
+                                  mass_range=mass_range, n_masses=n_masses or N_MASS_NODES, **settings)
+    maker = family.nodes
+    assert callable(maker)  # TemplateFamily.build makes nodes on demand
+    made = maker(float(template.mass), h_p)
+    if template.hand == "L":
+        made = made.mirror()
+    if made.delta.shape != np.shape(template.delta) or not np.allclose(made.delta, template.delta, rtol=1e-5,
+                                                                       atol=1e-7):
+        raise InputError(f"template {template.name!r}: the generator with its recorded settings does not remake it, "
+                         "so its family is unknown (pass mass='bank')")
+    return family
+
+
+def _generator_options() -> set:
+    import inspect
+
+    from ...templates.generator import make_template
+    from ...templates.wake import WakeSettings
+
+    return set(inspect.signature(make_template).parameters) | set(WakeSettings.__dataclass_fields__)
+
+
+class FamilyPerturbation:
+    """``cos i P_hat(q; r_p, phi_p, M_p)`` at fixed baselines for a template family (module docs).
+
+    Parameters
+    ----------
+    u, v, weights, profile, r_range, reference_geometry
+        As :class:`~.perturbation.FastPerturbation`.
+    family : TemplateFamily
+        One ``H/r`` (a family spanning several is refused: ``H/r`` is not sampled).
+    **table_kwargs
+        :class:`~.perturbation.FastPerturbation` settings of every node's table.
+    """
+
+    def __init__(self, u, v, weights, profile, family, r_range, reference_geometry: DiscGeometry, *,
+                 progress: bool = False, **table_kwargs):
+        if family.h_ps.size != 1:
+            raise InputError(f"the family spans H/r {family.h_range}: a continuous-mass run samples M_p at one H/r "
+                             "(build the family with a single h_p)")
+        self.family = family
+        self.u, self.v, self.weights, self.profile = u, v, weights, profile
+        self.r_range = (float(r_range[0]), float(r_range[1]))
+        self.reference_geometry = reference_geometry
+        self.table_kwargs = dict(table_kwargs)
+        self.progress = progress
+        self.tables: dict[int, FastPerturbation] = {}
+        self._build_s: dict[int, float] = {}
+        self.template = family.at(float(np.sqrt(family.mass_range[0] * family.mass_range[1])))
+
+    @property
+    def mass_range(self) -> tuple[float, float]:
+        return self.family.mass_range
+
+    def node_table(self, j: int) -> FastPerturbation:
+        """Node ``j``'s table in the family's hand (made on first use)."""
+        if j not in self.tables:
+            node = self.family.node(j)
+            fp = FastPerturbation(self.u, self.v, self.weights, self.profile, node, self.r_range,
+                                  self.reference_geometry, progress=self.progress, **self.table_kwargs)
+            built_s = fp.build_time_s
+            if self.family.hand == "L":
+                fp = FastPerturbation(self.u, self.v, self.weights, self.profile, node.mirror(), self.r_range,
+                                      self.reference_geometry, mirror_of=fp, **self.table_kwargs)
+            if self.tables:
+                first = next(iter(self.tables.values()))
+                if fp.table.N != first.table.N or fp._delta != first._delta:
+                    raise InputError("the family's node tables differ in their Fourier grids: the nodes must share "
+                                     "one (x, phi) grid")
+            log.info("%s: table of mass node %.4g M_th built (%.1f s; %d of %d nodes)", self.template.name,
+                     self.family.masses[j], built_s, len(self.tables) + 1, self.family.masses.size)
+            self.tables[j] = fp
+            self._build_s[j] = built_s
+        return self.tables[j]
+
+    def check_r_p(self, r_p: float) -> None:
+        if not (self.r_range[0] <= r_p <= self.r_range[1]):
+            raise InputError(f"r_p = {r_p} arcsec is outside the likelihood's range {self.r_range}")
+
+    def disc_frame(self, r_p, phi_p, inc, PA, mass) -> np.ndarray:
+        """``cos i P_hat`` at the data [Jy] for the template at ``mass`` [M_th] (no phase-centre factor)."""
+        terms = self.family.weights(float(mass))
+        scale = np.cos(np.radians(inc)) * (r_p * ARCSEC) ** 2
+        grid = None
+        for j, _, w in terms:
+            g = self.node_table(j).table.grid(r_p, scale=scale * w)
+            grid = g if grid is None else grid + g
+        first = self.node_table(terms[0][0])
+        return first.u2nu(grid, first.coords(r_p, phi_p, inc, PA))
+
+    def exact_template(self, mass: float):
+        """The family's (interpolated) template at ``mass`` — the reference for :meth:`disc_frame`."""
+        return self.family.at(float(mass))
+
+    @property
+    def quadrature_error(self) -> float:
+        return max((fp.quadrature_error for fp in self.tables.values()), default=0.0)
+
+    @property
+    def build_time_s(self) -> float:
+        return float(sum(self._build_s.values()))
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(fp.nbytes for fp in self.tables.values()))
+
+    def describe(self) -> dict:
+        return {"family": repr(self.family), "r_range_arcsec": list(self.r_range),
+                "mass_nodes_built": [float(self.family.masses[j]) for j in sorted(self.tables)],
+                "table_bytes": self.nbytes, "build_time_s": self.build_time_s,
+                "quadrature_error": self.quadrature_error}
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("profile", None)  # a bound method of the model: only the tables' builds need it
+        return state
+
+
+class MassLikelihood(MarginalSpiralLikelihood):
+    """:class:`~.likelihood.MarginalSpiralLikelihood` of a family: ``theta`` ends with ``ln M_p`` (7 values)."""
+
+    def __init__(self, base, perturbation: FamilyPerturbation, **kwargs):
+        super().__init__(base, perturbation, **kwargs)
+
+    def spiral_visibilities(self, theta) -> np.ndarray:
+        r_p, phi_p, inc, PA, _, _, ln_mass = (float(t) for t in theta)
+        return self.perturbation.disc_frame(r_p, phi_p, inc, PA, np.exp(ln_mass))
+
+
+class MassLogPosterior:
+    """``ln pi(theta) + ln L(theta)`` of a family run, with the amplitude terms ``(c1, c2)`` as blob."""
+
+    def __init__(self, likelihood: MassLikelihood, priors: Priors, mass_prior: MassPrior):
+        self.likelihood = likelihood
+        self.priors = priors
+        self.mass_prior = mass_prior
+
+    def __call__(self, theta):
+        lp = self.priors.log_prior(theta[:6]) + self.mass_prior.log_prior(float(theta[6]))
+        if not np.isfinite(lp):
+            return -np.inf, np.array([np.nan, np.nan])
+        terms = self.likelihood.amplitude_terms(theta)
+        return lp + self.likelihood.marginal(terms), np.array(terms[1:])
+
+
+def group_families(templates, mass_prior: MassPrior) -> list:
+    """``[(family, members), ...]``: the bank templates grouped by (variant, τ0, β, hand, H/r), each
+    group's :class:`~spiralbayes.templates.family.TemplateFamily` over ``mass_prior.mass_range``."""
+    groups: dict = {}
+    for t in templates:
+        prov = getattr(t, "provenance", {}) or {}
+        key = (prov.get("variant", "compromise"), float(t.tau0), float(t.beta), t.hand, float(t.h_p))
+        groups.setdefault(key, []).append(t)
+    return [(family_of(members[0], mass_prior.mass_range), members) for members in groups.values()]

@@ -1,0 +1,152 @@
+"""The planet mass as a sampled parameter (:mod:`spiralbayes.inference.posterior.mass`).
+
+References: the fast family perturbation against a table built for the family's interpolated template
+itself (that table is checked against the exact type-3 transform in ``test_perturbation.py``); the family
+likelihood at a node mass against the fixed-template likelihood of that node; the M_Jup conversion
+against :func:`spiralbayes.units.thermal_mass`. The run end to end on a planted 0.5 M_th planet (a mass
+the bank does not hold) is in :func:`test_continuous_run_end_to_end`; the slow planted-mass checks are in
+``test_mass_recovery.py``.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from spiralbayes.axisymmetric import AxisymmetricModel
+from spiralbayes.exceptions import InputError
+from spiralbayes.inference.posterior import (
+    MASS_SAMPLE_NAMES,
+    FamilyPerturbation,
+    MarginalSpiralLikelihood,
+    MassLikelihood,
+    MassPrior,
+    PriorSettings,
+    Priors,
+    ProfileMarginal,
+    SamplingSettings,
+    family_of,
+    group_families,
+)
+from spiralbayes.inference.posterior.perturbation import FastPerturbation
+from spiralbayes.inference.posterior.sampler import sample_posterior
+from spiralbayes.templates import make_template
+from spiralbayes.units import thermal_mass
+from tests._support.mass_setup import GRID, bank_members, planted_observation
+from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
+
+TABLES = {"rp_tolerance": 0.05}
+
+
+@pytest.fixture(scope="module")
+def case():
+    vis = planted_observation(0.5).standardised()
+    model = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=80)
+    return vis, model
+
+
+@pytest.mark.parametrize("hand", ["R", "L"])
+def test_family_perturbation_is_the_interpolated_templates_table(case, hand):
+    vis, model = case
+    family = family_of(make_template(1.0, 0.3, 0.0, hand, **GRID))
+    fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, R_RANGE, TRUE_GEOMETRY, **TABLES)
+    w = vis.weights
+    for mass, r_p, phi_p in ((0.2, 0.3, 0.4), (0.5, 0.35, 2.0), (2.0, 0.45, 5.5)):
+        fast = fp.disc_frame(r_p, phi_p, 40.0, 70.0, mass)
+        ref = FastPerturbation(vis.u, vis.v, w, model.brightness, family.at(mass), R_RANGE, TRUE_GEOMETRY,
+                               **TABLES).disc_frame(r_p, phi_p, 40.0, 70.0)
+        norm = np.sqrt(np.sum(w * np.abs(ref) ** 2))
+        assert norm > 0.5  # the spiral is far above the noise: the comparison means something
+        assert np.sqrt(np.sum(w * np.abs(fast - ref) ** 2)) < 1e-5 * norm
+    assert len(fp.tables) <= 12  # only the nodes next to the masses asked for were built
+
+
+def test_mass_likelihood_at_a_node_is_the_node_templates_likelihood(case):
+    vis, model = case
+    family = family_of(make_template(1.0, 0.3, 0.0, "R", **GRID))
+    base = ProfileMarginal(vis, model)
+    fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, R_RANGE, TRUE_GEOMETRY, **TABLES)
+    j = 20
+    node = family.node(j)
+    fixed = MarginalSpiralLikelihood(base, FastPerturbation(vis.u, vis.v, vis.weights, model.brightness, node,
+                                                            R_RANGE, TRUE_GEOMETRY, **TABLES))
+    mass = MassLikelihood(base, fp)
+    theta = np.array([0.35, 2.0, 40.0, 70.0, 0.005, -0.01])
+    a = fixed.amplitude_terms(theta)
+    b = mass.amplitude_terms(np.append(theta, np.log(family.masses[j])))
+    assert abs(a[1]) > 50  # the planted planet: a large cross term
+    np.testing.assert_allclose(b, a, rtol=1e-5, atol=1e-6)
+
+
+def test_mass_prior_density_and_jupiter_masses():
+    prior = MassPrior((0.1, 3.0), mstar=1.2, mstar_sigma=0.0)
+    x = np.linspace(np.log(0.05), np.log(6.0), 200001)
+    dens = np.exp([prior.log_prior(v) for v in x])
+    assert np.trapezoid(dens, x) == pytest.approx(1.0, rel=1e-3)
+    mj = prior.to_mjup(np.array([0.5, 2.0]), 0.07, np.random.default_rng(0))
+    ref = np.array([0.5, 2.0]) * thermal_mass(50.0, 1.2, h_ref=0.07, r_ref=50.0, unit="Mjup")
+    np.testing.assert_allclose(mj, ref, rtol=1e-12)
+    draws = MassPrior(mstar=0.8).draw_mstar(20000, np.random.default_rng(1))
+    assert draws.mean() == pytest.approx(0.8, abs=0.003) and draws.std() == pytest.approx(0.08, rel=0.03)
+
+
+def test_families_group_the_bank_by_morphology_and_refuse_foreign_templates():
+    members = bank_members("R") + bank_members("L")
+    groups = group_families(members, MassPrior())
+    assert [f.hand for f, _ in groups] == ["R", "L"] and all(len(m) == 4 for _, m in groups)
+    other = make_template(1.0, 0.3, 0.0, "R", **GRID)
+    from dataclasses import replace
+
+    with pytest.raises(InputError, match="not made by the built-in generator"):
+        family_of(replace(other, provenance={}))
+    with pytest.raises(InputError, match="does not remake it"):
+        family_of(replace(other, delta=other.delta * 1.1))
+
+
+def test_settings_name_the_mass_options():
+    with pytest.raises(InputError, match="mass = 'grid'"):
+        SamplingSettings(mass="grid")
+    with pytest.raises(InputError, match="mass_min"):
+        PriorSettings(mass_min=-1.0)
+    with pytest.raises(InputError, match="mass_max"):
+        PriorSettings(mass_min=1.0, mass_max=0.5)
+    with pytest.raises(InputError, match="mstar_sigma"):
+        PriorSettings(mstar_sigma=-0.1)
+    assert PriorSettings(mstar=1.0, mstar_sigma=0.2).mass_prior().sigma == pytest.approx(0.2)
+
+
+def test_continuous_run_end_to_end(case, tmp_path):
+    """A short run on the planted 0.5 M_th planet: the mass is sampled and reported in M_th and M_Jup."""
+    vis, model = case
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        post = sample_posterior(vis, model, bank_members()[1:3], priors=Priors.default(model, r_p=R_RANGE),
+                                mass="continuous", mass_prior=MassPrior((0.2, 1.5)), chains_dir=tmp_path,
+                                n_walkers=16, n_steps=120, evidence_draws=150, progress=False, convergence="ignore",
+                                likelihood_kwargs=TABLES, seed=2)
+    run = post.best
+    assert run.continuous_mass and run.sample_names == MASS_SAMPLE_NAMES and len(post.runs) == 1
+    assert run.name == "wake_mcont_tau0.3_b0_h0.07_R"
+    assert post.planet_preferred and "M_p sampled" in post.verdict
+    m = run.samples[:, 7]
+    assert m.min() >= 0.2 and m.max() <= 1.5
+    ratio = run.samples[:, 8] / m  # M_Jup per M_th: h_p^3 M_* with M_* ~ N(0.8, 0.08)
+    per_mth = thermal_mass(50.0, 0.8, h_ref=0.07, r_ref=50.0, unit="Mjup")
+    assert np.mean(ratio) == pytest.approx(per_mth, rel=0.03) and np.std(ratio) / per_mth == pytest.approx(0.1, rel=0.3)
+    idata = post.to_inference_data()
+    assert {"M_p", "M_p_MJup", "lnM_p"} <= set(idata.posterior.data_vars)
+    np.testing.assert_allclose(idata.posterior["M_p"].values, np.exp(idata.posterior["lnM_p"].values))
+    summary = post.mass_posterior()
+    assert summary["mth"]["lo95"] <= summary["mth"]["median"] <= summary["mth"]["hi95"]
+    # the chain file resumes: a second call reads the finished family back
+    again = sample_posterior(vis, model, bank_members()[1:3], priors=Priors.default(model, r_p=R_RANGE),
+                             mass="continuous", mass_prior=MassPrior((0.2, 1.5)), chains_dir=tmp_path, n_walkers=16,
+                             n_steps=120, evidence_draws=150, progress=False, convergence="ignore",
+                             likelihood_kwargs=TABLES, seed=2)
+    np.testing.assert_array_equal(again.best.samples, run.samples)
+    from spiralbayes.plotting import plot_corner
+
+    fig = plot_corner(post, truths={"M_p": 0.5, "r_p": 0.35})
+    assert any("M_{th}" in ax.get_xlabel() or "M_th" in ax.get_xlabel() for ax in fig.axes)
