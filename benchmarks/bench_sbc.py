@@ -69,6 +69,14 @@ def main(argv=None):
     parser.add_argument("--frank-n", type=int, default=200, help="frank's N (100 already reaches 8.6 Mlambda at Rmax "
                                                                  "= 1.2\")")
     parser.add_argument("--seed", type=int, default=2024)
+    parser.add_argument("--mass", choices=("bank", "continuous"), default="bank",
+                        help="'continuous': draw M_p log-uniform over 0.1-3 M_th and sample it")
+    parser.add_argument("--indices", default=None, help="only these planet datasets, 'a:b' (run two processes "
+                                                         "on one --out to use two cores)")
+    parser.add_argument("--no-null", action="store_true", help="skip the planet-free datasets")
+    parser.add_argument("--mass-nodes", type=int, default=None, help="mass nodes of the family (--mass continuous; "
+                                                                      "default 49)")
+    parser.add_argument("--rp-tolerance", type=float, default=None, help="the tables' r_p tolerance (default 0.01)")
     parser.add_argument("--report", action="store_true", help="only print the table of the records so far")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
@@ -76,11 +84,13 @@ def main(argv=None):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    setup = CalibrationSetup(preset=args.preset, sampler={"n_walkers": args.walkers, "n_steps": args.steps,
-                                                          "evidence_draws": args.evidence_draws},
-                             frank={"N": args.frank_n, "Rmax": 1.2})
+    sampler = {"n_walkers": args.walkers, "n_steps": args.steps, "evidence_draws": args.evidence_draws}
+    if args.rp_tolerance is not None:
+        sampler["likelihood_kwargs"] = {"rp_tolerance": args.rp_tolerance}
+    setup = CalibrationSetup(preset=args.preset, sampler=sampler, frank={"N": args.frank_n, "Rmax": 1.2},
+                             mass=args.mass, n_mass_nodes=args.mass_nodes)
     path = out / "records.jsonl"
-    records = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
     if args.report:
         report(records, setup)
         return
@@ -88,13 +98,16 @@ def main(argv=None):
     done = {(r["index"], r["planet"]) for r in records}
     coverage = preset_coverage(args.preset)
     template = setup.make_template()
-    todo = [(i, True) for i in range(args.n_planet)] + [(i, False) for i in range(args.n_null)]
+    a, b = (int(x) for x in args.indices.split(":")) if args.indices else (0, args.n_planet)
+    todo = [(i, True) for i in range(a, b)] + [(i, False) for i in range(0 if args.no_null else args.n_null)]
+    family = setup.family(template) if args.mass == "continuous" else None
     t0 = time.perf_counter()
     for index, planet in todo:
         if (index, planet) in done:
             continue
         record = run_dataset(setup, index, out / "chains", planet=planet, coverage=coverage, template=template,
-                             seed=args.seed, processes=args.processes if args.processes > 1 else None)
+                             seed=args.seed, processes=args.processes if args.processes > 1 else None,
+                             family=family)
         records.append(record)
         with open(path, "a") as f:
             f.write(json.dumps(record) + "\n")

@@ -150,3 +150,14 @@ def test_continuous_run_end_to_end(case, tmp_path):
 
     fig = plot_corner(post, truths={"M_p": 0.5, "r_p": 0.35})
     assert any("M_{th}" in ax.get_xlabel() or "M_th" in ax.get_xlabel() for ax in fig.axes)
+
+
+def test_a_family_is_taken_as_it_is_and_must_hold_the_prior(case, tmp_path):
+    vis, model = case
+    family = family_of(make_template(1.0, 0.3, 0.0, "R", **GRID), mass_range=(0.2, 2.0), n_masses=9)
+    assert group_families([family], MassPrior((0.3, 1.0))) == [(family, [])]
+    with pytest.raises(InputError, match="build the family over the prior's range"):
+        group_families([family], MassPrior((0.1, 1.0)))
+    with pytest.raises(InputError, match="mass='continuous'"):
+        sample_posterior(vis, model, family, priors=Priors.default(model, r_p=R_RANGE), chains_dir=tmp_path,
+                         progress=False)

@@ -113,3 +113,33 @@ def test_asking_again_for_the_same_chain_costs_no_second_evidence(flat_chain):
     assert rule(flat_chain, counted) == first and len(calls) == n == 3000
     rule(flat_chain[:-1], counted)  # another chain: a new check
     assert len(calls) == 2 * n
+
+
+def test_a_continuous_mass_family_stops_on_the_geometry_with_its_own_evidence():
+    """The same closed form with ``ln M_p`` uniform on its prior and wandering like ``r_p``: rule 2
+    stops the 7-parameter chain and its evidence (t + plateau with the mass) finds ``ln_b``."""
+    from spiralbayes.inference.posterior import MASS_PARAMETER_NAMES, MassPrior, family_evidence
+
+    mass_prior = MassPrior()
+    lo, hi = mass_prior.ln_range
+    base = _chain()
+    rng = np.random.default_rng(3)
+    x = np.cumsum(rng.normal(0, 0.05, base.shape[:2]), axis=0)
+    lnm = lo + (hi - lo) * (0.5 + 0.5 * np.tanh(x / 3))
+    chain = np.concatenate([base, lnm[..., None]], axis=2)
+    ln_b = -2.0
+    six = _log_post(ln_b)
+
+    def f(theta):
+        return six(theta[:6]) + mass_prior.log_prior(theta[6])
+
+    scales = np.append(SCALES, (hi - lo) / np.sqrt(12))
+    rule = StoppingRule(NULL, PRIORS, scales, min_ess=400, n_draws=3000, seed=0, name="family",
+                        names=MASS_PARAMETER_NAMES,
+                        evidence=lambda fn, flat, r, m: family_evidence(fn, flat, NULL, PRIORS, mass_prior, scales,
+                                                                        3000, r, m))
+    diag = rule(chain, f)
+    assert "lnM_p" in diag["tau"] and diag["tau"]["lnM_p"] > chain.shape[0] / 50
+    check = diag["check_ln_bayes"]
+    assert check["ln_b"] == pytest.approx(ln_b, abs=max(3 * check["err"], 0.02))
+    assert diag["converged"] and diag["stopping_rule"].startswith("planet not preferred")

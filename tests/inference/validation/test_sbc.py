@@ -40,3 +40,26 @@ def test_small_simulation_based_calibration(tmp_path):
     assert np.mean(s["null_p_planet"]) < 0.5, s
     strong = [p for a, p in s["planet_p_planet"] if a > 0.5]
     assert not strong or np.mean(strong) > 0.5, s
+
+
+def test_ranks_include_the_mass_of_a_continuous_mass_run():
+    from spiralbayes.inference.posterior.results import MASS_SAMPLE_NAMES
+
+    rng = np.random.default_rng(1)
+    samples = np.column_stack([rng.normal(0, 1, 4000) for _ in MASS_SAMPLE_NAMES])
+    samples[:, 7] = np.exp(rng.normal(0.0, 0.5, 4000))  # M_p log-normal around 1 M_th
+    truth = dict.fromkeys(SAMPLE_NAMES, 0.0) | {"M_p": float(np.exp(0.5))}  # one sigma above in ln M
+    r = ranks(samples, truth)
+    assert r["M_p"] == pytest.approx(0.84, abs=0.02)
+    assert "M_p_MJup" not in r  # not drawn, so not ranked
+
+
+def test_a_continuous_setup_draws_the_mass_log_uniformly():
+    from spiralbayes.inference.validation.sbc import draw_truth
+
+    setup = CalibrationSetup(mass="continuous", mass_range=(0.1, 3.0))
+    rng = np.random.default_rng(2)
+    ln_m = np.log([draw_truth(setup, rng)["M_p"] for _ in range(4000)])
+    assert ln_m.min() >= np.log(0.1) and ln_m.max() <= np.log(3.0)
+    assert np.histogram(ln_m, bins=4, range=(np.log(0.1), np.log(3.0)))[0] == pytest.approx([1000] * 4, rel=0.12)
+    assert "M_p" not in draw_truth(CalibrationSetup(), rng)

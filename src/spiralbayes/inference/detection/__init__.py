@@ -9,7 +9,7 @@
 * :mod:`.planet_peak` — the spiral hypothesis as spiral + compact source at the planet, scored in test 3.
 * :mod:`.nested` — test 3 as a nested question: the best alternatives fitted jointly with the spiral;
 * :mod:`.explanation` — what the verdict names as the residual structure's cause (calibration included);
-* :mod:`.mass` — the planet's mass range.
+* :mod:`~spiralbayes.inference.detection.mass` — the planet's mass range.
 """
 
 from .verdict import (

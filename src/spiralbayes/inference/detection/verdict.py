@@ -8,7 +8,8 @@ one-sided clusters.
 
 Why this module is long: the :class:`Verdict` documents each of its ~30 fields for the API page and
 ``help()``, and tests 1 and 2 (the peak, its mirror, its localisation) are one procedure whose
-helpers are read together; test 3 lives in :mod:`.nested`, :mod:`.explanation` and :mod:`.mass`.
+helpers are read together; test 3 lives in :mod:`.nested`, :mod:`.explanation` and
+:mod:`~spiralbayes.inference.detection.mass`.
 
 Quantities used here (spiralbayes' definitions; thresholds are parameters):
 

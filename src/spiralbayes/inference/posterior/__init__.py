@@ -44,7 +44,7 @@ from .mass import (
     family_of,
     group_families,
 )
-from .family_run import family_metadata, family_name, sample_family
+from .family_run import family_evidence, family_metadata, family_name, sample_family
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
@@ -56,6 +56,7 @@ __all__ = [
     "MassLikelihood",
     "MassLogPosterior",
     "MassPrior",
+    "family_evidence",
     "family_metadata",
     "family_name",
     "family_of",

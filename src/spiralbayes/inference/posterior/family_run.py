@@ -4,7 +4,9 @@
 (the template's six parameters at the scan's best bank mass, then ``ln M_p`` freed), its Laplace
 covariance and evidence, then — unless the family is pruned to a Laplace evidence — an emcee chain
 over ``(r_p, phi_p, inc, PA, dRA, dDec, ln M_p)`` with the wrapped DE moves (blocks: the planet with
-its mass, and the geometry), stopped when every parameter passes the 50-tau / ESS test. The evidence
+its mass, and the geometry), stopped by the fixed templates' :class:`~.stopping.StoppingRule` with
+``ln M_p`` among the parameters (every parameter past 50 tau, or the planet not preferred and the
+geometry converged). The evidence
 is importance-sampled from a t fitted to the chain and a defensive component that draws the planet's
 position and mass from their priors. The likelihood and the priors are in :mod:`~spiralbayes.inference.posterior.mass`.
 """
@@ -24,15 +26,15 @@ from .chain_runner import run_chain, walker_pool
 from .chain_runner import streams as chain_streams
 from .chains import ChainBackend, ChainState, ChainStore, _saved_samples
 from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, chain_inference_data
-from .diagnostics import convergence_diagnostics
 from .evidence import GaussianGeometry, StudentT, hessian_cov, importance_evidence, laplace_evidence
 from .mass import MASS_PARAMETER_NAMES, FamilyPerturbation, MassLikelihood, MassLogPosterior, MassPrior
 from .moves import default_moves
 from .optimise import _nelder_mead, _scales, find_map
 from .priors import Priors
 from .results import TemplateRun, _with_amplitude, wrap_phi
+from .stopping import StoppingRule
 
-__all__ = ["family_metadata", "family_name", "sample_family"]
+__all__ = ["family_evidence", "family_metadata", "family_name", "sample_family"]
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +53,18 @@ class _MassPlateau:
     def logpdf(self, x: np.ndarray) -> np.ndarray:
         inside = (x[:, 6] >= self.lo) & (x[:, 6] <= self.hi)
         return np.where(inside, self.geometry.logpdf(x[:, :6]) - np.log(self.hi - self.lo), -np.inf)
+
+
+def family_evidence(log_prob_fn, flat: np.ndarray, null, priors, mass_prior: MassPrior, scales, n_draws: int, rng,
+                    mapper=map) -> dict:
+    """A family's ``ln Z`` by importance sampling: a t fitted to chain samples ``flat`` (n, 7) plus the
+    no-planet geometry with the planet's position and ``ln M_p`` from their priors (mixture 0.7 / 0.3,
+    as :func:`~.stopping.template_evidence` for a template)."""
+    centred, _ = wrap_phi(flat)
+    chain_t = StudentT(centred.mean(axis=0), np.cov(centred, rowvar=False) * 1.2 ** 2, scales, periodic=(1,))
+    plateau = _MassPlateau(GaussianGeometry(null.geometry_map, null.covariance * 1.5 ** 2, priors.geometry_widths,
+                                            priors.r_p), mass_prior)
+    return importance_evidence(log_prob_fn, [chain_t, plateau], [0.7, 0.3], n_draws, rng, mapper)
 
 
 def family_name(family) -> str:
@@ -159,8 +173,13 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
         return run, likelihood
     chain_settings = replace(sampling, moves=sampling.moves if sampling.moves is not None
                              else default_moves(blocks=((0, 1, 6), (2, 3, 4, 5))), initial=None)
-    min_ess = sampling.min_ess
-    stop = lambda chain, *_: convergence_diagnostics(chain, min_ess=min_ess, names=MASS_PARAMETER_NAMES)  # noqa: E731
+    def evidence(log_prob_fn, flat, rng, mapper=map) -> dict:
+        return family_evidence(log_prob_fn, flat, null, priors, mass_prior, scales, sampling.evidence_draws, rng,
+                               mapper)
+
+    stop = StoppingRule(null, priors, scales, min_ess=sampling.min_ess, n_draws=sampling.evidence_draws,
+                        seed=sampling.seed, name=name, planet_free_rule=sampling.stop_when_planet_free,
+                        names=MASS_PARAMETER_NAMES, evidence=evidence)
     with walker_pool(sampling.pool, sampling.processes, logpost) as walkers:
         if walkers.is_worker:
             return None, likelihood
@@ -168,16 +187,11 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
                             settings=chain_settings, streams=streams, name=name, progress=s["progress"],
                             logpost=logpost, stop_check=stop)
         chain, blobs, accepted = backend.get_chain(), backend.get_blobs(), backend.accepted
-        diag = stop(chain)
+        diag = stop(chain, walkers.log_prob, walkers.map)
         sl = slice(diag["burn_in"], None, diag["thin"])
         flat = chain[sl].reshape(-1, 7)
         fb = blobs[sl].reshape(-1, 2)
-        centred, _ = wrap_phi(flat)
-        chain_t = StudentT(centred.mean(axis=0), np.cov(centred, rowvar=False) * 1.2 ** 2, scales, periodic=(1,))
-        plateau = _MassPlateau(GaussianGeometry(null.geometry_map, null.covariance * 1.5 ** 2,
-                                                priors.geometry_widths, priors.r_p), mass_prior)
-        ev = importance_evidence(walkers.log_prob, [chain_t, plateau], [0.7, 0.3], sampling.evidence_draws,
-                                 rng_evidence, walkers.map)
+        ev = evidence(walkers.log_prob, flat, rng_evidence, walkers.map)
     samples = _with_amplitude(flat[:, :6], fb[:, 0], fb[:, 1], priors, rng_amp)
     mass = np.exp(flat[:, 6])
     samples = np.column_stack([samples, mass, mass_prior.to_mjup(mass, float(family.h_ps[0]), rng_amp)])

@@ -279,10 +279,22 @@ class MassLogPosterior:
 
 def group_families(templates, mass_prior: MassPrior) -> list:
     """``[(family, members), ...]``: the bank templates grouped by (variant, τ0, β, hand, H/r), each
-    group's :class:`~spiralbayes.templates.family.TemplateFamily` over ``mass_prior.mass_range``."""
+    group's :class:`~spiralbayes.templates.family.TemplateFamily` over ``mass_prior.mass_range``.
+    A ``TemplateFamily`` among ``templates`` is taken as it is (no members); its mass range must hold
+    the prior's."""
+    from ...templates.family import TemplateFamily
+
     groups: dict = {}
+    out = []
     for t in templates:
+        if isinstance(t, TemplateFamily):
+            lo, hi = mass_prior.mass_range
+            if not t.mass_range[0] * (1 - 1e-9) <= lo < hi <= t.mass_range[1] * (1 + 1e-9):
+                raise InputError(f"{t!r} spans {t.mass_range} M_th but the mass prior is {mass_prior.mass_range}: "
+                                 "build the family over the prior's range")
+            out.append((t, []))
+            continue
         prov = getattr(t, "provenance", {}) or {}
         key = (prov.get("variant", "compromise"), float(t.tau0), float(t.beta), t.hand, float(t.h_p))
         groups.setdefault(key, []).append(t)
-    return [(family_of(members[0], mass_prior.mass_range), members) for members in groups.values()]
+    return out + [(family_of(members[0], mass_prior.mass_range), members) for members in groups.values()]

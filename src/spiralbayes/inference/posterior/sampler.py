@@ -301,6 +301,8 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
         the default priors. A fit at a wrong geometry is fine: the profile is refitted at every
         sampled geometry inside the likelihood.
     templates : SpiralTemplate, TemplateBank or sequence
+        With ``mass="continuous"`` also :class:`~spiralbayes.templates.family.TemplateFamily` objects
+        (used as they are; bank templates are grouped into families of 49 mass nodes).
     scan_result : ScanResult, optional
         Starts each template's optimiser from its best grid instances, and prunes templates
         (``prune_delta_lnL``). The keyword ``scan=`` is accepted with a FutureWarning.
@@ -356,11 +358,11 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
     run_name, n_walkers, seed, evidence_draws = s.run_name, s.n_walkers, s.seed, s.evidence_draws
     pool, moves, likelihood_kwargs = s.pool, s.moves, s.likelihood_kwargs
     template_prior, planet_prior = s.template_prior, s.planet_prior
-    templates = _check_templates(templates)
+    templates = _check_templates(templates, s.mass)
     vis = vis.standardised()
     priors = priors or Priors.default(axisymmetric)
     priors.check_data(vis, axisymmetric)
-    names = [t.name for t in templates]
+    names = [getattr(t, "name", None) or family_name(t) for t in templates]
     prior_t = (np.full(len(templates), 1.0 / len(templates)) if template_prior is None
                else np.asarray(template_prior, float))
     if prior_t.shape != (len(templates),) or np.any(prior_t <= 0):
@@ -396,10 +398,11 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
         runs: list[TemplateRun] = []
         partners: dict[str, FastPerturbation | Callable[[], FastPerturbation]] = {}  # mirror name -> its table
         for family, members in families:
-            best = max(members, key=lambda t: _peak(scan_result, t.name))
-            mode = "mcmc" if any(t.name in selected for t in members) else "laplace"
-            overall.start(f"family {family_name(family)}: M_p continuous ({mode})")
-            r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, best.name)
+            fname = family_name(family)
+            best = max(members, key=lambda t: _peak(scan_result, t.name)).name if members else fname
+            mode = "mcmc" if fname in selected or any(t.name in selected for t in members) else "laplace"
+            overall.start(f"family {fname}: M_p continuous ({mode})")
+            r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, best)
             run, _ = sample_family(vis, base, null, family, members, priors, mass_prior or MassPrior(),
                                    scan=scan_result, chain_path=chain_path, settings=run_settings, mode=mode,
                                    r_range=r_range)
@@ -452,13 +455,17 @@ class _Stages:
         log.info("posterior: %d stages done in %.1f min", self.total, (time.perf_counter() - self.t0) / 60)
 
 
-def _check_templates(templates) -> list:
-    if hasattr(templates, "evaluate"):
+def _check_templates(templates, mass: str = "bank") -> list:
+    from ...templates.family import TemplateFamily
+
+    if hasattr(templates, "evaluate") or isinstance(templates, TemplateFamily):
         templates = [templates]
     templates = list(templates)
     if not templates:
         raise InputError("no templates: pass a SpiralTemplate, a TemplateBank or a list of them")
-    names = [t.name for t in templates]
+    if mass != "continuous" and any(isinstance(t, TemplateFamily) for t in templates):
+        raise InputError("a TemplateFamily is sampled with its mass free: pass mass='continuous'")
+    names = [family_name(t) if isinstance(t, TemplateFamily) else t.name for t in templates]
     if len(set(names)) != len(names) or NULL_GROUP in names:
         raise InputError(f"template names must be unique (and not {NULL_GROUP!r}), got {names}")
     return templates

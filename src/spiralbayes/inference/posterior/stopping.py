@@ -78,18 +78,26 @@ class StoppingRule:
         The template (seeds the check's evidence stream).
     planet_free_rule : bool
         Allow rule 2 (default True); False tests every parameter, as before.
+    names : sequence of str
+        The chain's coordinates (default the template's six; a continuous-mass family adds ``lnM_p``).
+    evidence : callable, optional
+        ``evidence(log_prob_fn, flat, rng, mapper) -> dict`` with ``ln_evidence`` and
+        ``ln_evidence_err``: rule 2's estimate (default :func:`template_evidence`).
     """
 
     _last: tuple[tuple, dict]  # (key of the chain diagnosed last, its diagnostics); unset before the first call
 
     def __init__(self, null, priors, scales, *, min_ess: float, n_draws: int, seed: int, name: str,
-                 planet_free_rule: bool = True):
+                 planet_free_rule: bool = True, names=PARAMETER_NAMES, evidence=None):
         self.null, self.priors, self.scales = null, priors, np.asarray(scales, float)
         self.min_ess, self.n_draws, self.seed, self.name = float(min_ess), int(n_draws), int(seed), name
         self.planet_free_rule = bool(planet_free_rule)
+        self.names = tuple(names)
+        self.evidence = evidence or (lambda fn, flat, rng, mapper: template_evidence(
+            fn, flat, self.null, self.priors, self.scales, self.n_draws, rng, mapper))
 
     def __call__(self, chain: np.ndarray, log_prob_fn=None, mapper=map) -> dict:
-        """Diagnostics of ``chain`` (n_steps, n_walkers, 6) with ``converged`` and the ``stopping_rule``.
+        """Diagnostics of ``chain`` (n_steps, n_walkers, n_dim) with ``converged`` and the ``stopping_rule``.
 
         ``log_prob_fn`` (the chain's log posterior) and ``mapper`` evaluate rule 2's evidence; without
         ``log_prob_fn`` only rule 1 is tested. Under rule 2 ``burn_in`` and ``thin`` follow the
@@ -103,7 +111,7 @@ class StoppingRule:
         return diag
 
     def _diagnostics(self, chain, log_prob_fn, mapper) -> dict:
-        diag = convergence_diagnostics(chain, min_ess=self.min_ess)
+        diag = convergence_diagnostics(chain, min_ess=self.min_ess, names=self.names)
         diag["stopping_rule"] = "every parameter > 50 tau" if diag["converged"] else None
         if diag["converged"] or not self.planet_free_rule or log_prob_fn is None:
             return diag
@@ -114,8 +122,7 @@ class StoppingRule:
         if not (np.all(n_steps > TAU_FACTOR * tau_g) and np.all(ess_g >= self.min_ess)):
             return diag
         flat = chain[burn:].reshape(-1, chain.shape[2])
-        ev = template_evidence(log_prob_fn, flat, self.null, self.priors, self.scales, self.n_draws,
-                               self._rng(n_steps), mapper)
+        ev = self.evidence(log_prob_fn, flat, self._rng(n_steps), mapper)
         ln_b, err = ev["ln_evidence"] - self.null.ln_evidence, ev["ln_evidence_err"]
         diag["check_ln_bayes"] = {"ln_b": ln_b, "err": err, "n_steps": int(n_steps)}
         log.info("%s: geometry converged at %d steps (max tau %.1f); ln B(planet : none) = %.2f +- %.2f",

@@ -11,6 +11,11 @@ datasets (``planet=False``) record ``P(planet | data)`` only. :func:`summarise` 
 coverage with binomial errors and rank histograms. ``benchmarks/bench_sbc.py`` runs it at
 scale; ``tests/inference/test_sbc.py`` runs a small version.
 
+With ``mass="continuous"`` the planet's mass is drawn too, log-uniform over ``mass_range``, the
+spiral planted is the template family's at that mass (:class:`~spiralbayes.templates.family.TemplateFamily`,
+the model the inference uses) and the posterior samples ``M_p`` with the rest
+(:mod:`~spiralbayes.inference.posterior.mass`); ranks and coverage then include ``M_p``.
+
 What is *not* drawn from the prior: the disc profile (a fixed power-law disc, not a draw from
 frank's Gaussian process — it is integrated out, and the data pin it) and the template (one known
 template). Geometry prior: inclination and PA within a few degrees and the phase centre within
@@ -35,7 +40,7 @@ from ...settings import DEFAULT_DISTANCE_PC
 from ...units import TWO_PI, wrap_angle
 from ..posterior.likelihood import DEFAULT_AMPLITUDE_MAX
 from ..posterior.priors import Priors
-from ..posterior.results import SAMPLE_NAMES, wrap_phi
+from ..posterior.results import MASS_SAMPLE_NAMES, SAMPLE_NAMES, wrap_phi
 from ..posterior.sampler import sample_posterior
 
 __all__ = ["CalibrationSetup", "draw_truth", "run_dataset", "summarise"]
@@ -56,6 +61,9 @@ class CalibrationSetup:
     distance: float = DEFAULT_DISTANCE_PC
     frank: dict = field(default_factory=lambda: {"N": 200, "Rmax": 1.2})
     sampler: dict = field(default_factory=lambda: {"n_walkers": 24, "n_steps": 600, "evidence_draws": 800})
+    mass: str = "bank"
+    mass_range: tuple = (0.1, 3.0)
+    n_mass_nodes: int | None = None
 
     def priors(self) -> Priors:
         g, w = self.nominal, self.widths
@@ -67,6 +75,19 @@ class CalibrationSetup:
 
         return make_template(*self.template)
 
+    def family(self, template=None):
+        """The template's family over ``mass_range`` (``mass="continuous"``) on ``n_mass_nodes`` nodes
+        (default :data:`~spiralbayes.templates.family.N_MASS_NODES`). The data are planted from this
+        family, so calibration holds for any node count; fewer nodes make fewer tables."""
+        from ..posterior.mass import family_of
+
+        return family_of(template or self.make_template(), tuple(self.mass_range), self.n_mass_nodes)
+
+    def mass_prior(self):
+        from ..posterior.mass import MassPrior
+
+        return MassPrior(tuple(self.mass_range), mstar_sigma=0.0)
+
 
 def draw_truth(setup: CalibrationSetup, rng, planet: bool = True) -> dict:
     """Truth from the inference priors (``A = 0`` and no planet position when ``planet`` is False)."""
@@ -76,6 +97,8 @@ def draw_truth(setup: CalibrationSetup, rng, planet: bool = True) -> dict:
     if planet:
         truth.update(r_p=rng.uniform(*priors.r_p), phi_p=rng.uniform(0.0, TWO_PI),
                      A=rng.uniform(0.0, setup.amplitude_max))
+        if setup.mass == "continuous":
+            truth["M_p"] = float(np.exp(rng.uniform(*np.log(setup.mass_range))))
     else:
         truth.update(r_p=None, phi_p=None, A=0.0)
     return {k: (None if v is None else float(v)) for k, v in truth.items()}
@@ -100,7 +123,8 @@ def ranks(samples: np.ndarray, truth: dict) -> dict:
     """Fraction of posterior samples below the truth, per parameter (``phi_p`` on the circle)."""
     wrapped, mu = wrap_phi(samples)
     out = {}
-    for j, name in enumerate(SAMPLE_NAMES):
+    names = MASS_SAMPLE_NAMES if samples.shape[1] == len(MASS_SAMPLE_NAMES) else SAMPLE_NAMES
+    for j, name in enumerate(names):
         t = truth.get(name)
         if t is None:
             continue
@@ -111,22 +135,29 @@ def ranks(samples: np.ndarray, truth: dict) -> dict:
 
 
 def run_dataset(setup: CalibrationSetup, index: int, workdir, *, planet: bool = True, coverage=None,
-                template=None, seed: int = 0, processes: int | None = None) -> dict:
-    """One round trip (see the module docs); returns a JSON-able record."""
+                template=None, seed: int = 0, processes: int | None = None, family=None) -> dict:
+    """One round trip (see the module docs); returns a JSON-able record. ``family``: the template's
+    family when ``setup.mass`` is ``"continuous"`` (made from ``template`` when not given)."""
     t0 = time.perf_counter()
     rng = np.random.default_rng([seed, index, int(planet)])
     truth = draw_truth(setup, rng, planet)
     template = template or setup.make_template()
-    vis = _simulate(setup, truth, template, coverage, seed=int(rng.integers(2 ** 31)))
+    continuous = setup.mass == "continuous"
+    if continuous:
+        family = family or setup.family(template)
+    planted = family.at(truth["M_p"]) if continuous and planet else template
+    vis = _simulate(setup, truth, planted, coverage, seed=int(rng.integers(2 ** 31)))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model = fit_axisymmetric(vis, DiscGeometry(*setup.nominal), progress=False, **setup.frank)
     t_fit = time.perf_counter() - t0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = sample_posterior(vis, model, [template], priors=setup.priors(), run_name=f"d{index:03d}_{int(planet)}",
+        result = sample_posterior(vis, model, [family if continuous else template], priors=setup.priors(),
+                                  run_name=f"d{index:03d}_{int(planet)}",
                                   chains_dir=Path(workdir), convergence="ignore", progress=False,
-                                  seed=int(rng.integers(2 ** 31)), processes=processes, **setup.sampler)
+                                  seed=int(rng.integers(2 ** 31)), processes=processes, mass=setup.mass,
+                                  mass_prior=setup.mass_prior() if continuous else None, **setup.sampler)
     if result is None:  # an MPI worker rank (pool="mpi" in setup.sampler) has no result to record
         raise RuntimeError("sample_posterior returned no result, as on an MPI worker rank")
     run = result.runs[0]
@@ -147,7 +178,7 @@ def summarise(records: list, bins: int = 5) -> dict:
     ``P(planet | data)`` of the planet-free datasets."""
     planets = [r for r in records if r["planet"]]
     table = {}
-    for name in SAMPLE_NAMES:
+    for name in (*SAMPLE_NAMES, "M_p"):
         rk = np.array([r["ranks"][name] for r in planets if name in r["ranks"]])
         n = rk.size
         if n == 0:
