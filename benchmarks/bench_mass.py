@@ -3,8 +3,12 @@
 Prints the time per likelihood call of :class:`~spiralbayes.inference.posterior.MassLikelihood` (four
 mass nodes' grids summed, one NUFFT) and of :class:`~spiralbayes.inference.posterior.MarginalSpiralLikelihood`
 for one template, their ratio, and the table build per mass node against one template's build.
+``--runs`` also times whole posteriors on the posterior tests' small observation (1500 baselines, a
+0.5 M_th planet): one family with the mass sampled against the same family's four bank templates
+sampled one by one (today's discrete run), same walkers and steps.
 
     python benchmarks/bench_mass.py --n-vis 100000
+    python benchmarks/bench_mass.py --runs --skip-calls
 """
 
 from __future__ import annotations
@@ -46,8 +50,50 @@ def main() -> None:
     parser.add_argument("--n-vis", type=int, default=100_000)
     parser.add_argument("--uv-max", type=float, default=2e6)
     parser.add_argument("--repeat", type=int, default=40)
+    parser.add_argument("--runs", action="store_true", help="also time whole posteriors (a few minutes)")
+    parser.add_argument("--skip-calls", action="store_true", help="skip the per-call timings")
+    parser.add_argument("--steps", type=int, default=600)
+    parser.add_argument("--walkers", type=int, default=28)
     args = parser.parse_args()
     warnings.simplefilter("ignore")
+    if not args.skip_calls:
+        calls(args)
+    if args.runs:
+        runs(args)
+
+
+def runs(args) -> None:
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' small observation
+
+    from spiralbayes.inference.posterior import Priors
+    from spiralbayes.inference.posterior.sampler import sample_posterior
+    from tests._support.mass_setup import bank_members, planted_observation
+    from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
+
+    vis = planted_observation(0.5)
+    model = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=80)
+    members = bank_members()
+    common = dict(priors=Priors.default(model, r_p=R_RANGE), n_walkers=args.walkers, n_steps=args.steps,
+                  evidence_draws=400, progress=False, convergence="ignore", likelihood_kwargs={"rp_tolerance": 0.05},
+                  seed=1)
+    times = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for mode in ("bank", "continuous"):
+            t = time.perf_counter()
+            post = sample_posterior(vis, model, members, mass=mode, chains_dir=Path(tmp) / mode,
+                                    mcmc_templates=[t.name for t in members] if mode == "bank" else None, **common)
+            times[mode] = time.perf_counter() - t
+            print(f"{mode:>10}: {times[mode]:.0f} s for {len(post.runs)} run(s) of {args.walkers} walkers x "
+                  f"{args.steps} steps; {post.verdict[:90]}", flush=True)
+    print(f"whole run, continuous family / four bank templates: {times['continuous'] / times['bank']:.2f}; "
+          f"per bank template: {times['continuous'] / (times['bank'] / len(members)):.2f}")
+
+
+def calls(args) -> None:
     vis, model, geometry = observation(args.n_vis, args.uv_max)
     base = ProfileMarginal(vis, model)
     r_range = (0.15, 0.6)

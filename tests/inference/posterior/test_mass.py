@@ -118,17 +118,23 @@ def test_settings_name_the_mass_options():
 
 
 def test_continuous_run_end_to_end(case, tmp_path):
-    """A short run on the planted 0.5 M_th planet: the mass is sampled and reported in M_th and M_Jup."""
+    """A short run on the planted 0.5 M_th planet with both hands' families (13 mass nodes over 0.2-1.5
+    M_th): the mass is sampled and reported in M_th and M_Jup, the mirror family shares the tables."""
     vis, model = case
+    families = [family_of(make_template(1.0, 0.3, 0.0, hand, **GRID), (0.2, 1.5), n_masses=13) for hand in "RL"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        post = sample_posterior(vis, model, bank_members()[1:3], priors=Priors.default(model, r_p=R_RANGE),
+        post = sample_posterior(vis, model, families,
+                                priors=Priors.default(model, r_p=R_RANGE),
                                 mass="continuous", mass_prior=MassPrior((0.2, 1.5)), chains_dir=tmp_path,
                                 n_walkers=16, n_steps=120, evidence_draws=150, progress=False, convergence="ignore",
                                 likelihood_kwargs=TABLES, seed=2)
     run = post.best
-    assert run.continuous_mass and run.sample_names == MASS_SAMPLE_NAMES and len(post.runs) == 1
-    assert run.name == "wake_mcont_tau0.3_b0_h0.07_R"
+    assert run.continuous_mass and run.sample_names == MASS_SAMPLE_NAMES and len(post.runs) == 2
+    assert run.name == "wake_mcont_tau0.3_b0_h0.07_R" and post.p_right_handed > 0.99
+    left = post.run("wake_mcont_tau0.3_b0_h0.07_L")
+    # the mirror family reads the right-handed family's node tables, building only nodes its own walkers reach first
+    assert left.diagnostics["build_time_s"] < 0.5 * run.diagnostics["build_time_s"]
     assert post.planet_preferred and "M_p sampled" in post.verdict
     m = run.samples[:, 7]
     assert m.min() >= 0.2 and m.max() <= 1.5
@@ -141,7 +147,8 @@ def test_continuous_run_end_to_end(case, tmp_path):
     summary = post.mass_posterior()
     assert summary["mth"]["lo95"] <= summary["mth"]["median"] <= summary["mth"]["hi95"]
     # the chain file resumes: a second call reads the finished family back
-    again = sample_posterior(vis, model, bank_members()[1:3], priors=Priors.default(model, r_p=R_RANGE),
+    again = sample_posterior(vis, model, families,
+                             priors=Priors.default(model, r_p=R_RANGE),
                              mass="continuous", mass_prior=MassPrior((0.2, 1.5)), chains_dir=tmp_path, n_walkers=16,
                              n_steps=120, evidence_draws=150, progress=False, convergence="ignore",
                              likelihood_kwargs=TABLES, seed=2)
@@ -161,3 +168,24 @@ def test_a_family_is_taken_as_it_is_and_must_hold_the_prior(case, tmp_path):
     with pytest.raises(InputError, match="mass='continuous'"):
         sample_posterior(vis, model, family, priors=Priors.default(model, r_p=R_RANGE), chains_dir=tmp_path,
                          progress=False)
+
+
+def test_mirror_families_share_their_node_tables(case):
+    """The left-handed family reads the right-handed family's tables (one coordinate flipped) and agrees
+    with a table built for its own interpolated template."""
+    vis, model = case
+    right = family_of(make_template(1.0, 0.3, 0.0, "R", **GRID))
+    left = family_of(make_template(1.0, 0.3, 0.0, "L", **GRID))
+    args = (vis.u, vis.v, vis.weights, model.brightness)
+    fp_r = FamilyPerturbation(*args, right, R_RANGE, TRUE_GEOMETRY, **TABLES)
+    fp_l = FamilyPerturbation(*args, left, R_RANGE, TRUE_GEOMETRY, mirror_of=fp_r, **TABLES)
+    fp_r.disc_frame(0.35, 2.0, 40.0, 70.0, 0.7)
+    built = dict(fp_r._right)
+    fast = fp_l.disc_frame(0.35, 2.0, 40.0, 70.0, 0.7)
+    assert fp_l._right is fp_r._right and all(fp_l._right[j] is t for j, t in built.items())  # nothing rebuilt
+    assert fp_l.build_time_s == 0.0
+    ref = FastPerturbation(*args, left.at(0.7), R_RANGE, TRUE_GEOMETRY, **TABLES).disc_frame(0.35, 2.0, 40.0, 70.0)
+    w = vis.weights
+    assert np.sqrt(np.sum(w * np.abs(fast - ref) ** 2)) < 1e-5 * np.sqrt(np.sum(w * np.abs(ref) ** 2))
+    with pytest.raises(InputError, match="not the mirror"):
+        FamilyPerturbation(*args, right, R_RANGE, TRUE_GEOMETRY, mirror_of=fp_r, **TABLES)

@@ -98,13 +98,14 @@ def _start_mass(members, scan, mass_prior: MassPrior) -> float:
 
 
 def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: MassPrior, *, scan, chain_path,
-                  settings, mode: str = "mcmc", r_range=None) -> tuple:
+                  settings, mode: str = "mcmc", r_range=None, mirror_of: FamilyPerturbation | None = None) -> tuple:
     """One family's posterior over ``(r_p, phi_p, geometry, ln M_p)``; returns ``(TemplateRun, likelihood)``.
 
     ``members`` are the bank templates of the family (they start the optimiser at the scan's best
     instances). ``settings`` is :func:`~.sampler.sample_posterior`'s run settings. ``mode``
     ``"laplace"`` gives the Laplace evidence and Gaussian samples only, from tables over ``r_range``
-    (a window around the scan's peak), as for a pruned template.
+    (a window around the scan's peak), as for a pruned template. ``mirror_of``: the mirror family's
+    perturbation on the same ``r_range``, whose node tables this family shares.
     """
     s, sampling = settings, settings["sampling"]
     t0 = time.perf_counter()
@@ -125,7 +126,7 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
         return TemplateRun.from_record(saved.result, _saved_samples(saved, store)), None
     lk = {k: v for k, v in s["likelihood_kwargs"].items() if k not in ("tolerance", "order")}
     fp = FamilyPerturbation(base.u, base.v, base.weights, base.axisymmetric.brightness, family, r_range,
-                            DiscGeometry(*null.geometry_map), progress=s["progress"], **lk)
+                            DiscGeometry(*null.geometry_map), progress=s["progress"], mirror_of=mirror_of, **lk)
     likelihood = MassLikelihood(base, fp, amplitude_max=priors.amplitude_max)
     logpost = MassLogPosterior(likelihood, priors, mass_prior)
     g_sigma, scales6, max_var6 = _scales(priors, null)

@@ -163,12 +163,16 @@ class FamilyPerturbation:
         As :class:`~.perturbation.FastPerturbation`.
     family : TemplateFamily
         One ``H/r`` (a family spanning several is refused: ``H/r`` is not sampled).
+    mirror_of : FamilyPerturbation, optional
+        The same perturbation for the mirror family (other hand, same nodes, data and ``r_p``
+        range): the hand-R node tables are shared, and each hand reads them with one coordinate
+        flipped (:class:`~.perturbation.FastPerturbation`'s ``mirror_of``).
     **table_kwargs
         :class:`~.perturbation.FastPerturbation` settings of every node's table.
     """
 
     def __init__(self, u, v, weights, profile, family, r_range, reference_geometry: DiscGeometry, *,
-                 progress: bool = False, **table_kwargs):
+                 progress: bool = False, mirror_of: FamilyPerturbation | None = None, **table_kwargs):
         if family.h_ps.size != 1:
             raise InputError(f"the family spans H/r {family.h_range}: a continuous-mass run samples M_p at one H/r "
                              "(build the family with a single h_p)")
@@ -180,29 +184,45 @@ class FamilyPerturbation:
         self.progress = progress
         self.tables: dict[int, FastPerturbation] = {}
         self._build_s: dict[int, float] = {}
+        self._right: dict[int, FastPerturbation] = {}  # hand-R node tables; a mirror family shares them
+        if mirror_of is not None:
+            other = mirror_of.family
+            if (other.hand == family.hand or not np.array_equal(other.masses, family.masses)
+                    or other.variant != family.variant or (other.tau0, other.beta) != (family.tau0, family.beta)
+                    or not np.array_equal(other.h_ps, family.h_ps) or mirror_of.r_range != self.r_range
+                    or mirror_of.u.size != u.size):
+                raise InputError(f"{family!r} is not the mirror of {other!r} on the same data and r_p range")
+            self._right = mirror_of._right
         self.template = family.at(float(np.sqrt(family.mass_range[0] * family.mass_range[1])))
 
     @property
     def mass_range(self) -> tuple[float, float]:
         return self.family.mass_range
 
+    def _right_table(self, j: int) -> tuple[FastPerturbation, float]:
+        """Node ``j``'s hand-R table (shared with a mirror family) and the seconds spent building it here."""
+        if j in self._right:
+            return self._right[j], 0.0
+        fp = FastPerturbation(self.u, self.v, self.weights, self.profile, self.family.node(j), self.r_range,
+                              self.reference_geometry, progress=self.progress, **self.table_kwargs)
+        if self._right:
+            first = next(iter(self._right.values()))
+            if fp.table.N != first.table.N or fp._delta != first._delta:
+                raise InputError("the family's node tables differ in their Fourier grids: the nodes must share "
+                                 "one (x, phi) grid")
+        self._right[j] = fp
+        return fp, fp.build_time_s
+
     def node_table(self, j: int) -> FastPerturbation:
         """Node ``j``'s table in the family's hand (made on first use)."""
         if j not in self.tables:
-            node = self.family.node(j)
-            fp = FastPerturbation(self.u, self.v, self.weights, self.profile, node, self.r_range,
-                                  self.reference_geometry, progress=self.progress, **self.table_kwargs)
-            built_s = fp.build_time_s
+            fp, built_s = self._right_table(j)
             if self.family.hand == "L":
-                fp = FastPerturbation(self.u, self.v, self.weights, self.profile, node.mirror(), self.r_range,
-                                      self.reference_geometry, mirror_of=fp, **self.table_kwargs)
-            if self.tables:
-                first = next(iter(self.tables.values()))
-                if fp.table.N != first.table.N or fp._delta != first._delta:
-                    raise InputError("the family's node tables differ in their Fourier grids: the nodes must share "
-                                     "one (x, phi) grid")
-            log.info("%s: table of mass node %.4g M_th built (%.1f s; %d of %d nodes)", self.template.name,
-                     self.family.masses[j], built_s, len(self.tables) + 1, self.family.masses.size)
+                fp = FastPerturbation(self.u, self.v, self.weights, self.profile, self.family.node(j).mirror(),
+                                      self.r_range, self.reference_geometry, mirror_of=fp, **self.table_kwargs)
+            log.info("%s: table of mass node %.4g M_th %s (%.1f s; %d of %d nodes)", self.template.name,
+                     self.family.masses[j], "built" if built_s else "shared with the mirror family", built_s,
+                     len(self.tables) + 1, self.family.masses.size)
             self.tables[j] = fp
             self._build_s[j] = built_s
         return self.tables[j]
@@ -285,7 +305,7 @@ def group_families(templates, mass_prior: MassPrior) -> list:
     from ...templates.family import TemplateFamily
 
     groups: dict = {}
-    out = []
+    out: list[tuple] = []
     for t in templates:
         if isinstance(t, TemplateFamily):
             lo, hi = mass_prior.mass_range

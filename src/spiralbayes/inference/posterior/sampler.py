@@ -397,15 +397,20 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
                                likelihood_kwargs)
         runs: list[TemplateRun] = []
         partners: dict[str, FastPerturbation | Callable[[], FastPerturbation]] = {}  # mirror name -> its table
+        family_partners: dict = {}
         for family, members in families:
             fname = family_name(family)
             best = max(members, key=lambda t: _peak(scan_result, t.name)).name if members else fname
             mode = "mcmc" if fname in selected or any(t.name in selected for t in members) else "laplace"
             overall.start(f"family {fname}: M_p continuous ({mode})")
             r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, best)
-            run, _ = sample_family(vis, base, null, family, members, priors, mass_prior or MassPrior(),
-                                   scan=scan_result, chain_path=chain_path, settings=run_settings, mode=mode,
-                                   r_range=r_range)
+            key = (family.variant, family.tau0, family.beta, tuple(family.h_ps), tuple(family.masses),
+                   tuple(r_range))
+            run, likelihood = sample_family(vis, base, null, family, members, priors, mass_prior or MassPrior(),
+                                            scan=scan_result, chain_path=chain_path, settings=run_settings, mode=mode,
+                                            r_range=r_range, mirror_of=_mirror_partner(family_partners, key, family))
+            if likelihood is not None:  # the other hand's family shares these node tables
+                family_partners.setdefault(key, likelihood.perturbation)
             if run is not None:
                 runs.append(run)
         for template in templates if not families else []:
@@ -502,6 +507,12 @@ def _laplace_window(priors: Priors, scan, name: str) -> tuple:
     step = float(np.median(np.diff(scan.r_p))) if scan.r_p.size > 1 else 0.1 * (hi - lo)
     r_lo, r_hi = max(lo, scan.r_p[i] - 2 * step), min(hi, scan.r_p[i] + 2 * step)
     return (r_lo, r_hi) if r_hi > r_lo else priors.r_p
+
+
+def _mirror_partner(partners: dict, key, family):
+    """The other hand's family perturbation with the same nodes and r_p range, if one was built."""
+    partner = partners.get(key)
+    return partner if partner is not None and partner.family.hand != family.hand else None
 
 
 def _peak(scan, name: str) -> float:
