@@ -5,7 +5,7 @@
 # β = 10, right-handed, at 50 au and 140 pc), frank, a scan of the family's bank templates, then the
 # posterior with `mass="continuous"`: M_p is sampled (log-uniform on 0.1–3 M_th) with the planet's
 # position and the disc geometry, and reported in M_th and M_Jup (M_* = 0.8 ± 0.08 M_sun).
-# Run with `python examples/mass_posterior_demo.py` (about 15 minutes on 2 cores).
+# Run with `python examples/mass_posterior_demo.py` (36 minutes measured on 2 cores shared with two other jobs).
 
 # %%
 import os
@@ -35,7 +35,7 @@ result = sb.scan(vis, disc, templates, geometry, distance=DEMO_DISTANCE, progres
 # %% The posterior with M_p sampled
 post = sb.sample_posterior(vis, disc, templates, scan_result=result, mass="continuous",
                            mass_prior=sb.MassPrior(mstar=0.8, mstar_sigma=0.08), chains_dir=OUT / "chains",
-                           settings=sb.SamplingSettings(run_name="demo_mass", n_walkers=24, max_steps=4000),
+                           settings=sb.SamplingSettings(run_name="demo_mass", n_walkers=20, max_steps=2000),
                            progress=False)
 print(post.verdict)
 mass = post.mass_posterior()
