@@ -95,6 +95,22 @@ def _shift_rows(delta: np.ndarray, shift: np.ndarray) -> np.ndarray:
     return np.fft.irfft(F * np.exp(-1j * m[None, :] * shift[:, None]), n=delta.shape[1], axis=1)
 
 
+@dataclass(frozen=True, eq=False)
+class _NodeMaker:
+    """Makes a family's hand-R node template at ``(mass, h_p)`` (a plain object, so families pickle
+    for worker processes)."""
+
+    tau0: float
+    beta: float
+    variant: object
+    options: dict
+
+    def __call__(self, mass: float, h_p: float) -> SpiralTemplate:
+        from .variants import variant_template  # the variants module imports the bank; keep this light
+
+        return variant_template(mass, self.tau0, self.beta, "R", self.variant, h_p=h_p, **self.options)
+
+
 @dataclass(eq=False)
 class TemplateFamily:
     """One morphology's templates on a grid of masses (and aspect ratios), interpolated between.
@@ -197,8 +213,6 @@ class TemplateFamily:
         TemplateFamily
             Node templates are made when :meth:`at` first needs them.
         """
-        from .variants import variant_template  # the variants module imports the bank; keep this light
-
         nodes_m: np.ndarray
         if masses is None:
             lo, hi = (float(m) for m in mass_range)
@@ -211,9 +225,7 @@ class TemplateFamily:
             nodes_m = np.asarray(masses, dtype=float)
         h_ps = np.atleast_1d(np.asarray(h_p, dtype=float))
 
-        def make(mass: float, h: float) -> SpiralTemplate:
-            return variant_template(mass, tau0, beta, "R", variant, h_p=h, **options)
-
+        make = _NodeMaker(float(tau0), float(beta), variant, dict(options))
         first = make(float(nodes_m[0]), float(h_ps[0]))  # bad settings fail here, not at the first at()
         wake = {k: v for k, v in options.items() if k in WakeSettings.__dataclass_fields__ and k != "h_p"}
         log.info("template family %s tau0=%g beta=%g: %d masses x %d H/r nodes", variant, tau0, beta,

@@ -189,3 +189,17 @@ def test_mirror_families_share_their_node_tables(case):
     assert np.sqrt(np.sum(w * np.abs(fast - ref) ** 2)) < 1e-5 * np.sqrt(np.sum(w * np.abs(ref) ** 2))
     with pytest.raises(InputError, match="not the mirror"):
         FamilyPerturbation(*args, right, R_RANGE, TRUE_GEOMETRY, mirror_of=fp_r, **TABLES)
+
+
+def test_a_pickled_family_perturbation_still_builds_tables(case):
+    """Pool workers get a pickled copy: it keeps the profile, so a node it has not seen can be built."""
+    import pickle
+
+    vis, model = case
+    family = family_of(make_template(1.0, 0.3, 0.0, "R", **GRID), (0.2, 1.5), n_masses=7)
+    fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, R_RANGE, TRUE_GEOMETRY, **TABLES)
+    fp.disc_frame(0.35, 2.0, 40.0, 70.0, 0.25)
+    copy = pickle.loads(pickle.dumps(fp))
+    np.testing.assert_allclose(copy.disc_frame(0.35, 2.0, 40.0, 70.0, 1.2), fp.disc_frame(0.35, 2.0, 40.0, 70.0, 1.2),
+                               rtol=1e-6, atol=1e-9)
+    assert fp.build_nodes() == 7 and len(fp.tables) == 7

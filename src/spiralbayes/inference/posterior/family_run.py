@@ -181,6 +181,8 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
     stop = StoppingRule(null, priors, scales, min_ess=sampling.min_ess, n_draws=sampling.evidence_draws,
                         seed=sampling.seed, name=name, planet_free_rule=sampling.stop_when_planet_free,
                         names=MASS_PARAMETER_NAMES, evidence=evidence)
+    if sampling.pool is not None or (sampling.processes or 1) > 1:
+        fp.build_nodes(mass_prior.mass_range)
     with walker_pool(sampling.pool, sampling.processes, logpost) as walkers:
         if walkers.is_worker:
             return None, likelihood

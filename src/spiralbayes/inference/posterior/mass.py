@@ -264,10 +264,16 @@ class FamilyPerturbation:
                 "table_bytes": self.nbytes, "build_time_s": self.build_time_s,
                 "quadrature_error": self.quadrature_error}
 
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state.pop("profile", None)  # a bound method of the model: only the tables' builds need it
-        return state
+    def build_nodes(self, mass_range: tuple[float, float] | None = None) -> int:
+        """Build every node table that masses in ``mass_range`` [M_th] use (default the family's range);
+        returns how many there are. Worker processes receive a copy of this object, and a table one of
+        them builds stays there, so a pooled run builds them first."""
+        lo, hi = mass_range or self.family.mass_range
+        needed = sorted({j for m in np.geomspace(lo, hi, 8 * self.family.masses.size)
+                         for j, _, _ in self.family.weights(float(m))})
+        for j in needed:
+            self.node_table(j)
+        return len(needed)
 
 
 class MassLikelihood(MarginalSpiralLikelihood):
