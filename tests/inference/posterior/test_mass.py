@@ -53,7 +53,7 @@ def test_family_perturbation_is_the_interpolated_templates_table(case, hand):
     family = family_of(make_template(1.0, 0.3, 0.0, hand, **GRID))
     fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, R_RANGE, TRUE_GEOMETRY, **TABLES)
     w = vis.weights
-    for mass, r_p, phi_p in ((0.2, 0.3, 0.4), (0.5, 0.35, 2.0), (2.0, 0.45, 5.5)):
+    for mass, r_p, phi_p in (((0.2, 0.3, 0.4), (2.0, 0.45, 5.5)) if hand == "R" else ((0.5, 0.35, 2.0),)):
         fast = fp.disc_frame(r_p, phi_p, 40.0, 70.0, mass)
         ref = FastPerturbation(vis.u, vis.v, w, model.brightness, family.at(mass), R_RANGE, TRUE_GEOMETRY,
                                **TABLES).disc_frame(r_p, phi_p, 40.0, 70.0)
@@ -118,16 +118,16 @@ def test_settings_name_the_mass_options():
 
 
 def test_continuous_run_end_to_end(case, tmp_path):
-    """A short run on the planted 0.5 M_th planet with both hands' families (13 mass nodes over 0.2-1.5
+    """A short run on the planted 0.5 M_th planet with both hands' families (9 mass nodes over 0.2-1.5
     M_th): the mass is sampled and reported in M_th and M_Jup, the mirror family shares the tables."""
     vis, model = case
-    families = [family_of(make_template(1.0, 0.3, 0.0, hand, **GRID), (0.2, 1.5), n_masses=13) for hand in "RL"]
+    families = [family_of(make_template(1.0, 0.3, 0.0, hand, **GRID), (0.2, 1.5), n_masses=9) for hand in "RL"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         post = sample_posterior(vis, model, families,
                                 priors=Priors.default(model, r_p=R_RANGE),
                                 mass="continuous", mass_prior=MassPrior((0.2, 1.5)), chains_dir=tmp_path,
-                                n_walkers=16, n_steps=120, evidence_draws=150, progress=False, convergence="ignore",
+                                n_walkers=16, n_steps=80, evidence_draws=120, progress=False, convergence="ignore",
                                 likelihood_kwargs=TABLES, seed=2)
     run = post.best
     assert run.continuous_mass and run.sample_names == MASS_SAMPLE_NAMES and len(post.runs) == 2
@@ -150,7 +150,7 @@ def test_continuous_run_end_to_end(case, tmp_path):
     again = sample_posterior(vis, model, families,
                              priors=Priors.default(model, r_p=R_RANGE),
                              mass="continuous", mass_prior=MassPrior((0.2, 1.5)), chains_dir=tmp_path, n_walkers=16,
-                             n_steps=120, evidence_draws=150, progress=False, convergence="ignore",
+                             n_steps=80, evidence_draws=120, progress=False, convergence="ignore",
                              likelihood_kwargs=TABLES, seed=2)
     np.testing.assert_array_equal(again.best.samples, run.samples)
     from spiralbayes.plotting import plot_corner
