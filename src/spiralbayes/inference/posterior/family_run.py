@@ -82,19 +82,21 @@ def family_metadata(family, mass_prior: MassPrior) -> dict:
             **mass_prior.to_dict(), "n_mass_nodes": int(family.masses.size)}
 
 
+def scan_peak(scan, name: str) -> float:
+    """The template's best scan Delta chi2 (-inf without a scan or the template)."""
+    if scan is not None:
+        with contextlib.suppress(KeyError, IndexError):
+            return float(np.nanmax(scan.delta_chi2()[scan.template_index(name)]))
+    return -np.inf
+
+
 def _start_mass(members, scan, mass_prior: MassPrior) -> float:
     """The bank member the scan rates best (else the range's geometric mean) [M_th]."""
     lo, hi = mass_prior.mass_range
     inside = [t for t in members if lo <= float(t.mass) <= hi]
     if scan is None or not inside:
         return float(np.sqrt(lo * hi))
-
-    def peak(t) -> float:
-        with contextlib.suppress(KeyError, IndexError):
-            return float(np.nanmax(scan.delta_chi2()[scan.template_index(t.name)]))
-        return -np.inf
-
-    return float(max(inside, key=peak).mass)
+    return float(max(inside, key=lambda t: scan_peak(scan, t.name)).mass)
 
 
 def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: MassPrior, *, scan, chain_path,
@@ -174,6 +176,7 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
         return run, likelihood
     chain_settings = replace(sampling, moves=sampling.moves if sampling.moves is not None
                              else default_moves(blocks=((0, 1, 6), (2, 3, 4, 5))), initial=None)
+
     def evidence(log_prob_fn, flat, rng, mapper=map) -> dict:
         return family_evidence(log_prob_fn, flat, null, priors, mass_prior, scales, sampling.evidence_draws, rng,
                                mapper)

@@ -279,9 +279,6 @@ class FamilyPerturbation:
 class MassLikelihood(MarginalSpiralLikelihood):
     """:class:`~.likelihood.MarginalSpiralLikelihood` of a family: ``theta`` ends with ``ln M_p`` (7 values)."""
 
-    def __init__(self, base, perturbation: FamilyPerturbation, **kwargs):
-        super().__init__(base, perturbation, **kwargs)
-
     def spiral_visibilities(self, theta) -> np.ndarray:
         r_p, phi_p, inc, PA, _, _, ln_mass = (float(t) for t in theta)
         return self.perturbation.disc_frame(r_p, phi_p, inc, PA, np.exp(ln_mass))

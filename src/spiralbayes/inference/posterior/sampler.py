@@ -82,7 +82,7 @@ from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics,
 from .evidence import StudentT, hessian_cov, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .likelihood import MarginalSpiralLikelihood, ProfileMarginal
 from .optimise import _scales, find_map, fit_null_geometry
-from .family_run import family_name, sample_family
+from .family_run import family_name, sample_family, scan_peak
 from .mass import MassPrior, group_families
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
@@ -400,7 +400,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
         family_partners: dict = {}
         for family, members in families:
             fname = family_name(family)
-            best = max(members, key=lambda t: _peak(scan_result, t.name)).name if members else fname
+            best = max(members, key=lambda t: scan_peak(scan_result, t.name)).name if members else fname
             mode = "mcmc" if fname in selected or any(t.name in selected for t in members) else "laplace"
             overall.start(f"family {fname}: M_p continuous ({mode})")
             r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, best)
@@ -513,16 +513,6 @@ def _mirror_partner(partners: dict, key, family):
     """The other hand's family perturbation with the same nodes and r_p range, if one was built."""
     partner = partners.get(key)
     return partner if partner is not None and partner.family.hand != family.hand else None
-
-
-def _peak(scan, name: str) -> float:
-    """The template's best scan Delta chi2 (-inf without a scan or the template)."""
-    if scan is None:
-        return -np.inf
-    try:
-        return float(np.nanmax(scan.delta_chi2()[scan.template_index(name)]))
-    except (KeyError, IndexError):
-        return -np.inf
 
 
 def _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL) -> set:
