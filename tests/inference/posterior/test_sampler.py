@@ -135,8 +135,32 @@ def test_walkers_never_start_at_minus_inf():
         initial_walkers(logpost, centre, cov, priors, 12, rng, initial=bad)
 
 
+def test_chains_go_to_the_best_templates_by_scan_grid_evidence():
+    """``max_chains`` of the templates within ``prune_delta_lnL`` of the best scan-grid evidence, ranked by it;
+    every template without a scan; exactly the named ones with ``mcmc_templates``."""
+    from types import SimpleNamespace
+
+    from spiralbayes.inference.posterior import MassPrior, SamplingSettings
+    from spiralbayes.inference.posterior.sampler import _grid_evidences, _select_mcmc
+    from tests._support.result_builders import scan_result
+
+    scan = scan_result()  # six templates, a clear peak in the first
+    names = [t["name"] for t in scan.templates]
+    priors = Priors((0.1, 0.5), (30, 1), (60, 1), (0, 0.01), (0, 0.01), 2.0)
+    grids = _grid_evidences(scan, [SimpleNamespace(name=n) for n in names], [], priors, MassPrior())
+    ln_b = {n: grids[n].ln_bayes for n in names}
+    order = sorted(names, key=lambda n: -ln_b[n])
+    assert order[0] == names[0] and ln_b[order[0]] - ln_b[order[1]] > 5
+    assert _select_mcmc(names, [], grids, SamplingSettings(prune_delta_lnL=1e6, max_chains=2)) == set(order[:2])
+    gap = ln_b[order[0]] - ln_b[order[2]] + 1e-9
+    assert _select_mcmc(names, [], grids, SamplingSettings(prune_delta_lnL=gap, max_chains=6)) == set(order[:3])
+    assert _select_mcmc(names, [], grids, SamplingSettings()) == {names[0]}
+    assert _select_mcmc(names, [], {}, SamplingSettings()) == set(names)
+    assert _select_mcmc(names, [], grids, SamplingSettings(mcmc_templates=(names[3],))) == {names[3]}
+
+
 def test_templates_pruned_by_the_scan_get_a_narrow_table():
-    from spiralbayes.inference.posterior.sampler import _laplace_window, _select_mcmc
+    from spiralbayes.inference.posterior.sampler import _laplace_window
 
     class Scan:
         r_p = np.linspace(0.1, 0.6, 11)
@@ -152,8 +176,6 @@ def test_templates_pruned_by_the_scan_get_a_narrow_table():
             return {"A": 0, "B": 1}[name]
 
     priors = Priors(R_RANGE, (40, 5), (70, 5), (0, 0.05), (0, 0.05))
-    assert _select_mcmc(["A", "B"], Scan(), None, 25.0) == {"A"}
-    assert _select_mcmc(["A", "B"], None, None, 25.0) == {"A", "B"}
     lo, hi = _laplace_window(priors, Scan(), "B")
     assert (lo, hi) == pytest.approx((R_RANGE[0], 0.3))  # +- 2 scan steps around 0.2, inside the prior
     assert _laplace_window(priors, None, "B") == priors.r_p

@@ -5,6 +5,7 @@
 * :mod:`.conditional` — the likelihood at a fixed profile, the reference (:class:`SpiralLikelihood`);
 * :mod:`.interpolation`, :mod:`.perturbation` — the fast perturbation tables;
 * :mod:`.optimise` — the modes before sampling; :mod:`.evidence` — evidences and Bayes factors;
+  :mod:`.scan_evidence` — the Bayes factors read off the scan's grid (which templates get a chain);
 * :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings` and
   :class:`PriorSettings`; :mod:`.moves` — the wrapped DE move;
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files (an emcee backend) and the chain loop;
@@ -34,7 +35,7 @@ from .chain_runner import WalkerPool, initial_walkers, make_pool, run_chain, str
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .optimise import find_map, fit_null_geometry
 from .stopping import MAX_LN_B_ERROR, StoppingRule, template_evidence
-from .settings import CONVERGENCE_POLICIES, MASS_MODES, PriorSettings, SamplingSettings
+from .settings import CONVERGENCE_POLICIES, MASS_MODES, PRUNED_EVIDENCE, PriorSettings, SamplingSettings
 from .mass import (
     MASS_PARAMETER_NAMES,
     FamilyPerturbation,
@@ -45,9 +46,16 @@ from .mass import (
     group_families,
 )
 from .family_run import family_evidence, family_metadata, family_name, sample_family
+from .scan_evidence import GRID_LN_B_ERROR, GridEvidence, family_grid_evidence, grid_run, template_grid_evidence
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
+    "GRID_LN_B_ERROR",
+    "GridEvidence",
+    "PRUNED_EVIDENCE",
+    "family_grid_evidence",
+    "grid_run",
+    "template_grid_evidence",
     "AxisymmetricTable",
     "FamilyPerturbation",
     "MASS_MODES",

@@ -16,16 +16,19 @@ Procedure (:func:`sample_posterior`):
    (:func:`.optimise.fit_null_geometry`), its Laplace covariance, the profile refitted there
    (the spiral term's profile), and ``ln Z_0`` by importance sampling with a t proposal from the
    Laplace fit (:mod:`.evidence`).
-2. **Each template** gets its likelihood tables (mirror templates share their partner's), its
+2. **Which templates are sampled.** With a scan, every template's Bayes factor is first read off
+   the scan's grid (:mod:`.scan_evidence`: milliseconds for the whole bank); the ``max_chains``
+   best within ``prune_delta_lnL`` of the best get a chain, the others keep the grid's evidence
+   (``pruned_evidence = "laplace"``: a Laplace evidence from a table over a window around the scan's
+   peak instead). Without a scan every template is sampled.
+3. **Each sampled template** gets its likelihood tables (mirror templates share their partner's), its
    mode (started from the no-planet geometry and the scan's best instances,
-   :func:`.optimise.find_map`), then either a chain (emcee) or — for templates whose scan peak is
-   ``prune_delta_lnL`` below the best — only a Laplace evidence from a table limited to a window
-   around that peak. emcee samples ``(r_p, phi_p, inc, PA, dRA, dDec)``; ``phi_p`` lives on the
+   :func:`.optimise.find_map`), then a chain. emcee samples ``(r_p, phi_p, inc, PA, dRA, dDec)``; ``phi_p`` lives on the
    circle (:class:`.moves.WrappedDEMove`), ``A`` is integrated out of the target and drawn
    exactly for every stored sample from its conditional posterior (the amplitude terms are
    emcee "blobs"). The evidence: importance sampling with a defensive mixture, cross-checked by
    Laplace and Savage–Dickey (:mod:`.evidence`).
-3. **Combination**: ``P(planet | data)``, the Bayes factor, ``P(T | data, planet)``
+4. **Combination**: ``P(planet | data)``, the Bayes factor, ``P(T | data, planet)``
    (:class:`.results.PosteriorResult`).
 
 Why per-template runs rather than a template index inside emcee: the modes of different
@@ -82,11 +85,12 @@ from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics,
 from .evidence import StudentT, hessian_cov, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .likelihood import MarginalSpiralLikelihood, ProfileMarginal
 from .optimise import _scales, find_map, fit_null_geometry
-from .family_run import family_name, sample_family, scan_peak
+from .family_run import family_metadata, family_name, sample_family, scan_peak
 from .mass import MassPrior, group_families
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
 from .results import NullRun, PosteriorResult, TemplateRun, _with_amplitude, wrap_phi
+from .scan_evidence import family_grid_evidence, grid_run, template_grid_evidence
 from .settings import SamplingSettings
 from .stopping import StoppingRule, template_evidence
 
@@ -370,16 +374,21 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
     prior_t = prior_t / prior_t.sum()
     chain_path = Path(chains_dir) / f"{check_output_name(run_name, 'run_name')}.h5"
     chain_path.parent.mkdir(parents=True, exist_ok=True)
-    selected = _select_mcmc(names, scan_result, s.mcmc_templates, s.prune_delta_lnL)
     families: list = []
+    mass_prior = mass_prior or MassPrior()
     if s.mass == "continuous":
         if template_prior is not None:
             raise InputError("template_prior is per template; with mass='continuous' the families share the prior "
                              "equally: leave template_prior unset")
-        families = group_families(templates, mass_prior or MassPrior())
+        families = group_families(templates, mass_prior)
         prior_t = np.full(len(families), 1.0 / len(families))
         log.info("mass = 'continuous': %d templates in %d families, M_p log-uniform on %s M_th", len(templates),
-                 len(families), (mass_prior or MassPrior()).mass_range)
+                 len(families), mass_prior.mass_range)
+    hypotheses = [family_name(f) for f, _ in families] if families else names
+    grids = _grid_evidences(scan_result, templates, families, priors, mass_prior)
+    selected = _select_mcmc(hypotheses, families, grids, s)
+    on_grid = set() if s.pruned_evidence != "scan" else {n for n in hypotheses
+                                                         if n not in selected and grids.get(n) is not None}
     likelihood_kwargs = dict(likelihood_kwargs or {})
     profile_prior = ProfilePrior.from_model(axisymmetric)
     common = {"data_hash": data_hash(vis.u, vis.v, vis.V, vis.weights), "n_data": int(vis.n), "mass": s.mass,
@@ -389,31 +398,37 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
                                "moves": "wrapped DE, joint and block moves" if moves is None else repr(moves)},
                     "sampling": s, "progress": progress, "likelihood_kwargs": likelihood_kwargs}
     _set_mpi_rank(pool)
-    overall = _Stages((len(families) or len(templates)) + 1, progress)
+    overall = _Stages(len(hypotheses) - len(on_grid) + 1 + bool(on_grid), progress)
     with blas_threads(1, all_pools=True):
         overall.start("no planet: geometry mode and evidence")
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
                                {**common, "evidence_draws": int(evidence_draws)}, seed, evidence_draws,
                                likelihood_kwargs)
-        runs: list[TemplateRun] = []
+        runs: dict[str, TemplateRun] = {}
         partners: dict[str, FastPerturbation | Callable[[], FastPerturbation]] = {}  # mirror name -> its table
         family_partners: dict = {}
+        if on_grid:
+            overall.start(f"{len(on_grid)} of {len(hypotheses)} hypotheses without a chain: evidence from the scan")
         for family, members in families:
             fname = family_name(family)
+            if fname in on_grid:
+                continue
             best = max(members, key=lambda t: scan_peak(scan_result, t.name)).name if members else fname
-            mode = "mcmc" if fname in selected or any(t.name in selected for t in members) else "laplace"
+            mode = "mcmc" if fname in selected else "laplace"
             overall.start(f"family {fname}: M_p continuous ({mode})")
             r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, best)
             key = (family.variant, family.tau0, family.beta, tuple(family.h_ps), tuple(family.masses),
                    tuple(r_range))
-            run, likelihood = sample_family(vis, base, null, family, members, priors, mass_prior or MassPrior(),
+            run, likelihood = sample_family(vis, base, null, family, members, priors, mass_prior,
                                             scan=scan_result, chain_path=chain_path, settings=run_settings, mode=mode,
                                             r_range=r_range, mirror_of=_mirror_partner(family_partners, key, family))
             if likelihood is not None:  # the other hand's family shares these node tables
                 family_partners.setdefault(key, likelihood.perturbation)
             if run is not None:
-                runs.append(run)
+                runs[fname] = run
         for template in templates if not families else []:
+            if template.name in on_grid:
+                continue
             mode = "mcmc" if template.name in selected else "laplace"
             steps = "tables, optimum, chain" if mode == "mcmc" else "tables, optimum, Laplace evidence"
             overall.start(f"template {template.name} ({steps})")
@@ -424,11 +439,17 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
                 partners[_mirror_name(template)] = (likelihood.perturbation if likelihood is not None else
                                                     _deferred_table(base, template, r_range, null, likelihood_kwargs))
             if run is not None:
-                runs.append(run)
+                runs[template.name] = run
+        if on_grid:
+            metadata = {family_name(f): (family_metadata(f, mass_prior), float(f.h_ps[0])) for f, _ in families}
+            for name in on_grid:
+                meta, h_p = metadata.get(name) or (template_metadata(templates[names.index(name)]), None)
+                runs[name] = grid_run(name, meta, grids[name], null, priors, chain_streams(seed, name)[3],
+                                      mass_prior=mass_prior, h_p=h_p)
     overall.close()
     if pool == "mpi" and not runs:
         return None
-    result = PosteriorResult(runs, priors, prior_t, run_name, str(chain_path),
+    result = PosteriorResult([runs[n] for n in hypotheses if n in runs], priors, prior_t, run_name, str(chain_path),
                              provenance_record(data_hash=common["data_hash"], geometry=axisymmetric.geometry.to_dict(),
                                                profile_prior=profile_prior.source),
                              null, float(planet_prior))
@@ -515,23 +536,41 @@ def _mirror_partner(partners: dict, key, family):
     return partner if partner is not None and partner.family.hand != family.hand else None
 
 
-def _select_mcmc(names, scan, mcmc_templates, prune_delta_lnL) -> set:
-    if mcmc_templates is not None:
-        unknown = set(mcmc_templates) - set(names)
+def _grid_evidences(scan, templates, families, priors: Priors, mass_prior: MassPrior) -> dict:
+    """``{hypothesis name: GridEvidence or None}`` from the scan (None where it lacks the template or a member)."""
+    out: dict = {}
+    if scan is None:
+        return out
+    scanned = {t["name"] for t in scan.templates}
+    if families:
+        for family, members in families:
+            ok = members and all(t.name in scanned for t in members)
+            out[family_name(family)] = (family_grid_evidence(scan, members, mass_prior.mass_range, priors) if ok
+                                        else None)
+        return out
+    for t in templates:
+        out[t.name] = template_grid_evidence(scan, t.name, priors) if t.name in scanned else None
+    return out
+
+
+def _select_mcmc(names, families, grids: dict, s: SamplingSettings) -> set:
+    """The hypotheses that get a chain: named by ``mcmc_templates`` (a family by its name or a member's),
+    else the ``max_chains`` best by scan-grid evidence within ``prune_delta_lnL`` of the best (all without
+    a scan; those the scan lacks always)."""
+    if s.mcmc_templates is not None:
+        members = {family_name(f): {t.name for t in m} for f, m in families}
+        known = set(names).union(*members.values())
+        unknown = set(s.mcmc_templates) - known
         if unknown:
             raise InputError(f"mcmc_templates names unknown templates {sorted(unknown)}")
-        return set(mcmc_templates)
-    if scan is None:
+        asked = set(s.mcmc_templates)
+        return {n for n in names if n in asked or members.get(n, set()) & asked}
+    if not grids:
         return set(names)
-    peaks = {}
-    dchi2 = scan.delta_chi2()
-    for name in names:
-        try:
-            peaks[name] = float(np.nanmax(dchi2[scan.template_index(name)]))
-        except (KeyError, IndexError):
-            peaks[name] = np.inf
-    best = max(peaks.values())
-    return {n for n, p in peaks.items() if (best - p) / 2 <= prune_delta_lnL}
+    ln_b = {n: grids[n].ln_bayes for n in names if grids.get(n) is not None}
+    best = max(ln_b.values(), default=-np.inf)
+    ranked = sorted((n for n in ln_b if best - ln_b[n] <= s.prune_delta_lnL), key=lambda n: -ln_b[n])
+    return set(ranked[:s.max_chains]) | {n for n in names if grids.get(n) is None}
 
 
 def refit_axisymmetric(vis, axisymmetric, result, template=None, *, progress: bool = False):

@@ -13,10 +13,13 @@ from .likelihood import DEFAULT_AMPLITUDE_MAX
 from .mass import MassPrior
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 
-__all__ = ["MASS_MODES", "CONVERGENCE_POLICIES", "PriorSettings", "SamplingSettings"]
+__all__ = ["MASS_MODES", "PRUNED_EVIDENCE", "CONVERGENCE_POLICIES", "PriorSettings", "SamplingSettings"]
 
 MASS_MODES = ("bank", "continuous")
 """How the planet mass enters the posterior (``[sample] mass``)."""
+PRUNED_EVIDENCE = ("scan", "laplace")
+"""How a template (family) without a chain gets its evidence (``[sample] pruned_evidence``)."""
+
 CONVERGENCE_POLICIES = ("raise", "warn", "ignore")
 """What a run does with a chain shorter than 50 autocorrelation times."""
 
@@ -40,8 +43,13 @@ class SamplingSettings:
     min_ess: float = option(400.0, "smallest effective sample size per parameter for convergence")
     processes: int | None = option(None, "worker processes for the walkers", toml=1)
     seed: int = option(0, "random seed of the sampler")
-    prune_delta_lnL: float = option(25.0, "templates whose scan peak is this far below the best (in ln L) get a "
-                                          "Laplace evidence only")
+    prune_delta_lnL: float = option(7.0, "templates (families) whose scan-grid evidence is this far below the "
+                                         "best's (in ln) get no chain, only the evidence named by pruned_evidence")
+    max_chains: int = option(3, "most templates (families) sampled by emcee, the best by scan-grid evidence; the "
+                                "others get pruned_evidence")
+    pruned_evidence: str = option("scan", "evidence of the templates without a chain: 'scan' (from the scan's grid, "
+                                          "shifted by the offset measured on the sampled ones; milliseconds) or "
+                                          "'laplace' (tables, optimum and Laplace approximation; ~20 s each)")
     evidence_draws: int = option(2000, "draws of the importance-sampled evidence")
     mcmc_templates: tuple | None = option(None, "names of the templates that get a chain (empty: chosen by "
                                                 "prune_delta_lnL)", toml=[])
@@ -94,6 +102,11 @@ class SamplingSettings:
             raise InputError(f"planet_prior = {self.planet_prior!r} must lie strictly between 0 and 1")
         if int(self.flush_every) < 1:
             raise InputError(f"flush_every = {self.flush_every!r} must be a positive number of steps")
+        if not is_integer(self.max_chains) or self.max_chains < 1:
+            raise InputError(f"max_chains = {self.max_chains!r} must be an integer >= 1 (the best template is always "
+                             "sampled)")
+        if self.pruned_evidence not in PRUNED_EVIDENCE:
+            raise InputError(f"pruned_evidence = {self.pruned_evidence!r}: choose one of {PRUNED_EVIDENCE}")
         if self.mass not in MASS_MODES:
             raise InputError(f"mass = {self.mass!r}: choose one of {MASS_MODES}")
 
