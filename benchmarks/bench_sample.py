@@ -26,6 +26,11 @@ bank and of the single-morphology compromise bank, on the same set-up, and print
 
     python benchmarks/bench_sample.py --skip-likelihood --skip-build --bank
 
+``--walker-pools`` times one ensemble step's log posteriors serially, with two walker threads (the
+default pool) and with two worker processes, and prints the ratios:
+
+    python benchmarks/bench_sample.py --skip-likelihood --skip-build --walker-pools
+
 BLAS threads are pinned to one (emcee #199): numpy's BLAS calls with two threads on a loaded
 2-core machine were measured ~100x slower for these array sizes.
 """
@@ -294,6 +299,40 @@ def bench_bank(args) -> dict:
     return {**record, "wall_ratio": ratio}
 
 
+def bench_walker_pools(args) -> dict:
+    """Wall time of one ensemble step's log posteriors (``--walkers`` positions around the planet), serial
+    against walker threads (the default) and worker processes, on the synthetic disc."""
+    from spiralbayes.inference.posterior.chain_runner import walker_pool
+    from spiralbayes.inference.posterior.sampler import LogPosterior
+
+    vis, model, template = synthetic(args.n_vis, args.uv_max, args.snr)
+    base = ProfileMarginal(vis, model)
+    marg = MarginalSpiralLikelihood(base, FastPerturbation(base.u, base.v, base.weights, model.brightness, template,
+                                                           (0.1, 0.6), model.geometry, epsilon=args.epsilon),
+                                    amplitude_max=2.0)
+    logpost = LogPosterior(marg, Priors.default(model, r_p=(0.1, 0.6)))
+    rng = np.random.default_rng(1)
+    centre = np.array([R_P, PHI_P, 40.0, 70.0, 0.005, -0.01])
+    walkers = centre + rng.normal(size=(args.walkers, 6)) * np.array([0.01, 0.05, 0.2, 0.2, 0.002, 0.002])
+    rows = {}
+    for label, processes, threads in (("serial", None, 1), ("2 threads", None, 2), ("2 processes", 2, 1)):
+        with walker_pool(None, processes, logpost, threads) as pool:
+            list(pool.map(pool.log_prob, walkers))  # warm: workers started, tables in place
+            times = []
+            for _ in range(args.pool_repeat):
+                t0 = time.perf_counter()
+                values = [v[0] for v in pool.map(pool.log_prob, walkers)]
+                times.append(time.perf_counter() - t0)
+        rows[label] = (float(np.median(times)), values)
+    serial = rows["serial"][0]
+    print(f"\none ensemble step ({args.walkers} walkers, {vis.n} visibilities), wall time, median of "
+          f"{args.pool_repeat} (load average {os.getloadavg()[0]:.2f}):")
+    for label, (t, values) in rows.items():
+        same = np.array_equal(values, rows["serial"][1])
+        print(f"  {label:12s} {1e3 * t:8.1f} ms   {serial / t:4.2f}x serial   same values: {same}")
+    return {label: t for label, (t, _) in rows.items()}
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--n-vis", type=int, default=100_000)
@@ -316,6 +355,9 @@ def main(argv=None):
     parser.add_argument("--bank", action="store_true",
                         help="the default posterior on the default (robust) bank against the compromise bank")
     parser.add_argument("--skip-likelihood", action="store_true", help="skip the likelihood timings")
+    parser.add_argument("--walker-pools", action="store_true",
+                        help="one ensemble step serial, with 2 walker threads (the default) and 2 processes")
+    parser.add_argument("--pool-repeat", type=int, default=10)
     parser.add_argument("--out", default="bench_sample_output")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
@@ -331,6 +373,8 @@ def main(argv=None):
         record["planet_free"] = bench_planet_free(args)
     if args.bank:
         record["bank"] = bench_bank(args)
+    if args.walker_pools:
+        record["walker_pools"] = bench_walker_pools(args)
     with open(Path(args.out) / "bench_sample.json", "w") as f:
         json.dump(record, f, indent=2, default=str)
 

@@ -89,3 +89,24 @@ def test_inference_data_lays_walkers_out_as_chains():
     np.testing.assert_array_equal(r_p, chain[:, :, 0].T)
     np.testing.assert_array_equal(idata.posterior["dDec"].values, chain[:, :, 5].T)
     np.testing.assert_array_equal(idata.sample_stats["lp"].values, lp.T)
+
+
+def test_walker_threads_give_the_serial_chain_bit_for_bit(tmp_path):
+    """The default walker pool is threads (:class:`ThreadMap`): the same chain as emcee's serial run, and
+    ``threads = 0`` resolves to the available cores (at most MAX_AUTO_THREADS)."""
+    from spiralbayes.inference.posterior import MAX_AUTO_THREADS, ThreadMap, resolve_threads, walker_pool
+
+    assert resolve_threads(3) == 3 and 1 <= resolve_threads(0) == resolve_threads(None) <= MAX_AUTO_THREADS
+    settings = SamplingSettings(n_walkers=N_WALKERS, n_steps=30, max_steps=30, check_every=10, flush_every=30,
+                                min_ess=0, initial=_initial())
+    with walker_pool(None, None, log_prob, threads=3) as walkers:
+        assert isinstance(walkers.pool, ThreadMap) and walkers.pool.threads == 3
+        store = ChainStore(tmp_path / "threads.h5", "t")
+        run_chain(ChainBackend(store, {"test": 1}), None, walkers, CENTRE, np.diag(WIDTH ** 2), PRIORS,
+                  settings=settings, progress=False, streams=streams(3, "t"), name="t", logpost=log_prob)
+    _, seed, _, _ = streams(3, "t")
+    reference = emcee.EnsembleSampler(N_WALKERS, N_DIM, log_prob, moves=default_moves())
+    reference.run_mcmc(State(_initial(), random_state=np.random.RandomState(seed).get_state()), 30, progress=False)
+    np.testing.assert_array_equal(store.read().chain, reference.get_chain())
+    with walker_pool(None, None, log_prob, threads=1) as walkers:
+        assert walkers.pool is None

@@ -203,3 +203,34 @@ def test_a_pickled_family_perturbation_still_builds_tables(case):
     np.testing.assert_allclose(copy.disc_frame(0.35, 2.0, 40.0, 70.0, 1.2), fp.disc_frame(0.35, 2.0, 40.0, 70.0, 1.2),
                                rtol=1e-6, atol=1e-9)
     assert fp.build_nodes() == 7 and len(fp.tables) == 7
+
+
+def test_walker_threads_reaching_a_new_node_build_it_once(case):
+    """Walker threads (the default pool) that need the same unbuilt node at once share one build."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    vis, model = case
+    family = family_of(make_template(1.0, 0.3, 0.0, "R", **GRID), (0.2, 1.5), n_masses=5)
+    fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, R_RANGE, TRUE_GEOMETRY, **TABLES)
+    with ThreadPoolExecutor(4) as pool:
+        tables = list(pool.map(lambda _: fp.node_table(2), range(8)))
+    assert all(t is tables[0] for t in tables) and list(fp.tables) == [2] and list(fp._right) == [2]
+
+
+def test_node_tables_sharing_radial_integrals_are_the_standalone_tables(case):
+    """The mass nodes share each radius's rule and radial integrals (one radial grid, one profile): the
+    tables are bit for bit those of each node template built on its own, and a second node adds no radius."""
+    vis, model = case
+    family = family_of(make_template(1.0, 0.3, 0.0, "R", **GRID), (0.2, 1.5), n_masses=5)
+    brightness = model.brightness
+    fp = FamilyPerturbation(vis.u, vis.v, vis.weights, brightness, family, R_RANGE, TRUE_GEOMETRY, **TABLES)
+    first = fp.node_table(1)
+    radii = len(fp._radial)
+    second = fp.node_table(3)
+    assert radii > 0 and len(fp._radial) == radii
+    for j, shared in ((1, first), (3, second)):
+        alone = FastPerturbation(vis.u, vis.v, vis.weights, brightness, family.node(j), R_RANGE, TRUE_GEOMETRY,
+                                 **TABLES)
+        np.testing.assert_array_equal(shared.table.grids, alone.table.grids)
+        np.testing.assert_array_equal(shared.table.r_nodes, alone.table.r_nodes)
+        assert shared.quadrature_error == alone.quadrature_error

@@ -31,7 +31,17 @@ from .moves import WrappedDEMove, default_moves
 from .diagnostics import TAU_FACTOR, arviz_diagnostics, chain_inference_data, convergence_diagnostics
 from .results import MASS_SAMPLE_NAMES, SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun, wrap_phi
 from .chains import CHAIN_KIND, ChainBackend, ChainState, ChainStore
-from .chain_runner import WalkerPool, initial_walkers, make_pool, run_chain, streams, walker_pool
+from .chain_runner import (
+    MAX_AUTO_THREADS,
+    ThreadMap,
+    WalkerPool,
+    initial_walkers,
+    make_pool,
+    resolve_threads,
+    run_chain,
+    streams,
+    walker_pool,
+)
 from .evidence import GaussianGeometry, importance_evidence, laplace_evidence, savage_dickey_log_bayes
 from .optimise import find_map, fit_null_geometry
 from .stopping import MAX_LN_B_ERROR, StoppingRule, template_evidence
@@ -50,6 +60,9 @@ from .scan_evidence import GRID_LN_B_ERROR, GridEvidence, family_grid_evidence, 
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
+    "MAX_AUTO_THREADS",
+    "ThreadMap",
+    "resolve_threads",
     "GRID_LN_B_ERROR",
     "GridEvidence",
     "PRUNED_EVIDENCE",

@@ -5,9 +5,10 @@
 state to the chain file after every batch, so a killed run
 loses at most one batch and continues exactly where it stopped; convergence is checked every
 ``check_every`` steps (:func:`.diagnostics.convergence_diagnostics`). Every template (and the
-no-planet run) has its own random streams (:func:`streams`). Pools: ``processes=k`` runs walkers
-in a ``multiprocessing`` pool whose workers receive the log-posterior once (pool initializer;
-emcee #199) and pin BLAS threads; ``pool="mpi"`` uses ``schwimmbad.MPIPool``.
+no-planet run) has its own random streams (:func:`streams`). Pools: by default the walkers are
+evaluated by threads (:class:`ThreadMap`, one per available core); ``processes=k`` runs them in a
+``multiprocessing`` pool whose workers receive the log-posterior once (pool initializer; emcee #199)
+and pin BLAS threads; ``pool="mpi"`` uses ``schwimmbad.MPIPool``.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ from .conditional import PARAMETER_NAMES
 from .moves import default_moves
 from .settings import SamplingSettings
 
-__all__ = ["WalkerPool", "initial_walkers", "make_pool", "run_chain", "streams", "walker_pool"]
+__all__ = ["MAX_AUTO_THREADS", "ThreadMap", "WalkerPool", "initial_walkers", "make_pool", "resolve_threads",
+           "run_chain", "streams", "walker_pool"]
 
 log = logging.getLogger(__name__)
 
@@ -58,8 +60,42 @@ def _worker_log_prob(theta):
     return _WORKER_LOGPOST(theta)
 
 
-def make_pool(pool, processes, logpost):
-    """(pool object or None, owned, emcee log-prob function, is_worker)."""
+class ThreadMap:
+    """``map`` over a thread pool, for emcee's ``pool``: the likelihood's NUFFTs and linear algebra release
+    the GIL, so threads share one copy of the tables where processes would each need their own.
+    Results come back in order, so a run gives the same chain with any number of threads."""
+
+    def __init__(self, threads: int):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.threads = int(threads)
+        self._executor = ThreadPoolExecutor(self.threads, thread_name_prefix="spiralbayes-walker")
+
+    def map(self, fn, iterable) -> list:
+        return list(self._executor.map(fn, iterable))
+
+    def close(self) -> None:
+        self._executor.shutdown(wait=True)
+
+    terminate = close
+
+
+def resolve_threads(threads: int | None) -> int:
+    """The walker threads of ``threads`` (None or 0: one per available core, at most :data:`MAX_AUTO_THREADS`)."""
+    if threads:
+        return int(threads)
+    from ...cluster import available_cores
+
+    return max(1, min(available_cores(), MAX_AUTO_THREADS))
+
+
+MAX_AUTO_THREADS = 4
+"""Most walker threads chosen automatically (beyond it the Python between the NUFFTs holds them back)."""
+
+
+def make_pool(pool, processes, logpost, threads: int | None = 1):
+    """(pool object or None, owned, emcee log-prob function, is_worker); ``threads`` applies when neither a
+    pool nor worker processes are asked for (:func:`resolve_threads`)."""
     if pool == "mpi":
         from schwimmbad import MPIPool  # lazy: only needed on clusters
 
@@ -77,6 +113,9 @@ def make_pool(pool, processes, logpost):
 
         mp = multiprocessing.Pool(processes, initializer=_init_worker, initargs=(logpost,))
         return mp, True, _worker_log_prob, False
+    n_threads = resolve_threads(threads)
+    if n_threads > 1:
+        return ThreadMap(n_threads), True, logpost, False
     return None, False, logpost, False
 
 
@@ -160,9 +199,9 @@ class WalkerPool:
 
 
 @contextlib.contextmanager
-def walker_pool(pool, processes, logpost):
+def walker_pool(pool, processes, logpost, threads: int | None = 1):
     """A :class:`WalkerPool`; a pool made here is closed on exit (terminated on an error)."""
-    pool_obj, owned, fn, is_worker = make_pool(pool, processes, logpost)
+    pool_obj, owned, fn, is_worker = make_pool(pool, processes, logpost, threads)
     try:
         yield WalkerPool(pool_obj, fn, is_worker)
     except BaseException:

@@ -186,7 +186,7 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
                         names=MASS_PARAMETER_NAMES, evidence=evidence)
     if sampling.pool is not None or (sampling.processes or 1) > 1:
         fp.build_nodes(mass_prior.mass_range)
-    with walker_pool(sampling.pool, sampling.processes, logpost) as walkers:
+    with walker_pool(sampling.pool, sampling.processes, logpost, sampling.threads) as walkers:
         if walkers.is_worker:
             return None, likelihood
         backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors,

@@ -149,10 +149,18 @@ class _Cells:
     (the likelihood reports the largest).
     """
 
-    def __init__(self, template, r_max: float, uv_max: float, support: float | None = None, breaks=()):
+    def __init__(self, template, r_max: float, uv_max: float, support: float | None = None, breaks=(),
+                 radial_cache: dict | None = None):
+        import hashlib
+
         self.template = template
         self.support = support  # cut per radius; the nodes cover the whole template (ProductQuadrature.at)
         self.quad = make_quadrature(template, r_max, uv_max, breaks=breaks)
+        # the rule and its radial integrals depend on the template's radial grid, not on its values, so
+        # templates on one grid (a family's mass nodes) can share them radius by radius
+        self.radial_cache = radial_cache
+        grid = hashlib.sha1(np.ascontiguousarray(self.quad.x_template, dtype=float).tobytes()).hexdigest()
+        self._rule_key = (grid, float(r_max), float(uv_max), support, tuple(breaks))
         self.spectrum = TemplateSpectrum(template)
         self.positions = self.quad.positions_x()  # (n_nodes, 2), units of r_p
         self.x_max = self.quad.extent  # nodes may lie a little beyond the template (sinc basis)
@@ -160,9 +168,16 @@ class _Cells:
 
     @classmethod
     def build(cls, template, r_max: float, uv_max: float, cell_factor: float | None = None,
-              support: float | None = None, breaks=()) -> _Cells:
-        """``cell_factor`` is accepted for compatibility and unused (the product rule needs none)."""
-        return cls(template, r_max, uv_max, support, breaks)
+              support: float | None = None, breaks=(), radial_cache: dict | None = None) -> _Cells:
+        """``cell_factor`` is accepted for compatibility and unused (the product rule needs none);
+        ``radial_cache`` (a dict) shares each radius's rule and radial integrals with other templates on
+        the same radial grid and profile."""
+        return cls(template, r_max, uv_max, support, breaks, radial_cache)
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["radial_cache"] = None  # shared with other tables; a copy in another process starts its own
+        return state
 
     def fluxes(self, profile, r_p: float) -> np.ndarray:
         """T's point weights (units of r_p^2 x Jy/sr), complex, in node order."""
@@ -171,7 +186,14 @@ class _Cells:
         return quad.weights(profile, self.spectrum).astype(complex)
 
     def quadrature(self, r_p: float):
-        return self.quad.at(max(float(r_p), 0.0), support=self.support)
+        r_p = max(float(r_p), 0.0)
+        if self.radial_cache is None:
+            return self.quad.at(r_p, support=self.support)
+        key = (self._rule_key, r_p)
+        quad = self.radial_cache.get(key)
+        if quad is None:
+            quad = self.radial_cache[key] = self.quad.at(r_p, support=self.support)
+        return quad
 
 
 @dataclass

@@ -28,6 +28,7 @@ gives the interpolated template so tests compare the fast path with a table buil
 from __future__ import annotations
 
 import logging
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -183,8 +184,10 @@ class FamilyPerturbation:
         self.table_kwargs = dict(table_kwargs)
         self.progress = progress
         self.tables: dict[int, FastPerturbation] = {}
+        self._lock = threading.Lock()  # walker threads (ThreadMap) reaching a new node build it once
         self._build_s: dict[int, float] = {}
         self._right: dict[int, FastPerturbation] = {}  # hand-R node tables; a mirror family shares them
+        self._radial: dict = {}  # the nodes' shared radial integrals (one radial grid, one profile)
         if mirror_of is not None:
             other = mirror_of.family
             if (other.hand == family.hand or not np.array_equal(other.masses, family.masses)
@@ -192,7 +195,7 @@ class FamilyPerturbation:
                     or not np.array_equal(other.h_ps, family.h_ps) or mirror_of.r_range != self.r_range
                     or mirror_of.u.size != u.size):
                 raise InputError(f"{family!r} is not the mirror of {other!r} on the same data and r_p range")
-            self._right = mirror_of._right
+            self._right, self._radial = mirror_of._right, mirror_of._radial
         self.template = family.at(float(np.sqrt(family.mass_range[0] * family.mass_range[1])))
 
     @property
@@ -204,7 +207,8 @@ class FamilyPerturbation:
         if j in self._right:
             return self._right[j], 0.0
         fp = FastPerturbation(self.u, self.v, self.weights, self.profile, self.family.node(j), self.r_range,
-                              self.reference_geometry, progress=self.progress, **self.table_kwargs)
+                              self.reference_geometry, progress=self.progress, radial_cache=self._radial,
+                              **self.table_kwargs)
         if self._right:
             first = next(iter(self._right.values()))
             if fp.table.N != first.table.N or fp._delta != first._delta:
@@ -215,17 +219,31 @@ class FamilyPerturbation:
 
     def node_table(self, j: int) -> FastPerturbation:
         """Node ``j``'s table in the family's hand (made on first use)."""
-        if j not in self.tables:
-            fp, built_s = self._right_table(j)
-            if self.family.hand == "L":
-                fp = FastPerturbation(self.u, self.v, self.weights, self.profile, self.family.node(j).mirror(),
-                                      self.r_range, self.reference_geometry, mirror_of=fp, **self.table_kwargs)
-            log.info("%s: table of mass node %.4g M_th %s (%.1f s; %d of %d nodes)", self.template.name,
-                     self.family.masses[j], "built" if built_s else "shared with the mirror family", built_s,
-                     len(self.tables) + 1, self.family.masses.size)
-            self.tables[j] = fp
-            self._build_s[j] = built_s
-        return self.tables[j]
+        table = self.tables.get(j)
+        if table is not None:
+            return table
+        with self._lock:
+            if j not in self.tables:
+                fp, built_s = self._right_table(j)
+                if self.family.hand == "L":
+                    fp = FastPerturbation(self.u, self.v, self.weights, self.profile, self.family.node(j).mirror(),
+                                          self.r_range, self.reference_geometry, mirror_of=fp, **self.table_kwargs)
+                log.info("%s: table of mass node %.4g M_th %s (%.1f s; %d of %d nodes)", self.template.name,
+                         self.family.masses[j], "built" if built_s else "shared with the mirror family", built_s,
+                         len(self.tables) + 1, self.family.masses.size)
+                self._build_s[j] = built_s
+                self.tables[j] = fp
+            return self.tables[j]
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_lock", None)  # a lock does not pickle; each process gets its own
+        state["_radial"] = {}  # large, and rebuilt where needed
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
 
     def check_r_p(self, r_p: float) -> None:
         if not (self.r_range[0] <= r_p <= self.r_range[1]):

@@ -45,6 +45,10 @@ class FastPerturbation:
     mirror_of : FastPerturbation, optional
         The same perturbation for the mirror template (``template == mirror_of.template.mirror()``,
         same profile and baselines): its table is shared and one coordinate flipped.
+    radial_cache : dict, optional
+        Shared by tables of templates on one radial grid with the same ``profile`` object and
+        baselines (a family's mass nodes): each radius's quadrature rule and radial integrals are
+        computed once (the same numbers; more than half of a table's build).
     """
 
     # declared because a mirror reads them from its partner (``mirror_of``) before assigning its own
@@ -56,7 +60,8 @@ class FastPerturbation:
     def __init__(self, u, v, weights, profile, template, r_range, reference_geometry: DiscGeometry, *,
                  epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
                  rp_step: float | None = None, cell_factor: float = 20.0, progress: bool = False,
-                 mirror_of: FastPerturbation | None = None, max_nodes: int = 2000, rp_order: int = 6):
+                 mirror_of: FastPerturbation | None = None, max_nodes: int = 2000, rp_order: int = 6,
+                 radial_cache: dict | None = None):
         t0 = time.perf_counter()
         r_lo, r_hi = float(r_range[0]), float(r_range[1])
         if not (0 < r_lo < r_hi):
@@ -83,7 +88,7 @@ class FastPerturbation:
         h0 = float(rp_step) if rp_step is not None else (r_hi - r_lo) / 8.0
         r_cells = r_hi + (int(rp_order) // 2 + 1) * h0
         self._cells = _Cells.build(template, r_cells, self.uv_max, support=profile_support(profile),
-                                   breaks=profile_breaks(profile))
+                                   breaks=profile_breaks(profile), radial_cache=radial_cache)
         builder = _TableBuilder(self._cells, profile, r_hi * ARCSEC * self.uv_max, self._cells.x_max, oversample)
         self._delta = builder.delta
         self.table = _refine(self, builder, rp_step, rp_tolerance, progress, max_nodes, int(rp_order))

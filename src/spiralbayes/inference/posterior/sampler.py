@@ -51,7 +51,9 @@ templates are read back, the interrupted one continues from its last flushed bat
 are as they would have been. A file written for other inputs (data, model, priors, templates,
 settings) is refused with :class:`~spiralbayes.exceptions.ResumeMismatchError`.
 
-Parallelism (:mod:`.chain_runner`): ``processes=k`` runs walkers in a ``multiprocessing`` pool whose
+Parallelism (:mod:`.chain_runner`): by default the walkers are evaluated by threads, one per
+available core up to four (``threads``; the NUFFTs and the linear algebra release the GIL, and the
+tables are shared, not copied); ``processes=k`` runs walkers in a ``multiprocessing`` pool whose
 workers receive the log-posterior once (pool initializer; emcee #199) and pin BLAS threads;
 ``pool="mpi"`` uses ``schwimmbad.MPIPool`` (run the same script on every rank; worker ranks serve
 log-posterior calls and only the master writes files and returns a result); any object with
@@ -254,7 +256,7 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     rule = StoppingRule(null, priors, _scales(priors, null)[1], min_ess=sampling.min_ess,
                         n_draws=sampling.evidence_draws, seed=sampling.seed, name=name,
                         planet_free_rule=sampling.stop_when_planet_free)
-    with walker_pool(sampling.pool, sampling.processes, logpost) as walkers:
+    with walker_pool(sampling.pool, sampling.processes, logpost, sampling.threads) as walkers:
         if walkers.is_worker:  # an MPI worker rank
             return None, likelihood
         backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors, settings=sampling,

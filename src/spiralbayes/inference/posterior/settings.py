@@ -41,7 +41,10 @@ class SamplingSettings:
     convergence: str = option("warn", "'raise', 'warn' or 'ignore' when a chain is shorter than 50 autocorrelation "
                                       "times")
     min_ess: float = option(400.0, "smallest effective sample size per parameter for convergence")
-    processes: int | None = option(None, "worker processes for the walkers", toml=1)
+    processes: int | None = option(None, "worker processes for the walkers (each holds its own copy of the tables)",
+                                   toml=1)
+    threads: int | None = option(None, "threads evaluating the walkers when no process pool is used (0: one per "
+                                       "available core, at most 4; 1: none)", toml=0)
     seed: int = option(0, "random seed of the sampler")
     prune_delta_lnL: float = option(7.0, "templates (families) whose scan-grid evidence is this far below the "
                                          "best's (in ln) get no chain, only the evidence named by pruned_evidence")
@@ -87,6 +90,8 @@ class SamplingSettings:
         for name in ("max_steps", "check_every", "evidence_draws"):
             if not is_integer(getattr(self, name)) or getattr(self, name) < 1:
                 raise InputError(f"{name} = {getattr(self, name)!r} must be an integer >= 1")
+        if self.threads is not None and (not is_integer(self.threads) or self.threads < 0):
+            raise InputError(f"threads = {self.threads!r} must be an integer >= 0 (0: one per available core)")
         if self.processes is not None and (not is_integer(self.processes) or self.processes < 1):
             raise InputError(f"processes = {self.processes!r} must be an integer >= 1")
         if not is_integer(self.seed) or self.seed < 0:
