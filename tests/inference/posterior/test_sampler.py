@@ -135,7 +135,7 @@ def test_walkers_never_start_at_minus_inf():
         initial_walkers(logpost, centre, cov, priors, 12, rng, initial=bad)
 
 
-def test_chains_go_to_the_best_templates_by_scan_grid_evidence():
+def test_chains_go_to_the_best_templates_by_scan_grid_evidence(caplog):
     """``max_chains`` of the templates within ``prune_delta_lnL`` of the best scan-grid evidence, ranked by it;
     every template without a scan; exactly the named ones with ``mcmc_templates``."""
     from types import SimpleNamespace
@@ -157,6 +157,14 @@ def test_chains_go_to_the_best_templates_by_scan_grid_evidence():
     assert _select_mcmc(names, [], grids, SamplingSettings()) == {names[0]}
     assert _select_mcmc(names, [], {}, SamplingSettings()) == set(names)
     assert _select_mcmc(names, [], grids, SamplingSettings(mcmc_templates=(names[3],))) == {names[3]}
+    import logging
+
+    from spiralbayes.inference.posterior.sampler import _warn_capped
+
+    wide = SamplingSettings(prune_delta_lnL=1e6, max_chains=2)
+    with caplog.at_level(logging.WARNING, logger="spiralbayes.inference.posterior.sampler"):
+        _warn_capped(names, grids, _select_mcmc(names, [], grids, wide), wide)
+    assert "4 templates within prune_delta_lnL" in caplog.text and "raise max_chains" in caplog.text
 
 
 def test_templates_pruned_by_the_scan_get_a_narrow_table():
