@@ -187,3 +187,17 @@ def test_templates_pruned_by_the_scan_get_a_narrow_table():
     lo, hi = _laplace_window(priors, Scan(), "B")
     assert (lo, hi) == pytest.approx((R_RANGE[0], 0.3))  # +- 2 scan steps around 0.2, inside the prior
     assert _laplace_window(priors, None, "B") == priors.r_p
+
+
+def test_family_tables_are_kept_only_for_a_mirror_still_to_run():
+    """A finished family's node tables are held for the other hand's family with the same key only."""
+    from types import SimpleNamespace
+
+    from spiralbayes.inference.posterior.sampler import _mirror_later
+
+    def entry(hand, key):
+        return (SimpleNamespace(hand=hand), [], "name", "mcmc", (0.1, 0.5), key)
+
+    assert _mirror_later([entry("L", "a")], "a", "R")
+    assert not _mirror_later([entry("R", "a"), entry("L", "b")], "a", "R")
+    assert not _mirror_later([], "a", "R")

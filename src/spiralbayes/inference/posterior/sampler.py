@@ -412,21 +412,25 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
         family_partners: dict = {}
         if on_grid:
             overall.start(f"{len(on_grid)} of {len(hypotheses)} hypotheses without a chain: evidence from the scan")
+        plan = []
         for family, members in families:
             fname = family_name(family)
             if fname in on_grid:
                 continue
             best = max(members, key=lambda t: scan_peak(scan_result, t.name)).name if members else fname
             mode = "mcmc" if fname in selected else "laplace"
-            overall.start(f"family {fname}: M_p continuous ({mode})")
             r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, best)
             key = (family.variant, family.tau0, family.beta, tuple(family.h_ps), tuple(family.masses),
                    tuple(r_range))
+            plan.append((family, members, fname, mode, r_range, key))
+        for i, (family, members, fname, mode, r_range, key) in enumerate(plan):
+            overall.start(f"family {fname}: M_p continuous ({mode})")
             run, likelihood = sample_family(vis, base, null, family, members, priors, mass_prior,
                                             scan=scan_result, chain_path=chain_path, settings=run_settings, mode=mode,
-                                            r_range=r_range, mirror_of=_mirror_partner(family_partners, key, family))
-            if likelihood is not None:  # the other hand's family shares these node tables
-                family_partners.setdefault(key, likelihood.perturbation)
+                                            r_range=r_range, mirror_of=family_partners.pop(key, None))
+            # node tables (~86 MB each on the fiducial observation) are kept only for a mirror family still to run
+            if likelihood is not None and _mirror_later(plan[i + 1:], key, family.hand):
+                family_partners[key] = likelihood.perturbation
             if run is not None:
                 runs[fname] = run
         for template in templates if not families else []:
@@ -533,10 +537,9 @@ def _laplace_window(priors: Priors, scan, name: str) -> tuple:
     return (r_lo, r_hi) if r_hi > r_lo else priors.r_p
 
 
-def _mirror_partner(partners: dict, key, family):
-    """The other hand's family perturbation with the same nodes and r_p range, if one was built."""
-    partner = partners.get(key)
-    return partner if partner is not None and partner.family.hand != family.hand else None
+def _mirror_later(later: list, key, hand: str) -> bool:
+    """Does a family still to run (``later``: the plan's entries) share ``key`` with the other hand?"""
+    return any(k == key and f.hand != hand for f, *_, k in later)
 
 
 def _grid_evidences(scan, templates, families, priors: Priors, mass_prior: MassPrior) -> dict:
