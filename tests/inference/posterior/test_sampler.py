@@ -159,11 +159,9 @@ def test_chains_go_to_the_best_templates_by_scan_grid_evidence(caplog):
     assert _select_mcmc(names, [], grids, SamplingSettings(mcmc_templates=(names[3],))) == {names[3]}
     import logging
 
-    from spiralbayes.inference.posterior.sampler import _warn_capped
-
     wide = SamplingSettings(prune_delta_lnL=1e6, max_chains=2)
     with caplog.at_level(logging.WARNING, logger="spiralbayes.inference.posterior.sampler"):
-        _warn_capped(names, grids, _select_mcmc(names, [], grids, wide), wide)
+        _select_mcmc(names, [], grids, wide)
     assert "4 templates within prune_delta_lnL" in caplog.text and "raise max_chains" in caplog.text
 
 

@@ -389,7 +389,6 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
     hypotheses = [family_name(f) for f, _ in families] if families else names
     grids = _grid_evidences(scan_result, templates, families, priors, mass_prior)
     selected = _select_mcmc(hypotheses, families, grids, s)
-    _warn_capped(hypotheses, grids, selected, s)
     on_grid = set() if s.pruned_evidence != "scan" else {n for n in hypotheses
                                                          if n not in selected and grids.get(n) is not None}
     likelihood_kwargs = dict(likelihood_kwargs or {})
@@ -562,7 +561,7 @@ def _grid_evidences(scan, templates, families, priors: Priors, mass_prior: MassP
 def _select_mcmc(names, families, grids: dict, s: SamplingSettings) -> set:
     """The hypotheses that get a chain: named by ``mcmc_templates`` (a family by its name or a member's),
     else the ``max_chains`` best by scan-grid evidence within ``prune_delta_lnL`` of the best (all without
-    a scan; those the scan lacks always)."""
+    a scan; those the scan lacks always), with a warning when the cap leaves some of the window out."""
     if s.mcmc_templates is not None:
         members = {family_name(f): {t.name for t in m} for f, m in families}
         known = set(names).union(*members.values())
@@ -576,22 +575,13 @@ def _select_mcmc(names, families, grids: dict, s: SamplingSettings) -> set:
     ln_b = {n: grids[n].ln_bayes for n in names if grids.get(n) is not None}
     best = max(ln_b.values(), default=-np.inf)
     ranked = sorted((n for n in ln_b if best - ln_b[n] <= s.prune_delta_lnL), key=lambda n: -ln_b[n])
-    return set(ranked[:s.max_chains]) | {n for n in names if grids.get(n) is None}
-
-
-def _warn_capped(names, grids: dict, selected: set, s: SamplingSettings) -> None:
-    """Warn when ``max_chains`` left hypotheses within ``prune_delta_lnL`` of the best without a chain."""
-    if s.mcmc_templates is not None or s.pruned_evidence != "scan":
-        return
-    ln_b = {n: grids[n].ln_bayes for n in names if grids.get(n) is not None}
-    best = max(ln_b.values(), default=-np.inf)
-    capped = sorted((n for n in ln_b if best - ln_b[n] <= s.prune_delta_lnL and n not in selected),
-                    key=lambda n: -ln_b[n])
-    if capped:
+    capped = ranked[s.max_chains:]
+    if capped and s.pruned_evidence == "scan":
         log.warning("%d templates within prune_delta_lnL = %g of the best scan-grid evidence get no chain "
                     "(max_chains = %d), e.g. %s: the grid under-counts strong templates (by 6-8 in ln B on the demo "
                     "observation), so the template probabilities favour the sampled ones; raise max_chains to "
                     "sample them", len(capped), s.prune_delta_lnL, s.max_chains, ", ".join(capped[:3]))
+    return set(ranked[:s.max_chains]) | {n for n in names if grids.get(n) is None}
 
 
 def refit_axisymmetric(vis, axisymmetric, result, template=None, *, progress: bool = False):
