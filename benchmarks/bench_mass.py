@@ -79,7 +79,7 @@ def runs(args) -> None:
     members = bank_members()
     common = dict(priors=Priors.default(model, r_p=R_RANGE), n_walkers=args.walkers, n_steps=args.steps,
                   evidence_draws=400, progress=False, convergence="ignore", likelihood_kwargs={"rp_tolerance": 0.05},
-                  seed=1)
+                  seed=1, processes=1, threads=1)  # one core each: the comparison is of work, not of pools
     times = {}
     with tempfile.TemporaryDirectory() as tmp:
         for mode in ("bank", "continuous"):

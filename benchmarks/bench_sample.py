@@ -5,8 +5,9 @@
 
 Prints, for one log-likelihood evaluation on one core (CPU time, so that a loaded machine does not
 inflate it): the profile-marginalised likelihood the sampler uses (its geometry and perturbation
-parts too), the conditional fast path (tables + one type-2 NUFFT), the exact path (Hankel +
-type-3 NUFFT of the full quadrature) and the naive path (render images, ``fourier.sample_image``),
+parts too, and the geometry part with the 6-point stencil as a baseline), the conditional fast path
+(tables + one type-2 NUFFT), the exact path (Hankel + type-3 NUFFT of the full quadrature) and the
+naive path (render images, ``fourier.sample_image``),
 with their ln L differences from the exact path. Then the likelihood tables for the **default
 r_p prior** (``Priors.default``: R_eff / 25 to R_eff) — on the synthetic 1e5-visibility disc and on
 a simulated fiducial observation with its frank fit — with their build time and node count, and
@@ -27,7 +28,8 @@ bank and of the single-morphology compromise bank, on the same set-up, and print
     python benchmarks/bench_sample.py --skip-likelihood --skip-build --bank
 
 ``--walker-pools`` times one ensemble step's log posteriors serially, with two walker threads (the
-default pool) and with two worker processes, and prints the ratios:
+default where workers cannot be forked) and with two worker processes (the default on Linux), and
+prints the ratios:
 
     python benchmarks/bench_sample.py --skip-likelihood --skip-build --walker-pools
 
@@ -109,13 +111,17 @@ def bench_likelihood(args) -> dict:
     marg = MarginalSpiralLikelihood(base, FastPerturbation(base.u, base.v, base.weights, model.brightness, template,
                                                            (0.1, 0.6), model.geometry, epsilon=args.epsilon))
     print(f"data: {vis.n} visibilities up to {args.uv_max:.3g} lambda; template {template.name} "
-          f"({info['n_cells']} quadrature cells); frank basis N = {model.N}, q grid {base.projector.n_grid} points")
+          f"({info['n_cells']} quadrature cells); frank basis N = {model.N}, q grid {base.projector.n_grid} points "
+          f"(order {base.projector.order})")
     print(f"tables (r_p 0.1-0.6 arcsec): {info['n_rp_nodes']} r_p nodes x {info['grid_N']}^2 grid, "
           f"{info['table_bytes'] / 2 ** 20:.1f} MB, built in {build:.1f} s")
     theta = np.array([R_P, PHI_P, 40.0, 70.0, 0.005, -0.01])
+    base6 = ProfileMarginal(vis, model, order=6)  # the baseline: the 6-point stencil on its finer grid
     rows = {
         "marginal (profile and A integrated)": cpu_ms(lambda: marg(theta), args.repeat),
         "  its geometry part (q grid, Cholesky)": cpu_ms(lambda: base.raw_terms(theta[2:]), args.repeat),
+        f"  the same, order 6 ({base6.projector.n_grid} points)": cpu_ms(lambda: base6.raw_terms(theta[2:]),
+                                                                         args.repeat),
         "  its perturbation part (tables)": cpu_ms(lambda: marg.perturbation.disc_frame(*theta[:4]), args.repeat),
         "conditional fast (profile fixed)": cpu_ms(lambda: lik(theta), args.repeat),
         "exact (Hankel + type-3 NUFFT)": cpu_ms(lambda: lik.exact_log_likelihood(theta), max(3, args.repeat // 10)),
@@ -301,7 +307,7 @@ def bench_bank(args) -> dict:
 
 def bench_walker_pools(args) -> dict:
     """Wall time of one ensemble step's log posteriors (``--walkers`` positions around the planet), serial
-    against walker threads (the default) and worker processes, on the synthetic disc."""
+    against walker threads and worker processes (the default on Linux), on the synthetic disc."""
     from spiralbayes.inference.posterior.chain_runner import walker_pool
     from spiralbayes.inference.posterior.sampler import LogPosterior
 
@@ -356,7 +362,7 @@ def main(argv=None):
                         help="the default posterior on the default (robust) bank against the compromise bank")
     parser.add_argument("--skip-likelihood", action="store_true", help="skip the likelihood timings")
     parser.add_argument("--walker-pools", action="store_true",
-                        help="one ensemble step serial, with 2 walker threads (the default) and 2 processes")
+                        help="one ensemble step serial, with 2 walker threads and 2 processes (the default on Linux)")
     parser.add_argument("--pool-repeat", type=int, default=10)
     parser.add_argument("--out", default="bench_sample_output")
     args = parser.parse_args(argv)

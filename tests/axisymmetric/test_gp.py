@@ -33,7 +33,7 @@ def test_precision_is_franks():
         ProfilePrior(1.2, np.r_[p[:-1], 0.0])
 
 
-@pytest.mark.parametrize("order", [6, 8])
+@pytest.mark.parametrize("order", [4, 6, 8, 10])
 def test_q_grid_normal_equations_match_dense_sums(order):
     model = _model(N=80)
     prior = ProfilePrior.from_model(model)
@@ -55,3 +55,16 @@ def test_q_grid_normal_equations_match_dense_sums(order):
     assert P.max_error(prior, q[:500]) < 1e-9
     with pytest.raises(InputError, match="exceed the q grid"):
         P.stencil(np.array([3e6]))
+
+
+def test_the_cheapest_stencil_shortens_as_the_data_grow():
+    """Per call the data cost n x order and the grid n_grid x N^2; more data (or shorter baselines)
+    favour a shorter stencil on a finer grid, never a longer one."""
+    prior = ProfilePrior.from_model(_model(N=200))
+    for q_max in (1e6, 4e6):
+        orders = [QGridProjector.cheapest_order(prior, q_max, n, 1e-7) for n in (1e3, 3e4, 1e5, 1e6, 1e7)]
+        assert orders == sorted(orders, reverse=True) and orders[0] > orders[-1]
+    P = QGridProjector.build(prior, 4e6, tolerance=1e-7, order=None, n_data=36000)
+    assert P.order == QGridProjector.cheapest_order(prior, 4e6, 36000, 1e-7)
+    with pytest.raises(InputError, match="n_data"):
+        QGridProjector.build(prior, 4e6, order=None)

@@ -110,3 +110,63 @@ def test_walker_threads_give_the_serial_chain_bit_for_bit(tmp_path):
     np.testing.assert_array_equal(store.read().chain, reference.get_chain())
     with walker_pool(None, None, log_prob, threads=1) as walkers:
         assert walkers.pool is None
+
+
+def _resolve_in_daemon(queue):
+    from spiralbayes.inference.posterior import resolve_processes
+
+    queue.put(resolve_processes(None, None))
+
+
+def test_default_walker_processes_are_forked_where_possible_and_give_the_serial_chain(tmp_path):
+    """By default (processes None or 0, no thread count) a template's walkers go to forked worker
+    processes on Linux, one per available core up to MAX_AUTO_THREADS, except inside a daemonic
+    process (a Dask worker may not have children); the chain is emcee's serial one, bit for bit."""
+    import multiprocessing
+    import sys
+
+    from spiralbayes.inference.posterior import MAX_AUTO_THREADS, resolve_processes, resolve_threads, walker_pool
+
+    assert resolve_processes(3, None) == 3 and resolve_processes(1, None) == 1
+    assert resolve_processes(None, 2) == 1 and resolve_processes(0, 1) == 1  # a thread count asks for threads
+    linux = sys.platform.startswith("linux")
+    assert resolve_processes(None, None) == resolve_processes(0, None) == (resolve_threads(None) if linux else 1)
+    assert resolve_threads(None) <= MAX_AUTO_THREADS
+    if linux:
+        ctx = multiprocessing.get_context("fork")
+        queue = ctx.Queue()
+        daemon = ctx.Process(target=_resolve_in_daemon, args=(queue,), daemon=True)
+        daemon.start()
+        assert queue.get(timeout=60) == 1
+        daemon.join()
+    settings = SamplingSettings(n_walkers=N_WALKERS, n_steps=30, max_steps=30, check_every=10, flush_every=30,
+                                min_ess=0, initial=_initial())
+    with walker_pool(None, 2, log_prob, threads=None) as walkers:
+        assert walkers.pool is not None and walkers.log_prob is not log_prob  # the workers' proxy
+        store = ChainStore(tmp_path / "processes.h5", "t")
+        run_chain(ChainBackend(store, {"test": 1}), None, walkers, CENTRE, np.diag(WIDTH ** 2), PRIORS,
+                  settings=settings, progress=False, streams=streams(3, "t"), name="t", logpost=log_prob)
+    _, seed, _, _ = streams(3, "t")
+    reference = emcee.EnsembleSampler(N_WALKERS, N_DIM, log_prob, moves=default_moves())
+    reference.run_mcmc(State(_initial(), random_state=np.random.RandomState(seed).get_state()), 30, progress=False)
+    np.testing.assert_array_equal(store.read().chain, reference.get_chain())
+
+
+def test_convergence_is_tested_after_every_flush_and_the_costly_rule_every_check_every(tmp_path):
+    """From 2 check_every steps on, the 50-tau test follows every flush (emcee's recipe checks every 100
+    steps) and the stopping rule gets the log posterior (for its evidence) only at multiples of check_every;
+    a chain that passes at 35 steps stops there, not at the next multiple of check_every (40)."""
+    calls = []
+
+    def stop_check(chain, log_prob_fn, mapper):
+        calls.append((chain.shape[0], log_prob_fn is not None))
+        return {"converged": chain.shape[0] >= 35, "tau_max": 1.0, "ess": {"r_p": 100.0}}
+
+    settings = SamplingSettings(n_walkers=N_WALKERS, n_steps=None, max_steps=60, check_every=10, flush_every=5,
+                                min_ess=0, initial=_initial())
+    store = ChainStore(tmp_path / "chains.h5", "t")
+    run_chain(ChainBackend(store, {"test": 1}), None, WalkerPool(None, log_prob), CENTRE, np.diag(WIDTH ** 2),
+              PRIORS, settings=settings, progress=False, streams=streams(3, "t"), name="t", logpost=log_prob,
+              stop_check=stop_check)
+    assert calls == [(20, True), (25, False), (30, True), (35, False)]
+    assert store.read().iteration == 35

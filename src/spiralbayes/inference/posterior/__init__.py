@@ -37,6 +37,7 @@ from .chain_runner import (
     WalkerPool,
     initial_walkers,
     make_pool,
+    resolve_processes,
     resolve_threads,
     run_chain,
     streams,
@@ -62,6 +63,7 @@ from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_
 __all__ = [
     "MAX_AUTO_THREADS",
     "ThreadMap",
+    "resolve_processes",
     "resolve_threads",
     "GRID_LN_B_ERROR",
     "GridEvidence",

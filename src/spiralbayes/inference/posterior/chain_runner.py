@@ -3,12 +3,16 @@
 :func:`run_chain` advances an ensemble ``flush_every`` steps at a time, storing its steps in a
 :class:`.chains.ChainBackend` (an emcee backend) that writes the whole chain with emcee's random
 state to the chain file after every batch, so a killed run
-loses at most one batch and continues exactly where it stopped; convergence is checked every
-``check_every`` steps (:func:`.diagnostics.convergence_diagnostics`). Every template (and the
-no-planet run) has its own random streams (:func:`streams`). Pools: by default the walkers are
-evaluated by threads (:class:`ThreadMap`, one per available core); ``processes=k`` runs them in a
-``multiprocessing`` pool whose workers receive the log-posterior once (pool initializer; emcee #199)
-and pin BLAS threads; ``pool="mpi"`` uses ``schwimmbad.MPIPool``.
+loses at most one batch and continues exactly where it stopped; convergence is checked from
+``2 check_every`` steps on, after every batch (:func:`.diagnostics.convergence_diagnostics`; a
+stopping rule's costlier parts every ``check_every`` steps), so checks fall on the same steps
+when a run resumes. Every template (and the
+no-planet run) has its own random streams (:func:`streams`). Pools: by default a template's
+walkers are evaluated by forked worker processes where the platform forks them (Linux;
+:func:`resolve_processes`) and by threads elsewhere and for continuous-mass families
+(:class:`ThreadMap`, one per available core); ``processes=k`` asks for ``k`` workers, which
+receive the log-posterior once (pool initializer; emcee #199) and pin BLAS threads; ``pool="mpi"``
+uses ``schwimmbad.MPIPool``.
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ from .conditional import PARAMETER_NAMES
 from .moves import default_moves
 from .settings import SamplingSettings
 
-__all__ = ["MAX_AUTO_THREADS", "ThreadMap", "WalkerPool", "initial_walkers", "make_pool", "resolve_threads",
+__all__ = ["MAX_AUTO_THREADS", "ThreadMap", "WalkerPool", "initial_walkers", "make_pool", "resolve_processes",
+           "resolve_threads",
            "run_chain", "streams", "walker_pool"]
 
 log = logging.getLogger(__name__)
@@ -62,7 +67,7 @@ def _worker_log_prob(theta):
 
 class ThreadMap:
     """``map`` over a thread pool, for emcee's ``pool``: the likelihood's NUFFTs and linear algebra release
-    the GIL, so threads share one copy of the tables where processes would each need their own.
+    the GIL, and threads share tables that are still being built (a continuous-mass family's nodes).
     Results come back in order, so a run gives the same chain with any number of threads."""
 
     def __init__(self, threads: int):
@@ -90,7 +95,37 @@ def resolve_threads(threads: int | None) -> int:
 
 
 MAX_AUTO_THREADS = 4
-"""Most walker threads chosen automatically (beyond it the Python between the NUFFTs holds them back)."""
+"""Most walker threads (or processes) chosen automatically (beyond it the Python between the NUFFTs
+holds threads back)."""
+
+
+def resolve_processes(processes: int | None, threads: int | None) -> int:
+    """Worker processes for one template's walkers (1: none; the walkers then go to threads).
+
+    ``processes`` when given (> 0). Otherwise (None or 0) one per available core, at most
+    :data:`MAX_AUTO_THREADS`, where workers can be forked: on Linux, from the main thread of a
+    process that is not itself a worker (a daemonic Dask or multiprocessing worker cannot have
+    children), and when no ``threads`` count was asked for. Forked workers share the parent's
+    tables page by page and need nothing pickled, and they run the Python between the NUFFTs in
+    parallel where threads share one interpreter lock: on the demo observation an ensemble step
+    is about 1.5× faster than with two threads (``benchmarks/bench_sample.py --walker-pools``).
+    """
+    if processes:
+        return int(processes)
+    if threads is not None or not _can_fork():
+        return 1
+    return resolve_threads(None)
+
+
+def _can_fork() -> bool:
+    import multiprocessing
+    import sys
+    import threading
+
+    # the main thread of a non-daemonic process only: not inside a Dask or multiprocessing worker
+    return (sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+            and not multiprocessing.current_process().daemon
+            and threading.current_thread() is threading.main_thread())
 
 
 def make_pool(pool, processes, logpost, threads: int | None = 1):
@@ -111,7 +146,9 @@ def make_pool(pool, processes, logpost, threads: int | None = 1):
     if processes and processes > 1:
         import multiprocessing
 
-        mp = multiprocessing.Pool(processes, initializer=_init_worker, initargs=(logpost,))
+        # forked where possible: the workers inherit the log posterior instead of unpickling a copy
+        context = multiprocessing.get_context("fork" if _can_fork() else None)
+        mp = context.Pool(processes, initializer=_init_worker, initargs=(logpost,))
         return mp, True, _worker_log_prob, False
     n_threads = resolve_threads(threads)
     if n_threads > 1:
@@ -219,7 +256,8 @@ def run_chain(backend: ChainBackend, saved, walkers: WalkerPool, theta_map, cov,
 
     ``saved`` (a :class:`~.chains.ChainState` with steps) is continued exactly; otherwise walkers
     start around ``theta_map`` (:func:`initial_walkers`). With ``n_steps`` None the chain runs
-    until converged (checked every ``check_every`` steps) or ``max_steps``. ``settings`` gives the
+    until converged (checked after every batch from ``2 check_every`` steps on; ``stop_check`` gets
+    ``log_prob_fn = None`` except at multiples of ``check_every``) or ``max_steps``. ``settings`` gives the
     walkers, steps, flushes, convergence test, moves and initial walkers (:class:`SamplingSettings`);
     ``streams`` the template's random streams (:func:`streams`).
 
@@ -257,10 +295,15 @@ def run_chain(backend: ChainBackend, saved, walkers: WalkerPool, theta_map, cov,
             state = sampler.run_mcmc(state, stop - done, progress=False)
             backend.flush()
             bar.update(stop - bar.n)
-            if n_steps is None and stop % check_every == 0 and stop >= 2 * check_every:
-                diag = stop_check(backend.get_chain(), walkers.log_prob, walkers.map)
-                log.info("%s: %d steps, max tau %.1f, min ESS %.0f", name, stop, diag["tau_max"],
-                         min(diag["ess"].values()))
+            if n_steps is None and stop >= 2 * check_every:
+                # every parameter's 50-tau test at each flush (emcee's own recipe checks every 100
+                # steps; it costs milliseconds), the rest of the stopping rule (an evidence) only
+                # every check_every steps
+                full = stop % check_every == 0
+                diag = stop_check(backend.get_chain(), walkers.log_prob if full else None, walkers.map)
+                log.log(logging.INFO if full or diag["converged"] else logging.DEBUG,
+                        "%s: %d steps, max tau %.1f, min ESS %.0f", name, stop, diag["tau_max"],
+                        min(diag["ess"].values()))
                 if diag["converged"]:
                     break
     finally:

@@ -40,10 +40,11 @@ the evaluated geometry, ``ln L(A) - ln L(0)`` (~70 there) changed by 0.1–0.2 (
 (:func:`draw_amplitude`): ``A``'s posterior comes from those draws, emcee never meets the edge
 at ``A = 0`` where planet-free posteriors pile up, and ``ln L0`` is the no-planet hypothesis.
 
-**Cost** (why ~10 ms per call at 1e5 visibilities). Per call: the deprojected baseline lengths
+**Cost** (why ~15–20 ms per call at 1e5 visibilities). Per call: the deprojected baseline lengths
 and phases (O(n)); the spiral's visibilities from the Fourier-series tables (one single-precision
-type-2 NUFFT, :mod:`.interpolation`); the data spread onto a ~900-point grid in ``q`` (2 Mlambda,
-Rmax = 1.2") with 6-point Lagrange weights (:class:`~spiralbayes.axisymmetric.gp.QGridProjector`:
+type-2 NUFFT, :mod:`.interpolation`); the data spread onto a grid of some hundred points in ``q``
+with 4- to 10-point Lagrange weights, whichever costs least for the data
+(:class:`~spiralbayes.axisymmetric.gp.QGridProjector`:
 frank's deprojected binning made exact — the normal matrix to 4e-10 of its largest element,
 measured), which turns the ``n x N^2`` normal matrix into an
 ``n_grid x N^2`` product; one Cholesky factorisation of the ``N x N`` (N = 200) precision.
@@ -188,7 +189,8 @@ class ProfileMarginal:
     reference_geometry : DiscGeometry, optional
         ``ln L`` is reported relative to its value there (default: the model's geometry).
     tolerance, order : float, int
-        Accuracy and stencil of the ``q`` grid (:class:`QGridProjector`).
+        Accuracy and stencil of the ``q`` grid (:class:`QGridProjector`; ``order`` None: the
+        cheapest for these data, :meth:`QGridProjector.cheapest_order`).
     ln_ref : float, optional
         Use this constant instead (so that re-centred copies report the same numbers).
     projector : QGridProjector, optional
@@ -196,7 +198,7 @@ class ProfileMarginal:
     """
 
     def __init__(self, vis, axisymmetric, *, prior: ProfilePrior | None = None,
-                 reference_geometry: DiscGeometry | None = None, tolerance: float = 1e-7, order: int = 6,
+                 reference_geometry: DiscGeometry | None = None, tolerance: float = 1e-7, order: int | None = None,
                  ln_ref: float | None = None, projector: QGridProjector | None = None):
         vis = vis.standardised()
         self.axisymmetric = axisymmetric
@@ -210,7 +212,8 @@ class ProfileMarginal:
         self._Vr, self._Vi = self.V.real.copy(), self.V.imag.copy()
         self.n = vis.n
         self.uv_max = float(np.max(np.hypot(self.u, self.v)))
-        self.projector = projector or QGridProjector.build(self.prior, self.uv_max, tolerance=tolerance, order=order)
+        self.projector = projector or QGridProjector.build(self.prior, self.uv_max, tolerance=tolerance, order=order,
+                                                           n_data=self.n)
         self.I0 = np.asarray(axisymmetric.I, dtype=float)
         self._curve0 = self.projector.H @ self.I0  # face-on V_A at the grid nodes
         self._Sinv = self.prior.precision

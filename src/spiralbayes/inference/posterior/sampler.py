@@ -51,10 +51,12 @@ templates are read back, the interrupted one continues from its last flushed bat
 are as they would have been. A file written for other inputs (data, model, priors, templates,
 settings) is refused with :class:`~spiralbayes.exceptions.ResumeMismatchError`.
 
-Parallelism (:mod:`.chain_runner`): by default the walkers are evaluated by threads, one per
-available core up to four (``threads``; the NUFFTs and the linear algebra release the GIL, and the
-tables are shared, not copied); ``processes=k`` runs walkers in a ``multiprocessing`` pool whose
-workers receive the log-posterior once (pool initializer; emcee #199) and pin BLAS threads;
+Parallelism (:mod:`.chain_runner`): by default a template's walkers are evaluated by forked worker
+processes, one per available core up to four, where the platform forks them (Linux; the tables are
+shared page by page, nothing is pickled; :func:`.chain_runner.resolve_processes`), and by threads
+elsewhere, when ``threads`` is given, and for continuous-mass families, whose node tables are built
+while the chain runs (the NUFFTs and the linear algebra release the GIL); ``processes=k`` asks for
+``k`` workers, which receive the log-posterior once (pool initializer; emcee #199) and pin BLAS threads;
 ``pool="mpi"`` uses ``schwimmbad.MPIPool`` (run the same script on every rank; worker ranks serve
 log-posterior calls and only the master writes files and returns a result); any object with
 ``map`` may be passed as ``pool``.
@@ -80,7 +82,7 @@ from ...exceptions import InputError
 from ...geometry import DiscGeometry
 from ...templates.template import template_metadata
 from ...units import wrap_angle
-from .chain_runner import _set_mpi_rank, _writes_files, run_chain, walker_pool
+from .chain_runner import _set_mpi_rank, _writes_files, resolve_processes, run_chain, walker_pool
 from .chain_runner import streams as chain_streams
 from .chains import ChainBackend, ChainState, ChainStore, _saved_samples
 from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, chain_inference_data
@@ -256,7 +258,8 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     rule = StoppingRule(null, priors, _scales(priors, null)[1], min_ess=sampling.min_ess,
                         n_draws=sampling.evidence_draws, seed=sampling.seed, name=name,
                         planet_free_rule=sampling.stop_when_planet_free)
-    with walker_pool(sampling.pool, sampling.processes, logpost, sampling.threads) as walkers:
+    processes = resolve_processes(sampling.processes, sampling.threads)
+    with walker_pool(sampling.pool, processes, logpost, sampling.threads) as walkers:
         if walkers.is_worker:  # an MPI worker rank
             return None, likelihood
         backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors, settings=sampling,

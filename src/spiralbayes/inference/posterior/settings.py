@@ -37,12 +37,15 @@ class SamplingSettings:
     n_walkers: int = option(32, "emcee walkers per template (>= 12)")
     n_steps: int | None = option(None, "total steps per walker (0: run until converged, up to max_steps)", toml=0)
     max_steps: int = option(20000, "cap on the steps per walker when running until converged")
-    check_every: int = option(500, "steps between convergence checks")
+    check_every: int = option(500, "steps before the first convergence check (at twice this) and between "
+                               "the stopping rule's evidence checks; every parameter's 50-tau test runs "
+                               "after each flush")
     convergence: str = option("warn", "'raise', 'warn' or 'ignore' when a chain is shorter than 50 autocorrelation "
                                       "times")
     min_ess: float = option(400.0, "smallest effective sample size per parameter for convergence")
-    processes: int | None = option(None, "worker processes for the walkers (each holds its own copy of the tables)",
-                                   toml=1)
+    processes: int | None = option(None, "worker processes for a template's walkers (0: one per available core, at "
+                                         "most 4, forked where the platform allows (Linux), else threads; 1: none)",
+                                   toml=0)
     threads: int | None = option(None, "threads evaluating the walkers when no process pool is used (0: one per "
                                        "available core, at most 4; 1: none)", toml=0)
     seed: int = option(0, "random seed of the sampler")
@@ -92,8 +95,8 @@ class SamplingSettings:
                 raise InputError(f"{name} = {getattr(self, name)!r} must be an integer >= 1")
         if self.threads is not None and (not is_integer(self.threads) or self.threads < 0):
             raise InputError(f"threads = {self.threads!r} must be an integer >= 0 (0: one per available core)")
-        if self.processes is not None and (not is_integer(self.processes) or self.processes < 1):
-            raise InputError(f"processes = {self.processes!r} must be an integer >= 1")
+        if self.processes is not None and (not is_integer(self.processes) or self.processes < 0):
+            raise InputError(f"processes = {self.processes!r} must be an integer >= 0 (0: automatic, 1: none)")
         if not is_integer(self.seed) or self.seed < 0:
             raise InputError(f"seed = {self.seed!r} must be an integer >= 0")
         if not is_finite_number(self.min_ess) or self.min_ess < 0:

@@ -1,6 +1,7 @@
 """When a template's chain may stop: every parameter converged, or the reported quantities converged.
 
-The default run checks a template's chain every ``check_every`` steps. It stops when either rule
+The default run tests a template's chain after every flush (``flush_every`` steps) from
+``2 check_every`` steps on, rule 2 only every ``check_every`` steps. It stops when either rule
 holds (:class:`StoppingRule`):
 
 1. **Every parameter** (the planet's position and the geometry) is longer than
