@@ -44,8 +44,9 @@ def test_schema_defaults_are_the_dataclass_defaults(section, cls):
 def test_from_config_maps_values_and_sentinels():
     s = from_config(LimitSettings, {"resolution": 0.1, "h_ref": 0.0, "inject_hand": ["R", "L"], "cl": 0.9})
     assert (s.resolution, s.h_ref, s.inject_hand, s.cl) == (0.1, None, ("R", "L"), 0.9)
-    s = from_config(SamplingSettings, {"n_steps": 300, "processes": 1, "mcmc_templates": ["a"], "run_name": "x"})
+    s = from_config(SamplingSettings, {"n_steps": 300, "processes": 0, "mcmc_templates": ["a"], "run_name": "x"})
     assert (s.n_steps, s.processes, s.mcmc_templates, s.run_name) == (300, None, ("a",), "x")
+    assert from_config(SamplingSettings, {"processes": 1}).processes == 1  # "none", not "automatic"
     built = from_config(AlternativesSettings, {"models": [], "fit": True}, nthreads=3)
     assert built == AlternativesSettings(nthreads=3)
 
