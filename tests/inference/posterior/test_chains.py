@@ -129,6 +129,7 @@ def test_default_walker_processes_are_forked_where_possible_and_give_the_serial_
 
     assert resolve_processes(3, None) == 3 and resolve_processes(1, None) == 1
     assert resolve_processes(None, 2) == 1 and resolve_processes(0, 1) == 1  # a thread count asks for threads
+    assert resolve_processes(None, 0) == resolve_processes(None, None)  # threads 0 is "automatic", as in TOML
     linux = sys.platform.startswith("linux")
     assert resolve_processes(None, None) == resolve_processes(0, None) == (resolve_threads(None) if linux else 1)
     assert resolve_threads(None) <= MAX_AUTO_THREADS

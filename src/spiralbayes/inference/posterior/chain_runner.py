@@ -105,14 +105,14 @@ def resolve_processes(processes: int | None, threads: int | None) -> int:
     ``processes`` when given (> 0). Otherwise (None or 0) one per available core, at most
     :data:`MAX_AUTO_THREADS`, where workers can be forked: on Linux, from the main thread of a
     process that is not itself a worker (a daemonic Dask or multiprocessing worker cannot have
-    children), and when no ``threads`` count was asked for. Forked workers share the parent's
+    children), and when no ``threads`` count (> 0) was asked for. Forked workers share the parent's
     tables page by page and need nothing pickled, and they run the Python between the NUFFTs in
     parallel where threads share one interpreter lock: on the demo observation an ensemble step
     is about 1.5× faster than with two threads (``benchmarks/bench_sample.py --walker-pools``).
     """
     if processes:
         return int(processes)
-    if threads is not None or not _can_fork():
+    if threads or not _can_fork():
         return 1
     return resolve_threads(None)
 

@@ -46,8 +46,9 @@ class SamplingSettings:
     processes: int | None = option(None, "worker processes for a template's walkers (0: one per available core, at "
                                          "most 4, forked where the platform allows (Linux), else threads; 1: none)",
                                    toml=0)
-    threads: int | None = option(None, "threads evaluating the walkers when no process pool is used (0: one per "
-                                       "available core, at most 4; 1: none)", toml=0)
+    threads: int | None = option(None, "threads evaluating the walkers where no worker processes run (0: one per "
+                                       "available core, at most 4; 1: none); a count > 0 also asks for threads "
+                                       "instead of the automatic worker processes", toml=0)
     seed: int = option(0, "random seed of the sampler")
     prune_delta_lnL: float = option(7.0, "templates (families) whose scan-grid evidence is this far below the "
                                          "best's (in ln) get no chain, only the evidence named by pruned_evidence")
