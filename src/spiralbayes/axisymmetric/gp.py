@@ -272,8 +272,7 @@ class QGridProjector:
         negative = rho < 0
         # rows scaled in C order, handed to BLAS transposed (Fortran order: no copy)
         A = np.multiply(self.H, scale[:, None], order="C")
-        if negative.any():
-            A[negative] = 0.0
+        A[negative] = 0.0
         M = dsyrk(1.0, A.T, trans=0, lower=0)
         if negative.any():
             B = np.multiply(self.H[negative], scale[negative, None], order="C")

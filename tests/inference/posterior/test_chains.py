@@ -46,6 +46,25 @@ def _run(store, saved, n_steps, flush_every):
                      PRIORS, settings=settings, progress=False, streams=streams(3, "t"), name="t", logpost=log_prob)
 
 
+def _emcee_serial(n_steps):
+    """The reference: emcee's own sampler, in memory, run in one go from the same walkers and random state."""
+    _, seed, _, _ = streams(3, "t")
+    reference = emcee.EnsembleSampler(N_WALKERS, N_DIM, log_prob, moves=default_moves())
+    reference.run_mcmc(State(_initial(), random_state=np.random.RandomState(seed).get_state()), n_steps,
+                       progress=False)
+    return reference
+
+
+def _chain_through(walkers, path, n_steps=30):
+    """``n_steps`` of :func:`run_chain` with the walkers evaluated by ``walkers``; the stored chain."""
+    settings = SamplingSettings(n_walkers=N_WALKERS, n_steps=n_steps, max_steps=n_steps, check_every=10,
+                                flush_every=n_steps, min_ess=0, initial=_initial())
+    store = ChainStore(path, "t")
+    run_chain(ChainBackend(store, {"test": 1}), None, walkers, CENTRE, np.diag(WIDTH ** 2), PRIORS,
+              settings=settings, progress=False, streams=streams(3, "t"), name="t", logpost=log_prob)
+    return store.read().chain
+
+
 def test_batches_and_resume_give_emcees_uninterrupted_chain(tmp_path):
     store = ChainStore(tmp_path / "chains.h5", "t")
     _run(store, None, 23, 7)  # stops after 23 steps: batches of 7, 7, 7, 2
@@ -54,9 +73,7 @@ def test_batches_and_resume_give_emcees_uninterrupted_chain(tmp_path):
     backend = _run(store, first, 40, 7)  # continues from the file to 40
     stored = store.read()
 
-    _, seed, _, _ = streams(3, "t")
-    reference = emcee.EnsembleSampler(N_WALKERS, N_DIM, log_prob, moves=default_moves())
-    reference.run_mcmc(State(_initial(), random_state=np.random.RandomState(seed).get_state()), 40, progress=False)
+    reference = _emcee_serial(40)
     np.testing.assert_array_equal(stored.chain, reference.get_chain())
     np.testing.assert_array_equal(stored.log_prob, reference.get_log_prob())
     np.testing.assert_array_equal(stored.blobs, reference.get_blobs())
@@ -92,22 +109,15 @@ def test_inference_data_lays_walkers_out_as_chains():
 
 
 def test_walker_threads_give_the_serial_chain_bit_for_bit(tmp_path):
-    """The default walker pool is threads (:class:`ThreadMap`): the same chain as emcee's serial run, and
-    ``threads = 0`` resolves to the available cores (at most MAX_AUTO_THREADS)."""
+    """Walker threads (:class:`ThreadMap`, where no worker processes run) give the same chain as emcee's
+    serial run, and ``threads = 0`` resolves to the available cores (at most MAX_AUTO_THREADS)."""
     from spiralbayes.inference.posterior import MAX_AUTO_THREADS, ThreadMap, resolve_threads, walker_pool
 
     assert resolve_threads(3) == 3 and 1 <= resolve_threads(0) == resolve_threads(None) <= MAX_AUTO_THREADS
-    settings = SamplingSettings(n_walkers=N_WALKERS, n_steps=30, max_steps=30, check_every=10, flush_every=30,
-                                min_ess=0, initial=_initial())
     with walker_pool(None, None, log_prob, threads=3) as walkers:
         assert isinstance(walkers.pool, ThreadMap) and walkers.pool.threads == 3
-        store = ChainStore(tmp_path / "threads.h5", "t")
-        run_chain(ChainBackend(store, {"test": 1}), None, walkers, CENTRE, np.diag(WIDTH ** 2), PRIORS,
-                  settings=settings, progress=False, streams=streams(3, "t"), name="t", logpost=log_prob)
-    _, seed, _, _ = streams(3, "t")
-    reference = emcee.EnsembleSampler(N_WALKERS, N_DIM, log_prob, moves=default_moves())
-    reference.run_mcmc(State(_initial(), random_state=np.random.RandomState(seed).get_state()), 30, progress=False)
-    np.testing.assert_array_equal(store.read().chain, reference.get_chain())
+        chain = _chain_through(walkers, tmp_path / "threads.h5")
+    np.testing.assert_array_equal(chain, _emcee_serial(30).get_chain())
     with walker_pool(None, None, log_prob, threads=1) as walkers:
         assert walkers.pool is None
 
@@ -140,17 +150,10 @@ def test_default_walker_processes_are_forked_where_possible_and_give_the_serial_
         daemon.start()
         assert queue.get(timeout=60) == 1
         daemon.join()
-    settings = SamplingSettings(n_walkers=N_WALKERS, n_steps=30, max_steps=30, check_every=10, flush_every=30,
-                                min_ess=0, initial=_initial())
     with walker_pool(None, 2, log_prob, threads=None) as walkers:
         assert walkers.pool is not None and walkers.log_prob is not log_prob  # the workers' proxy
-        store = ChainStore(tmp_path / "processes.h5", "t")
-        run_chain(ChainBackend(store, {"test": 1}), None, walkers, CENTRE, np.diag(WIDTH ** 2), PRIORS,
-                  settings=settings, progress=False, streams=streams(3, "t"), name="t", logpost=log_prob)
-    _, seed, _, _ = streams(3, "t")
-    reference = emcee.EnsembleSampler(N_WALKERS, N_DIM, log_prob, moves=default_moves())
-    reference.run_mcmc(State(_initial(), random_state=np.random.RandomState(seed).get_state()), 30, progress=False)
-    np.testing.assert_array_equal(store.read().chain, reference.get_chain())
+        chain = _chain_through(walkers, tmp_path / "processes.h5")
+    np.testing.assert_array_equal(chain, _emcee_serial(30).get_chain())
 
 
 def test_convergence_is_tested_after_every_flush_and_the_costly_rule_every_check_every(tmp_path):

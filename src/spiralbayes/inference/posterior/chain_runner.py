@@ -37,8 +37,7 @@ from .moves import default_moves
 from .settings import SamplingSettings
 
 __all__ = ["MAX_AUTO_THREADS", "ThreadMap", "WalkerPool", "initial_walkers", "make_pool", "resolve_processes",
-           "resolve_threads",
-           "run_chain", "streams", "walker_pool"]
+           "resolve_threads", "run_chain", "streams", "walker_pool"]
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +62,11 @@ def _worker_log_prob(theta):
     if _WORKER_LOGPOST is None:
         raise RuntimeError("this worker process holds no log posterior: make_pool did not initialise it")
     return _WORKER_LOGPOST(theta)
+
+
+MAX_AUTO_THREADS = 4
+"""Most walker threads (or processes) chosen automatically (beyond it the Python between the NUFFTs
+holds threads back)."""
 
 
 class ThreadMap:
@@ -94,11 +98,6 @@ def resolve_threads(threads: int | None) -> int:
     return max(1, min(available_cores(), MAX_AUTO_THREADS))
 
 
-MAX_AUTO_THREADS = 4
-"""Most walker threads (or processes) chosen automatically (beyond it the Python between the NUFFTs
-holds threads back)."""
-
-
 def resolve_processes(processes: int | None, threads: int | None) -> int:
     """Worker processes for one template's walkers (1: none; the walkers then go to threads).
 
@@ -107,8 +106,8 @@ def resolve_processes(processes: int | None, threads: int | None) -> int:
     process that is not itself a worker (a daemonic Dask or multiprocessing worker cannot have
     children), and when no ``threads`` count (> 0) was asked for. Forked workers share the parent's
     tables page by page and need nothing pickled, and they run the Python between the NUFFTs in
-    parallel where threads share one interpreter lock: on the demo observation an ensemble step
-    is about 1.5× faster than with two threads (``benchmarks/bench_sample.py --walker-pools``).
+    parallel where threads share one interpreter lock: on 36,000 visibilities and 2 cores an ensemble
+    step is about 1.6× faster than with two threads (``benchmarks/bench_sample.py --walker-pools``).
     """
     if processes:
         return int(processes)
