@@ -52,3 +52,16 @@ def test_node_lattices_nest_when_halved():
     mids = 0.5 * (inside[1:] + inside[:-1])
     assert all(np.min(np.abs(fine - r)) < 1e-12 for r in mids)  # ...and so are the midpoints that checked them
     assert coarse[0] <= 0.15 - 0.04 and coarse[-1] >= 0.6 + 3 * 0.04  # room for the 6-point stencil
+
+
+def test_node_grids_built_by_worker_processes_are_the_same_table(setup):
+    """``processes=2`` builds each refinement round's nodes in forked workers: the same nodes, grids
+    and refinement history as one process (reference: the in-process build)."""
+    vis, template = setup["vis"], setup["template"]
+    args = (vis.u, vis.v, vis.weights, profile, template, R_RANGE, TRUE_GEOMETRY)
+    one = FastPerturbation(*args, rp_tolerance=0.005)  # two refinement rounds
+    two = FastPerturbation(*args, rp_tolerance=0.005, processes=2)
+    np.testing.assert_array_equal(one.table.r_nodes, two.table.r_nodes)
+    np.testing.assert_array_equal(one.table.grids, two.table.grids)
+    assert one.table.refinement == two.table.refinement and len(one.table.refinement) >= 2
+    assert one.n_node_builds == two.n_node_builds > one.table.r_nodes.size  # midpoints of the last round too

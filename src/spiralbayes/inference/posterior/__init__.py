@@ -9,6 +9,7 @@
 * :mod:`.sampler` — :func:`sample_posterior`; :mod:`.settings` — its :class:`SamplingSettings` and
   :class:`PriorSettings`; :mod:`.moves` — the wrapped DE move;
 * :mod:`.chains`, :mod:`.chain_runner` — kill-safe chain files (an emcee backend) and the chain loop;
+  :mod:`.forked` — forked worker processes that inherit the tables;
 * :mod:`.diagnostics` — convergence; :mod:`.stopping` — when a chain may stop (every parameter, or
   the geometry and the evidence when the planet is not preferred);
 * :mod:`.results` — :class:`PosteriorResult` and its runs;
@@ -31,6 +32,7 @@ from .moves import WrappedDEMove, default_moves
 from .diagnostics import TAU_FACTOR, arviz_diagnostics, chain_inference_data, convergence_diagnostics
 from .results import MASS_SAMPLE_NAMES, SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun, wrap_phi
 from .chains import CHAIN_KIND, ChainBackend, ChainState, ChainStore
+from .forked import can_fork, forked_map, pin_threads
 from .chain_runner import (
     MAX_AUTO_THREADS,
     ThreadMap,
@@ -61,6 +63,9 @@ from .scan_evidence import GRID_LN_B_ERROR, GridEvidence, family_grid_evidence, 
 from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
 
 __all__ = [
+    "can_fork",
+    "forked_map",
+    "pin_threads",
     "MAX_AUTO_THREADS",
     "ThreadMap",
     "resolve_processes",

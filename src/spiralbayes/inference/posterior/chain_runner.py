@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from ..._threads import blas_threads
 from ...exceptions import InputError
 from ...units import wrap_angle
 from .chains import ChainBackend
 from .diagnostics import convergence_diagnostics
+from .forked import can_fork, pin_threads
 from .conditional import PARAMETER_NAMES
 from .moves import default_moves
 from .settings import SamplingSettings
@@ -46,15 +45,9 @@ log = logging.getLogger(__name__)
 _WORKER_LOGPOST: Callable[[np.ndarray], Any] | None = None
 
 
-def _pin_threads() -> None:
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-        os.environ[var] = "1"
-    blas_threads(1, all_pools=True)  # for the rest of this worker process
-
-
 def _init_worker(logpost) -> None:
     global _WORKER_LOGPOST
-    _pin_threads()
+    pin_threads()
     _WORKER_LOGPOST = logpost
 
 
@@ -111,20 +104,9 @@ def resolve_processes(processes: int | None, threads: int | None) -> int:
     """
     if processes:
         return int(processes)
-    if threads or not _can_fork():
+    if threads or not can_fork():
         return 1
     return resolve_threads(None)
-
-
-def _can_fork() -> bool:
-    import multiprocessing
-    import sys
-    import threading
-
-    # the main thread of a non-daemonic process only: not inside a Dask or multiprocessing worker
-    return (sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
-            and not multiprocessing.current_process().daemon
-            and threading.current_thread() is threading.main_thread())
 
 
 def make_pool(pool, processes, logpost, threads: int | None = 1):
@@ -146,7 +128,7 @@ def make_pool(pool, processes, logpost, threads: int | None = 1):
         import multiprocessing
 
         # forked where possible: the workers inherit the log posterior instead of unpickling a copy
-        context = multiprocessing.get_context("fork" if _can_fork() else None)
+        context = multiprocessing.get_context("fork" if can_fork() else None)
         mp = context.Pool(processes, initializer=_init_worker, initargs=(logpost,))
         return mp, True, _worker_log_prob, False
     n_threads = resolve_threads(threads)

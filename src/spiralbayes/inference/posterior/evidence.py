@@ -193,7 +193,8 @@ class GaussianGeometry:
 # ---------------------------------------------------------------------------------------------
 # importance sampling
 # ---------------------------------------------------------------------------------------------
-def importance_evidence(logpost, components, fractions, n_draws: int, rng, mapper=map) -> dict:
+def importance_evidence(logpost, components, fractions, n_draws: int, rng, mapper=map, *,
+                        with_draws: bool = False) -> dict:
     """``ln Z`` by importance sampling from a mixture of ``components`` (see the module docs).
 
     Parameters
@@ -204,6 +205,11 @@ def importance_evidence(logpost, components, fractions, n_draws: int, rng, mappe
         Objects with ``draw(n, rng)`` and ``logpdf(x)``.
     fractions : list of float
         Share of the draws from each component (the mixture weights).
+
+    mapper : callable
+        ``map(fn, iterable)`` of a pool that evaluates ``logpost`` (default the built-in map).
+    with_draws : bool
+        Also return ``draws`` and their ``log_weights`` (``ln(L pi / q)``), e.g. to resample them.
 
     Returns
     -------
@@ -222,12 +228,13 @@ def importance_evidence(logpost, components, fractions, n_draws: int, rng, mappe
     lw = np.where(np.isfinite(lp) & np.isfinite(logq), lp - logq, -np.inf)
     n = lw.size
     lnz = float(logsumexp(lw) - np.log(n))
+    extra = {"draws": draws, "log_weights": lw} if with_draws else {}
     if not np.isfinite(lnz):
-        return {"ln_evidence": -np.inf, "ln_evidence_err": np.inf, "ess": 0.0, "n_draws": int(n)}
+        return {"ln_evidence": -np.inf, "ln_evidence_err": np.inf, "ess": 0.0, "n_draws": int(n), **extra}
     w = np.exp(lw - np.max(lw))
     ess = float(w.sum() ** 2 / np.sum(w ** 2))
     err = float(np.sqrt(np.var(w) / n) / np.mean(w))
-    return {"ln_evidence": lnz, "ln_evidence_err": err, "ess": ess, "n_draws": int(n)}
+    return {"ln_evidence": lnz, "ln_evidence_err": err, "ess": ess, "n_draws": int(n), **extra}
 
 
 def _call(item):

@@ -15,11 +15,13 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
 from ...units import TWO_PI, wrap_angle
-from .evidence import hessian_cov
+from .evidence import _call, hessian_cov
 from .priors import Priors
 
 __all__ = ["find_map", "fit_null_geometry"]
@@ -106,8 +108,28 @@ def _start_points(priors: Priors, scan, template_name: str, geometry: np.ndarray
     return [np.concatenate([[r, phi], geometry]) for r, phi in cands]
 
 
+@dataclass(frozen=True)
+class _LocalOptimum:
+    """One start's optimum: ``(r_p, phi_p)`` alone at the start's geometry, then all six jointly.
+
+    A picklable task (pools send it to their workers); ``log_prob`` is what the pool evaluates.
+    """
+
+    log_prob: Callable
+    span: float
+    geometry_sigma: tuple
+
+    def __call__(self, start: np.ndarray) -> np.ndarray:
+        f = lambda t: _value(self.log_prob(t))  # noqa: E731
+        planet = _nelder_mead(lambda p: f(np.concatenate([p, start[2:]])), start[:2],
+                              np.array([0.02 * self.span, 0.05]), 120, restarts=1)
+        x = np.concatenate([planet, start[2:]])
+        steps = np.concatenate([[0.01 * self.span, 0.02], 3.0 * np.asarray(self.geometry_sigma, float)])
+        return _nelder_mead(f, x, steps, 500, restarts=2)
+
+
 def find_map(logpost, priors: Priors, scan, name: str, geometry: np.ndarray, geometry_sigma: np.ndarray,
-             n_starts: int = 2) -> np.ndarray:
+             n_starts: int = 2, *, pool_map=None, pool_log_prob=None) -> np.ndarray:
     """The best optimum of the spiral posterior over ``(r_p, phi_p, inc, PA, dRA, dDec)``.
 
     Parameters
@@ -116,10 +138,16 @@ def find_map(logpost, priors: Priors, scan, name: str, geometry: np.ndarray, geo
         ``ln(L pi)`` (may return ``(value, blob)``).
     geometry, geometry_sigma : ndarray
         The no-planet mode and its posterior widths (start and simplex scale of the geometry).
+    pool_map, pool_log_prob : callable, optional
+        A pool's ``map(fn, iterable)`` and the function its workers evaluate for ``logpost``
+        (:class:`.chain_runner.WalkerPool`): the start points are ranked, and the ``n_starts``
+        optimisations run, in the pool. The optimum is the same as without one.
     """
     f = lambda t: _value(logpost(t))  # noqa: E731
+    mapper = pool_map or map
+    worker_fn = pool_log_prob or logpost
     starts = _start_points(priors, scan, name, geometry)
-    values = np.array([f(s) for s in starts])
+    values = np.array(list(mapper(_call, [(worker_fn, s) for s in starts])), dtype=float)
     order = np.argsort(np.where(np.isfinite(values), values, -np.inf))[::-1]
     span = priors.r_p[1] - priors.r_p[0]
     chosen: list = []
@@ -129,13 +157,7 @@ def find_map(logpost, priors: Priors, scan, name: str, geometry: np.ndarray, geo
             chosen.append(s)
         if len(chosen) >= n_starts:
             break
-    optima = []
-    for s in chosen:
-        planet = _nelder_mead(lambda p, s=s: f(np.concatenate([p, s[2:]])), s[:2], np.array([0.02 * span, 0.05]), 120,
-                              restarts=1)
-        x = np.concatenate([planet, s[2:]])
-        steps = np.concatenate([[0.01 * span, 0.02], 3.0 * np.asarray(geometry_sigma, float)])
-        optima.append(_nelder_mead(f, x, steps, 500, restarts=2))
+    optima = list(mapper(_LocalOptimum(worker_fn, float(span), tuple(np.asarray(geometry_sigma, float))), chosen))
     lps = [f(o) for o in optima]
     best = int(np.argmax(lps))
     log.info("%s: optima from %d starts, ln p = %s", name, len(optima), np.round(lps, 2).tolist())

@@ -19,6 +19,7 @@ from ...exceptions import AccuracyWarning, InputError
 from ...geometry import DiscGeometry
 from ...model import profile_breaks, profile_support
 from ...units import ARCSEC, TWO_PI
+from .forked import forked_map
 from .interpolation import PerturbationTable, _Cells, _TableBuilder
 
 __all__ = ["FastPerturbation"]
@@ -49,6 +50,9 @@ class FastPerturbation:
         Shared by tables of templates on one radial grid with the same ``profile`` object and
         baselines (a family's mass nodes): each radius's quadrature rule and radial integrals are
         computed once (the same numbers; more than half of a table's build).
+    processes : int
+        Worker processes that build each refinement round's ``r_p`` nodes (:func:`.forked.forked_map`;
+        default 1: this process). The nodes are the same numbers either way.
     """
 
     # declared because a mirror reads them from its partner (``mirror_of``) before assigning its own
@@ -61,7 +65,7 @@ class FastPerturbation:
                  epsilon: float = 1e-5, oversample: float = 1.5, rp_tolerance: float = 0.01,
                  rp_step: float | None = None, cell_factor: float = 20.0, progress: bool = False,
                  mirror_of: FastPerturbation | None = None, max_nodes: int = 2000, rp_order: int = 6,
-                 radial_cache: dict | None = None):
+                 radial_cache: dict | None = None, processes: int = 1):
         t0 = time.perf_counter()
         r_lo, r_hi = float(r_range[0]), float(r_range[1])
         if not (0 < r_lo < r_hi):
@@ -91,9 +95,10 @@ class FastPerturbation:
                                    breaks=profile_breaks(profile), radial_cache=radial_cache)
         builder = _TableBuilder(self._cells, profile, r_hi * ARCSEC * self.uv_max, self._cells.x_max, oversample)
         self._delta = builder.delta
-        self.table = _refine(self, builder, rp_step, rp_tolerance, progress, max_nodes, int(rp_order))
+        with forked_map(builder, processes) as build_nodes:
+            self.table, self.n_node_builds = _refine(self, builder, build_nodes, rp_step, rp_tolerance, progress,
+                                                     max_nodes, int(rp_order))
         self.table_source = getattr(template, "name", "")
-        self.n_node_builds = builder.n_builds
         self.quadrature_error = _quadrature_error(self, rp_tolerance)
         self.build_time_s = time.perf_counter() - t0
         self.table.build_time_s = self.build_time_s
@@ -185,47 +190,50 @@ def _quadrature_error(fp: FastPerturbation, tolerance: float) -> float:
     return error
 
 
-def _refine(fp: FastPerturbation, builder: _TableBuilder, rp_step, tol, progress, max_nodes,
-            order: int = 6) -> PerturbationTable:
-    """Uniform r_p nodes, halved until the midpoint interpolation error is below ``tol``.
+def _refine(fp: FastPerturbation, builder: _TableBuilder, build_nodes, rp_step, tol, progress, max_nodes,
+            order: int = 6) -> tuple[PerturbationTable, int]:
+    """Uniform r_p nodes, halved until the midpoint interpolation error is below ``tol``; returns the
+    table and the number of node grids built.
 
     The nodes of every round lie on one lattice anchored at ``r_min`` (:func:`_lattice`), so the
     midpoints whose exact grids measure a round's error are the next round's new nodes: no grid
     is built twice. While the error is far above ``tol`` (100x) the step is quartered
     (``order``-point interpolation errors fall like ``h^order`` once the profile is resolved).
     Measured on the fiducial frank profile, default prior: 6-point interpolation met the
-    tolerance with 132 nodes where cubic needed 197-260.
+    tolerance with 132 nodes where cubic needed 197-260. ``build_nodes(radii) -> grids`` builds a
+    round's missing nodes together (in worker processes where asked).
     """
     r_lo, r_hi = fp.r_range
     h = float(rp_step) if rp_step is not None else (r_hi - r_lo) / 8.0
     cache: dict = {}
 
-    def node(r):
-        key = round(r, 12)
-        if key not in cache:
-            cache[key] = builder(r)
-        return cache[key]
+    def nodes_at(radii) -> list:
+        keys = [round(float(r), 12) for r in radii]
+        missing = [k for k in dict.fromkeys(keys) if k not in cache]
+        for k, grid in zip(missing, build_nodes(missing)):
+            cache[k] = grid
+        return [cache[k] for k in keys]
 
     history: list[dict] = []
     name = getattr(fp.template, "name", "template")
     while True:
         nodes = _lattice(r_lo, r_hi, h, order)
-        grids = np.stack([node(r) for r in _progress_iter(nodes, progress, f"{name}: r_p nodes")])
+        grids = np.stack(_with_progress(nodes_at, nodes, progress, f"{name}: r_p nodes"))
         table = PerturbationTable(nodes, grids, builder.delta, builder.sigma_max, fp.r_range, refinement=history,
                                   order=order)
         if rp_step is not None:
-            return table
-        err = _midpoint_error(fp, table, node)
+            return table, len(cache)
+        err = _midpoint_error(fp, table, nodes_at)
         history.append({"step_arcsec": h, "n_nodes": int(nodes.size), "max_midpoint_error": err})
         log.info("%s: r_p step %.4g arcsec, %d nodes, midpoint error %.3g (tolerance %.3g)", name, h, nodes.size,
                  err, tol)
         if err <= tol:
-            return table
+            return table, len(cache)
         factor = 4.0 if err > 100 * tol else 2.0
         if _lattice(r_lo, r_hi, h / factor, order).size > max_nodes:
             log.warning("%s: r_p interpolation error %.3g > tolerance %.3g with %d nodes; the cap is %d nodes",
                         name, err, tol, nodes.size, max_nodes)
-            return table
+            return table, len(cache)
         h /= factor
 
 
@@ -238,15 +246,15 @@ def _lattice(r_lo: float, r_hi: float, h: float, order: int = 4) -> np.ndarray:
     return r_lo + h * np.arange(-k_lo, k_hi + 1)
 
 
-def _midpoint_error(fp: FastPerturbation, table: PerturbationTable, node) -> float:
+def _midpoint_error(fp: FastPerturbation, table: PerturbationTable, nodes_at) -> float:
     """Largest data-weighted norm of the r_p-interpolation error at node midpoints."""
     r_lo, r_hi = fp.r_range
     mids = 0.5 * (table.r_nodes[1:] + table.r_nodes[:-1])
     mids = mids[(mids >= r_lo) & (mids <= r_hi)]
     worst = 0.0
     g0 = fp.reference_geometry
-    for r in mids:
-        diff = table.grid(r) - node(r)
+    for r, exact in zip(mids, nodes_at(mids)):
+        diff = table.grid(r) - exact
         scale = g0.cos_inc * (r * ARCSEC) ** 2
         for phi_p in (0.0, 0.5 * np.pi, np.pi, 1.5 * np.pi):
             dV = fp.u2nu(diff, fp.coords(r, phi_p, g0.inc, g0.PA)) * scale
@@ -254,9 +262,15 @@ def _midpoint_error(fp: FastPerturbation, table: PerturbationTable, node) -> flo
     return worst
 
 
-def _progress_iter(items, enabled: bool, desc: str):
+def _with_progress(nodes_at, radii, enabled: bool, desc: str, chunk: int = 8) -> list:
+    """``nodes_at(radii)``, in chunks of ``chunk`` radii under a progress bar when ``enabled``."""
     if not enabled:
-        return items
+        return nodes_at(radii)
     from tqdm.auto import tqdm
 
-    return tqdm(items, desc=desc, unit="node", leave=False, mininterval=1.0)
+    out: list = []
+    with tqdm(total=len(radii), desc=desc, unit="node", leave=False, mininterval=1.0) as bar:
+        for i in range(0, len(radii), chunk):
+            out += nodes_at(radii[i:i + chunk])
+            bar.update(len(radii[i:i + chunk]))
+    return out

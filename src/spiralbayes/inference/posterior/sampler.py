@@ -59,7 +59,11 @@ are built while the chain runs (the NUFFTs and the linear algebra release the GI
 asks for ``k`` workers, which receive the log-posterior once (pool initializer; emcee #199) and pin
 BLAS threads; ``pool="mpi"`` uses ``schwimmbad.MPIPool`` (run the same script on every rank; worker
 ranks serve log-posterior calls and only the master writes files and returns a result); any object
-with ``map`` may be passed as ``pool``.
+with ``map`` may be passed as ``pool``. The same workers serve everything else of a template that
+evaluates many independent points: the optimiser's start points and its two local optimisations,
+and the evidence draws. Without a ``pool``, the table's ``r_p`` nodes and the no-planet evidence
+draws go to as many local workers (:mod:`.forked`). Every value is the one a single process
+computes.
 """
 
 from __future__ import annotations
@@ -146,8 +150,10 @@ def _template_hash(template) -> str:
 # ---------------------------------------------------------------------------------------------
 # the no-planet hypothesis
 # ---------------------------------------------------------------------------------------------
-def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed, n_draws, likelihood_kwargs):
-    """The no-planet posterior and evidence; returns (NullRun, the re-centred ProfileMarginal)."""
+def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed, n_draws, likelihood_kwargs, *,
+              processes: int = 1, threads: int | None = 1):
+    """The no-planet posterior and evidence; returns (NullRun, the re-centred ProfileMarginal). The
+    evidence draws are evaluated by ``processes`` local workers (or ``threads``, :func:`.make_pool`)."""
     t0 = time.perf_counter()
     reference = DiscGeometry(*priors.geometry_centre)
     base0 = ProfileMarginal(vis, axisymmetric, prior=prior, reference_geometry=reference,
@@ -163,9 +169,9 @@ def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed,
     logpost = NullLogPosterior(base, priors)
     _, _, rng, _ = chain_streams(seed, NULL_GROUP)
     proposal = StudentT(g_map, cov * 1.5 ** 2, priors.geometry_widths)
-    ev = importance_evidence(logpost, [proposal], [1.0], n_draws, rng)
-    draws = proposal.draw(n_draws, rng)  # importance resampling for the reported geometry samples
-    lw = np.array([logpost(d) for d in draws]) - proposal.logpdf(draws)
+    with walker_pool(None, processes, logpost, threads) as pool:
+        ev = importance_evidence(pool.log_prob, [proposal], [1.0], n_draws, rng, pool.map, with_draws=True)
+    draws, lw = ev.pop("draws"), ev.pop("log_weights")  # resampled for the reported geometry samples
     w = np.exp(lw - np.nanmax(lw[np.isfinite(lw)])) if np.any(np.isfinite(lw)) else np.ones(len(draws))
     w = np.where(np.isfinite(w), w, 0.0)
     samples = draws[rng.choice(len(draws), size=len(draws), p=w / w.sum())]
@@ -187,7 +193,7 @@ def _run_null(vis, axisymmetric, priors, prior, store: ChainStore, inputs, seed,
 # ---------------------------------------------------------------------------------------------
 # one template
 # ---------------------------------------------------------------------------------------------
-def _build_likelihood(base, template, r_range, null, priors, likelihood_kwargs, partners, progress):
+def _build_likelihood(base, template, r_range, null, priors, likelihood_kwargs, partners, progress, processes=1):
     lk = {k: v for k, v in likelihood_kwargs.items() if k not in ("tolerance", "order")}
     partner = partners.get(template.name)
     if callable(partner):  # the partner was read back from the chain file: rebuild its table to share it
@@ -202,7 +208,7 @@ def _build_likelihood(base, template, r_range, null, priors, likelihood_kwargs, 
             mirror_of = None
     if mirror_of is None:
         fp = FastPerturbation(base.u, base.v, base.weights, base.axisymmetric.brightness, template, r_range,
-                              DiscGeometry(*null.geometry_map), progress=progress, **lk)
+                              DiscGeometry(*null.geometry_map), progress=progress, processes=processes, **lk)
     return MarginalSpiralLikelihood(base, fp, amplitude_max=priors.amplitude_max)
 
 
@@ -233,35 +239,38 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     if saved is not None and saved.result is not None:
         log.info("%s: finished earlier, read back from %s", name, chain_path)
         return TemplateRun.from_record(saved.result, _saved_samples(saved, store)), None
+    processes = resolve_processes(sampling.processes, sampling.threads)
     likelihood = _build_likelihood(base, template, r_range, null, priors, s["likelihood_kwargs"], partners,
-                                   s["progress"])
+                                   s["progress"], processes if sampling.pool is None else 1)
     logpost = LogPosterior(likelihood, priors)
     g_sigma, _, _ = _scales(priors, null)
-    theta_map = find_map(logpost, priors, scan, name, null.geometry_map, g_sigma)
-    theta_map, cov, lp_map, lnz_laplace = _laplace(logpost, theta_map, priors, null)
-    meta = template_metadata(template)
-    info = {"likelihood": likelihood.describe(), "build_time_s": likelihood.perturbation.build_time_s}
-    log.info("%s: optimum ln p = %.2f at %s; Laplace ln Z = %.2f", name, lp_map, np.round(theta_map, 5), lnz_laplace)
-    _, _, rng_evidence, rng_amp = streams
-    if mode == "laplace":
-        draws = rng_evidence.multivariate_normal(theta_map, cov, size=400)
-        draws[:, 1] = wrap_angle(draws[:, 1], 0.0)
-        draws = draws[[np.isfinite(logpost(d)[0]) for d in draws]]
-        terms = np.array([likelihood.amplitude_terms(d) for d in draws]).reshape(-1, 3)
-        samples = _with_amplitude(draws, terms[:, 1], terms[:, 2], priors, rng_amp)
-        run = TemplateRun(name, meta, "laplace", samples, theta_map, cov, lnz_laplace, float("nan"), lnz_laplace,
-                          {**info, "time_s": time.perf_counter() - t0}, str(chain_path), name)
-        n_walkers = sampling.n_walkers
-        store.write(ChainState(np.empty((0, n_walkers, N_DIM)), np.empty((0, n_walkers)), None,
-                               np.zeros(n_walkers), None, inputs, run.record(), samples))
-        return run, likelihood
-    rule = StoppingRule(null, priors, _scales(priors, null)[1], min_ess=sampling.min_ess,
-                        n_draws=sampling.evidence_draws, seed=sampling.seed, name=name,
-                        planet_free_rule=sampling.stop_when_planet_free)
-    processes = resolve_processes(sampling.processes, sampling.threads)
+    # one pool, forked once the tables exist, serves the optimiser, the chain and the evidence draws
     with walker_pool(sampling.pool, processes, logpost, sampling.threads) as walkers:
         if walkers.is_worker:  # an MPI worker rank
             return None, likelihood
+        theta_map = find_map(logpost, priors, scan, name, null.geometry_map, g_sigma, pool_map=walkers.map,
+                             pool_log_prob=walkers.log_prob)
+        theta_map, cov, lp_map, lnz_laplace = _laplace(logpost, theta_map, priors, null)
+        meta = template_metadata(template)
+        info = {"likelihood": likelihood.describe(), "build_time_s": likelihood.perturbation.build_time_s}
+        log.info("%s: optimum ln p = %.2f at %s; Laplace ln Z = %.2f", name, lp_map, np.round(theta_map, 5),
+                 lnz_laplace)
+        _, _, rng_evidence, rng_amp = streams
+        if mode == "laplace":
+            draws = rng_evidence.multivariate_normal(theta_map, cov, size=400)
+            draws[:, 1] = wrap_angle(draws[:, 1], 0.0)
+            draws = draws[[np.isfinite(logpost(d)[0]) for d in draws]]
+            terms = np.array([likelihood.amplitude_terms(d) for d in draws]).reshape(-1, 3)
+            samples = _with_amplitude(draws, terms[:, 1], terms[:, 2], priors, rng_amp)
+            run = TemplateRun(name, meta, "laplace", samples, theta_map, cov, lnz_laplace, float("nan"), lnz_laplace,
+                              {**info, "time_s": time.perf_counter() - t0}, str(chain_path), name)
+            n_walkers = sampling.n_walkers
+            store.write(ChainState(np.empty((0, n_walkers, N_DIM)), np.empty((0, n_walkers)), None,
+                                   np.zeros(n_walkers), None, inputs, run.record(), samples))
+            return run, likelihood
+        rule = StoppingRule(null, priors, _scales(priors, null)[1], min_ess=sampling.min_ess,
+                            n_draws=sampling.evidence_draws, seed=sampling.seed, name=name,
+                            planet_free_rule=sampling.stop_when_planet_free)
         backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors, settings=sampling,
                             streams=streams, name=name, progress=s["progress"], logpost=logpost, stop_check=rule)
         chain, blobs, accepted = backend.get_chain(), backend.get_blobs(), backend.accepted
@@ -408,7 +417,8 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
         overall.start("no planet: geometry mode and evidence")
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
                                {**common, "evidence_draws": int(evidence_draws)}, seed, evidence_draws,
-                               likelihood_kwargs)
+                               likelihood_kwargs, **({"processes": resolve_processes(s.processes, s.threads),
+                                                      "threads": s.threads} if pool is None else {}))
         runs: dict[str, TemplateRun] = {}
         partners: dict[str, FastPerturbation | Callable[[], FastPerturbation]] = {}  # mirror name -> its table
         family_partners: dict = {}
