@@ -27,7 +27,7 @@ def test_forked_map_inherits_the_function_and_returns_the_in_process_values():
     task = _task_factory()
     items = list(range(40))
     with forked_map(task, 2) as mapped:
-        out = mapped(items)
+        out = list(mapped(items))
     assert [v for v, _ in out] == [task(k)[0] for k in items]  # bit for bit, in the items' order
     assert os.getpid() not in {pid for _, pid in out}  # computed by the workers
 

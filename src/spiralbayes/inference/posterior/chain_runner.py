@@ -9,10 +9,10 @@ stopping rule's costlier parts every ``check_every`` steps), so checks fall on t
 when a run resumes. Every template (and the
 no-planet run) has its own random streams (:func:`streams`). Pools: by default a template's
 walkers are evaluated by forked worker processes where the platform forks them (Linux;
-:func:`resolve_processes`) and by threads elsewhere and for continuous-mass families
-(:class:`ThreadMap`, one per available core); ``processes=k`` asks for ``k`` workers, which
-receive the log-posterior once (pool initializer; emcee #199) and pin BLAS threads; ``pool="mpi"``
-uses ``schwimmbad.MPIPool``.
+:func:`resolve_processes`; a continuous-mass family's node tables are built first, by forked
+workers too) and by threads elsewhere (:class:`ThreadMap`, one per available core);
+``processes=k`` asks for ``k`` workers, which receive the log-posterior once (pool initializer;
+emcee #199) and pin BLAS threads; ``pool="mpi"`` uses ``schwimmbad.MPIPool``.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..._provenance import data_hash
 from ...geometry import DiscGeometry
-from .chain_runner import run_chain, walker_pool
+from .chain_runner import resolve_processes, run_chain, walker_pool
 from .chain_runner import streams as chain_streams
 from .chains import ChainBackend, ChainState, ChainStore, _saved_samples
 from .diagnostics import _apply_policy, _convergence_message, arviz_diagnostics, chain_inference_data
@@ -129,6 +129,10 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
     lk = {k: v for k, v in s["likelihood_kwargs"].items() if k not in ("tolerance", "order")}
     fp = FamilyPerturbation(base.u, base.v, base.weights, base.axisymmetric.brightness, family, r_range,
                             DiscGeometry(*null.geometry_map), progress=s["progress"], mirror_of=mirror_of, **lk)
+    processes = resolve_processes(sampling.processes, sampling.threads)
+    if mode == "mcmc" and (sampling.pool is not None or processes > 1):
+        # every node the chain and the evidence's prior draws can reach, built before the workers fork
+        fp.build_nodes(mass_prior.mass_range, processes=processes if sampling.pool is None else 1)
     likelihood = MassLikelihood(base, fp, amplitude_max=priors.amplitude_max)
     logpost = MassLogPosterior(likelihood, priors, mass_prior)
     g_sigma, scales6, max_var6 = _scales(priors, null)
@@ -184,9 +188,7 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
     stop = StoppingRule(null, priors, scales, min_ess=sampling.min_ess, n_draws=sampling.evidence_draws,
                         seed=sampling.seed, name=name, planet_free_rule=sampling.stop_when_planet_free,
                         names=MASS_PARAMETER_NAMES, evidence=evidence)
-    if sampling.pool is not None or (sampling.processes or 1) > 1:
-        fp.build_nodes(mass_prior.mass_range)
-    with walker_pool(sampling.pool, sampling.processes, logpost, sampling.threads) as walkers:
+    with walker_pool(sampling.pool, processes, logpost, sampling.threads) as walkers:
         if walkers.is_worker:
             return None, likelihood
         backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors,

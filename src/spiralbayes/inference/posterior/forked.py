@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 from ..._threads import blas_threads
@@ -47,8 +47,9 @@ def _run_task(item):
 
 
 @contextlib.contextmanager
-def forked_map(fn: Callable[[Any], Any], processes: int) -> Iterator[Callable[[list], list]]:
-    """A ``map(items) -> list`` of ``fn`` over ``processes`` forked workers, in the items' order.
+def forked_map(fn: Callable[[Any], Any], processes: int) -> Iterator[Callable[[Iterable], Iterator]]:
+    """A ``map(items)`` of ``fn`` over ``processes`` forked workers: an iterator over the results in the
+    items' order, each as soon as it and those before it are done.
 
     The workers are forked on entry, so they see ``fn`` and everything it refers to as they are then;
     they are stopped on exit. With ``processes <= 1``, or where :func:`can_fork` is False, the map is
@@ -56,7 +57,7 @@ def forked_map(fn: Callable[[Any], Any], processes: int) -> Iterator[Callable[[l
     posterior's own evaluations do).
     """
     if processes <= 1 or not can_fork():
-        yield lambda items: [fn(x) for x in items]
+        yield lambda items: map(fn, items)
         return
     import multiprocessing
 
@@ -64,6 +65,6 @@ def forked_map(fn: Callable[[Any], Any], processes: int) -> Iterator[Callable[[l
     _TASK = fn
     try:
         with multiprocessing.get_context("fork").Pool(int(processes), initializer=pin_threads) as pool:
-            yield lambda items: pool.map(_run_task, list(items), chunksize=1)
+            yield lambda items: pool.imap(_run_task, items)
     finally:
         _TASK = None

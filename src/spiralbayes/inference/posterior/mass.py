@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,7 @@ from ...geometry import DiscGeometry
 from ...settings import DEFAULT_MSTAR_MSUN
 from ...units import ARCSEC, M_JUP, M_SUN
 from .conditional import PARAMETER_NAMES
+from .forked import forked_map
 from .likelihood import MarginalSpiralLikelihood
 from .perturbation import FastPerturbation
 from .priors import Priors
@@ -228,9 +230,13 @@ class FamilyPerturbation:
                 if self.family.hand == "L":
                     fp = FastPerturbation(self.u, self.v, self.weights, self.profile, self.family.node(j).mirror(),
                                           self.r_range, self.reference_geometry, mirror_of=fp, **self.table_kwargs)
-                log.info("%s: table of mass node %.4g M_th %s (%.1f s; %d of %d nodes)", self.template.name,
-                         self.family.masses[j], "built" if built_s else "shared with the mirror family", built_s,
-                         len(self.tables) + 1, self.family.masses.size)
+                if j in self._build_s:  # built by a worker process (build_nodes)
+                    how, built_s = "built by a worker", self._build_s[j]
+                else:
+                    how = "built" if built_s else "shared with the mirror family"
+                log.log(logging.DEBUG if how == "built by a worker" else logging.INFO,
+                        "%s: table of mass node %.4g M_th %s (%.1f s; %d of %d nodes)", self.template.name,
+                        self.family.masses[j], how, built_s, len(self.tables) + 1, self.family.masses.size)
                 self._build_s[j] = built_s
                 self.tables[j] = fp
             return self.tables[j]
@@ -282,16 +288,39 @@ class FamilyPerturbation:
                 "table_bytes": self.nbytes, "build_time_s": self.build_time_s,
                 "quadrature_error": self.quadrature_error}
 
-    def build_nodes(self, mass_range: tuple[float, float] | None = None) -> int:
+    def build_nodes(self, mass_range: tuple[float, float] | None = None, processes: int = 1) -> int:
         """Build every node table that masses in ``mass_range`` [M_th] use (default the family's range);
         returns how many there are. Worker processes receive a copy of this object, and a table one of
-        them builds stays there, so a pooled run builds them first."""
+        them builds stays there, so a pooled run builds them first.
+
+        ``processes`` > 1 builds the missing hand-R tables in as many forked workers
+        (:func:`.forked.forked_map`; the same tables as in this process)."""
         lo, hi = mass_range or self.family.mass_range
         needed = sorted({j for m in np.geomspace(lo, hi, 8 * self.family.masses.size)
                          for j, _, _ in self.family.weights(float(m))})
+        missing = [j for j in needed if j not in self._right and j not in self.tables]
+        if processes > 1 and len(missing) > 1:
+            t0 = time.perf_counter()
+            with forked_map(self._built_right_table, processes) as build:
+                built = build(missing)
+                if self.progress:
+                    from tqdm.auto import tqdm
+
+                    built = tqdm(built, total=len(missing), desc=f"{self.template.name}: mass-node tables",
+                                 unit="table", leave=False)
+                for j, fp in zip(missing, built):
+                    fp.u, fp.v, fp.weights, fp.profile = self.u, self.v, self.weights, self.profile
+                    self._right[j] = fp
+                    self._build_s[j] = fp.build_time_s
+            log.info("%s: %d mass-node tables built by %d worker processes in %.1f s", self.template.name,
+                     len(missing), processes, time.perf_counter() - t0)
         for j in needed:
             self.node_table(j)
         return len(needed)
+
+    def _built_right_table(self, j: int) -> FastPerturbation:
+        self.progress = False  # in a worker: the parent shows one bar for all the tables
+        return self._right_table(j)[0]
 
 
 class MassLikelihood(MarginalSpiralLikelihood):

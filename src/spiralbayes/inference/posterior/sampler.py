@@ -54,8 +54,9 @@ settings) is refused with :class:`~spiralbayes.exceptions.ResumeMismatchError`.
 Parallelism (:mod:`.chain_runner`): by default a template's walkers are evaluated by forked worker
 processes, one per available core up to four, where the platform forks them (Linux; the tables are
 shared page by page, nothing is pickled; :func:`.chain_runner.resolve_processes`), and by threads
-elsewhere, when a ``threads`` count is given, and for continuous-mass families, whose node tables
-are built while the chain runs (the NUFFTs and the linear algebra release the GIL); ``processes=k``
+elsewhere and when a ``threads`` count is given (the NUFFTs and the linear algebra release the
+GIL); a continuous-mass family's node tables are built by the workers before its chain, and with
+threads they are built when a walker first needs one; ``processes=k``
 asks for ``k`` workers, which receive the log-posterior once (pool initializer; emcee #199) and pin
 BLAS threads; ``pool="mpi"`` uses ``schwimmbad.MPIPool`` (run the same script on every rank; worker
 ranks serve log-posterior calls and only the master writes files and returns a result); any object
