@@ -57,7 +57,13 @@ class Case:
     batch : str
         The run set it was planned in (``issue21``: the library; ``issue22``: 3 M_th at H/r 0.05 and
         0.10, added so that the 3 M_th morphology has references at more than one H/r; ``dust2``:
-        dust at Stokes numbers 0.01 and 0.1 beside the library's 0.03).
+        dust at Stokes numbers 0.01 and 0.1 beside the library's 0.03; ``physics``: the disc physics
+        the other runs share — surface-density slope, viscosity, masses and H/r between the bank's,
+        and a run to 500 orbits).
+    sigma_slope : float
+        ``p`` of the initial ``Σ ∝ r^-p`` (FARGO3D SigmaSlope).
+    nu : float
+        Kinematic viscosity in code units (``α = ν / h_p²`` at the planet).
     """
 
     name: str
@@ -71,6 +77,8 @@ class Case:
     taper: float = 5.0
     role: str = "library"
     batch: str = "issue21"
+    sigma_slope: float = SIGMA_SLOPE
+    nu: float = NU
 
     @property
     def setup(self) -> str:
@@ -141,6 +149,16 @@ CASES: list[Case] = [  # run order: the most distinct cases per CPU hour first (
     # the fastest-drifting grains continued to 200 orbits (restarted from the 20-orbit run's last
     # output): the dust's evolved gap and ring
     _case("lib_mu1_h007_st0.1_long", 1.0, 0.07, stokes=0.1, orbits=200.0, role="orbits200", batch="dust2"),
+    # a fourth run set (physics, issue 31): what every run above holds fixed — the surface-density
+    # slope (0.5 and 1.5 beside 1), the viscosity (alpha 2e-4 and 2e-2 beside 2e-3 at H/r 0.07),
+    # masses and H/r between the bank's — at 20 orbits, then the 1 M_th gas run to 500 orbits
+    _case("lib_mu1_h007_slope0.5", 1.0, 0.07, sigma_slope=0.5, role="slope0.5", batch="physics"),
+    _case("lib_mu1_h007_slope1.5", 1.0, 0.07, sigma_slope=1.5, role="slope1.5", batch="physics"),
+    _case("lib_mu1_h007_nu1e-6", 1.0, 0.07, nu=1e-6, role="nu1e-06", batch="physics"),
+    _case("lib_mu1_h007_nu1e-4", 1.0, 0.07, nu=1e-4, role="nu1e-04", batch="physics"),
+    _case("lib_mu0.5_h006", 0.5, 0.06, batch="physics"),
+    _case("lib_mu2_h008", 2.0, 0.08, batch="physics"),
+    _case("lib_mu1_h007_orbits500", 1.0, 0.07, orbits=500.0, role="orbits500", batch="physics"),
 ]
 BY_NAME = {c.name: c for c in CASES}
 
@@ -170,8 +188,8 @@ def par_text(case: Case, output_dir: str, planet_file: str) -> str:
         f"AspectRatio\t\t{case.h_p:g}",
         f"FlaringIndex\t\t{FLARING:g}",
         f"Sigma0\t\t\t{SIGMA0:.10e}",
-        f"SigmaSlope\t\t{SIGMA_SLOPE:g}",
-        f"Nu\t\t\t{NU:.3e}",
+        f"SigmaSlope\t\t{case.sigma_slope:g}",
+        f"Nu\t\t\t{case.nu:.3e}",
         "Noise\t\t\t0.0",
         "DampingZone\t\t1.15",
         "TauDamp\t\t\t0.3",

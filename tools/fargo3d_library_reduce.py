@@ -202,14 +202,14 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
             tag = f"orbit_{old['t'] / lib.TWO_PI:.0f}"
             steady[f"rms_rel_diff_vs_{tag}"] = round(ref3.steadiness(d, old["dsigma"], x, valid), 4)
             steady[f"arm_vs_{tag}"] = rc.arm_steadiness(x, phi, d, old["dsigma"], case.h_p, valid)
-    sig_ax = np.where(valid, main["mean"], x**-rc.SIGMA_SLOPE)
+    sig_ax = np.where(valid, main["mean"], x**-case.sigma_slope)
     tfac = main.get("tfac")
     datasets = {"dsigma": _quantise(d, q), "sigma_axisym": np.where(valid, main["mean"], np.nan).astype(np.float32),
                 "valid": valid}
     for tau0 in TAU0S:
         full = np.zeros((x.size, phi.size), np.float32)
         full[valid] = brightness(x[valid], phi, d[valid], sig_ax[valid], case.h_p, tau0,
-                                 None if tfac is None else tfac[valid])
+                                 None if tfac is None else tfac[valid], sigma_slope=case.sigma_slope)
         datasets[f"delta_tau{tau0:g}"] = _quantise(full, q)
     extra = {}
     if beta:
@@ -257,13 +257,14 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
     return case.group, {"datasets": datasets, "attrs": attrs, "dataset_attrs": dataset_docs(fluid, beta)}
 
 
-def brightness(x, phi, dsigma, sig_ax, h_p, tau0, tfac):
-    """δ = I/<I>_φ − 1 from the package's transfer (T = T_0(x)·tfac; tfac None: isothermal)."""
+def brightness(x, phi, dsigma, sig_ax, h_p, tau0, tfac, sigma_slope: float = rc.SIGMA_SLOPE):
+    """δ = I/<I>_φ − 1 from the package's transfer (T = T_0(x)·tfac; tfac None: isothermal; the disc's
+    initial Σ ∝ x^-sigma_slope)."""
     from spiralbayes.templates.radiative import template_from_perturbation
 
     tmpl = template_from_perturbation(
         x, phi, dsigma, float(tau0), temperature_factor=tfac, sigma_axisym=np.asarray(sig_ax, float),
-        hand="R", h_p=h_p, flaring=rc.FLARING, sigma_slope=rc.SIGMA_SLOPE, wavelength=rc.WAVELENGTH,
+        hand="R", h_p=h_p, flaring=rc.FLARING, sigma_slope=sigma_slope, wavelength=rc.WAVELENGTH,
         mstar=rc.MSTAR, r_p_au=rc.R_P_AU, mu=rc.MU_GAS, store_brightness=False)
     return np.asarray(tmpl.delta, np.float32)
 
