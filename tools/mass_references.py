@@ -25,13 +25,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 
-def run_case(label: str, tau0: float, out: Path, variants, steps: int, walkers: int) -> dict:
+def run_case(label: str, tau0: float, out: Path, variants, steps: int, walkers: int, references=None) -> dict:
     import spiralbayes as sb
     from spiralbayes.simulate import DiscModel, simulate_observation
     from spiralbayes.templates.variants import variant_template
     from tests.templates import fidelity as F
 
-    case = next(c for c in F.reference_cases() if c.label == label)
+    case = next(c for c in F.reference_cases(references) if c.label == label)
     ref = F.reference_template(case, tau0)
     geometry = sb.DiscGeometry(30.0, 60.0)
     r_true, phi_true = F.R_P_AU / F.DISTANCE, np.radians(40.0)
@@ -63,6 +63,8 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--walkers", type=int, default=20)
     parser.add_argument("--out", default="mass_references_output")
+    parser.add_argument("--references", nargs="+", default=None,
+                        help="reduced reference files to take the cases from (default: the committed ones)")
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     for noisy in ("arviz", "spiralbayes.inference.posterior.perturbation", "spiralbayes.inference.posterior.mass"):
@@ -70,7 +72,7 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for label in args.cases:
-        row = run_case(label, args.tau0, out, args.variants, args.steps, args.walkers)
+        row = run_case(label, args.tau0, out, args.variants, args.steps, args.walkers, args.references)
         shares = ", ".join(f"{k}: P {v:.2f}, M {row['per_family'][k]:.2f}" for k, v in row["families"].items())
         print(f"{row['case']} tau0 {row['tau0']:g}: truth {row['truth']:g} M_th; median {row['median']:.2f} "
               f"(68 %: {row['lo']:.2f}-{row['hi']:.2f}; 95 %: {row['lo95']:.2f}-{row['hi95']:.2f}); "

@@ -89,19 +89,22 @@ docs/templates.md), a transient no spiral template stands for — test 3's asymm
 what such a disc meets (docs/limits.md §4d)."""
 
 
-def reference_cases() -> list[Case]:
-    """Every case of every committed reference file, wakeflow first."""
+def reference_cases(files=None) -> list[Case]:
+    """Every case of every committed reference file, wakeflow first; or of the reduced reference
+    ``files`` given (paths, e.g. runs reduced outside the repository with ``--out``)."""
     import h5py
 
     cases = []
-    for path in sorted(REF_DIR.glob("*.h5"), reverse=True):  # wakeflow_, then fargo3d_
+    paths = sorted(REF_DIR.glob("*.h5"), reverse=True) if files is None else [Path(p).resolve() for p in files]
+    for path in paths:  # committed: wakeflow_, then fargo3d_
         with h5py.File(path, "r") as f:
             source = SOURCE_LABELS.get(path.stem, path.stem.split("_")[0])
             for g in sorted(f):
                 if isinstance(f[g], h5py.Group):
                     a = f[g].attrs
                     taus = tuple(sorted(float(k.removeprefix("delta_tau")) for k in f[g] if k.startswith("delta_tau")))
-                    cases.append(Case(path.name, g, source, float(a["h_p"]), float(a["mu_Mth"]),
+                    cases.append(Case(path.name if path.parent == REF_DIR.resolve() else str(path), g, source,
+                                      float(a["h_p"]), float(a["mu_Mth"]),
                                       float(a.get("beta", 0.0)), _role(g),
                                       str(a.get("run_state", "finished")), taus, str(a.get("batch", "")),
                                       _last_change(a)))

@@ -47,7 +47,7 @@ OWN_THRESHOLD = 10.0
 """Cases whose own template gives ΔBIC above this must be detected (issue 22)."""
 
 
-def detection_cases() -> list[Case]:
+def detection_cases(files=None) -> list[Case]:
     """Every wakeflow and ``fargo3d_isothermal`` case, and the library cases of a reference role
     (``library``, ``orbits200``) whose run is complete and quasi-steady (:attr:`Case.is_reference`).
     Left out: the library's numerical checks (softening, resolution: the same planet as
@@ -56,8 +56,8 @@ def detection_cases() -> list[Case]:
     import h5py
 
     out = []
-    for case in reference_cases():
-        if case.file == "fargo3d_library.h5":
+    for case in reference_cases(files):
+        if Path(case.file).name == "fargo3d_library.h5":
             with h5py.File(REF_DIR / case.file, "r") as f:
                 complete = bool(f[case.group].attrs.get("complete", True))
             if not complete or not case.is_reference:
@@ -135,13 +135,12 @@ def row(case: Case, tau0: float, own, bank, verdict) -> dict:
     """The table's numbers from the scans and the verdict."""
     o = own.best.to_dict()
     best = bank.templates[bank.template_index(verdict.template)]
-    masses = list(BANK_MASSES)
     r_true, phi_true = R_P_AU / DISTANCE, np.radians(PHI_P_DEG)
     return {
         "case": case.label, "mu": case.mu, "h_p": case.h_p, "beta": case.beta, "tau0": tau0,
         "own_delta_bic": o["delta_bic"], "delta_bic": verdict.delta_bic, "template": verdict.template,
         "variant": best.get("variant", "compromise"), "best_mass": float(best["mass"]), "best_h_p": float(best["h_p"]),
-        "mass_steps": masses.index(float(best["mass"])) - masses.index(case.mu),
+        "mass_steps": _bank_steps(float(best["mass"])) - _bank_steps(case.mu),
         "dr_steps": (verdict.r_p - r_true) / RP_STEP,
         "dphi_deg": float(np.degrees(np.angle(np.exp(1j * (np.radians(verdict.phi_p_deg) - phi_true))))),
         "test1": verdict.test1_passed, "test2": verdict.test2_passed, "test3": verdict.test3_passed,
@@ -154,6 +153,14 @@ def row(case: Case, tau0: float, own, bank, verdict) -> dict:
         "mass_range_mjup": None if verdict.mass_range is None else verdict.mass_range["mjup"],
         "verdict": verdict.to_dict(),
     }
+
+
+def _bank_steps(mass: float) -> float:
+    """Position of ``mass`` [M_th] on the bank's mass ladder (0 for 0.1 M_th, 1 for 0.3, ...), linear in
+    ln M between the bank's masses, so that a planet between them is measured in the same steps."""
+    ladder = np.log(BANK_MASSES)
+    steps = float(np.interp(np.log(mass), ladder, np.arange(len(BANK_MASSES)), left=np.nan, right=np.nan))
+    return int(round(steps)) if abs(steps - round(steps)) < 1e-9 else steps
 
 
 def required(r: dict) -> bool:
@@ -187,18 +194,21 @@ def format_table(rows) -> str:
             verdict = "not detected" + (" **(required)**" if required(r) else "")
         lines.append(f"| {r['case']} | {r['tau0']:g} | {r['own_delta_bic']:.0f} | {r['delta_bic']:.0f} | "
                      f"{r['template']} "
-                     f"| {mr} | {r['mass_steps']:+d} | {r['dr_steps']:+.0f} | {r['dphi_deg']:+.0f} | {margin} | "
+                     f"| {mr} | {r['mass_steps']:+.3g} | {r['dr_steps']:+.0f} | {r['dphi_deg']:+.0f} | {margin} | "
                      f"{nested} | {verdict} |")
     return "\n".join(lines)
 
 
-def main(out: str = "reference_detection.json", only: str = "", frank: str = "") -> None:
+def main(out: str = "reference_detection.json", only: str = "", frank: str = "", files: str = "") -> None:
+    """Evaluate every detection case (or those whose label contains ``only``) and print the table;
+    ``files``: comma-separated reduced reference files to take the cases from instead of the
+    committed ones (e.g. runs reduced with ``tools/fargo3d_library_reduce.py --out``)."""
     import pickle
 
     logging.basicConfig(level=logging.INFO)
     rows = []
     # heaviest planets first: the cases the acceptance applies to come before the 0.1 M_th ones
-    for case in sorted(detection_cases(), key=lambda c: -c.mu):
+    for case in sorted(detection_cases(files.split(",") if files else None), key=lambda c: -c.mu):
         for tau0 in TAUS:
             if only and only not in f"{case.label}_tau{tau0:g}":
                 continue
