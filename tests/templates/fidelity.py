@@ -75,12 +75,16 @@ class Case:
         stored before their planned orbits (``run_state = running``) and maps that are not a
         quasi-steady spiral: RMS change of δΣ/Σ over the last 5 orbits above :data:`MAX_CHANGE`
         (the library's ``steadiness``). The fidelity report still shows them."""
-        return (self.role in REFERENCE_ROLES and not self.run_state.startswith("running")
+        return ((self.role in REFERENCE_ROLES or self.role.startswith(PHYSICS_ROLES))
+                and not self.run_state.startswith("running")
                 and self.change_5_orbits <= MAX_CHANGE)
 
 
 REFERENCE_ROLES = ("library", "orbits200")
 """Library roles whose finished runs are references (:attr:`Case.is_reference`)."""
+PHYSICS_ROLES = ("slope", "nu", "orbits500")
+"""Role prefixes of the ``physics`` run set (another surface-density slope or viscosity, a longer run):
+references too, of disc physics the rest of the library holds fixed."""
 MAX_CHANGE = 0.5
 """Largest RMS change of a reference's δΣ/Σ over its last 5 orbits. The library's runs change by
 0.1-7 % (3 M_th: 27 % at H/r 0.07 after 20 orbits, 12 % after 200); the H/r 0.10 3 M_th run by
