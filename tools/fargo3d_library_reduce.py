@@ -362,7 +362,7 @@ def main(argv=None) -> None:
     cases = {g: cases[g] for g in [c.group for c in lib.CASES if c.group in cases] + sorted(set(cases) - {
         c.group for c in lib.CASES})}
     relax = relaxation_test(args.runs_dir)
-    if relax == "not run" and kept_relax is not None:
+    if relax == "not run" and kept_relax not in (None, "not run"):  # a file written without the test says so
         relax = json.loads(kept_relax)
     commit = subprocess.run(["git", "-C", str(args.fargo_dir), "rev-parse", "HEAD"], capture_output=True,
                             text=True).stdout.strip() or "unknown"
