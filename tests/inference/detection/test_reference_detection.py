@@ -25,6 +25,17 @@ KNOWN_FAILURES = {
                                  "with the arc -22), below 30 (bank Delta BIC 24, placed exactly)",
     ("fargo3dlib:h0.07_mu1_orbits200", 0.3): "test 3 Delta BIC 9.0 against an arc at the planet (spiral alone; "
                                              "jointly -43), below 30 (bank Delta BIC 50, placed exactly)",
+    # the dust runs of the dust2 run set, measured 2026-12-03: the dust's ring and co-orbital structure,
+    # which no template models (issue 31's dust building block), dominates the map
+    ("fargo3dlib:h0.07_mu1_st0.1", 0.3): "own Delta BIC 1763, bank 148 (8 %) at phi_p 32 deg off, hand L; test 2 fails",
+    ("fargo3dlib:h0.07_mu1_st0.1", 3.0): "own 2564, bank 439 (hydro m3, hand L) 60 deg off; tests 2 and 3 fail "
+                                         "(nested 22 against an eccentric ring)",
+    ("fargo3dlib:h0.07_mu1_st0.1_orbits200", 0.3): "own 13447, bank 2218 (wakeflow m3 H/r 0.10, hand L) detected "
+                                                   "two r_p steps out and 20 deg off",
+    ("fargo3dlib:h0.07_mu1_st0.1_orbits200", 3.0): "own 163584, bank 10669 (wake m3, hand L) 80 deg off; test 2 fails",
+    ("fargo3dlib:h0.07_mu3_st0.01", 0.3): "own 1782, bank 116 (wakeflow m1) 64 deg off; test 3 fails (nested -8 "
+                                          "against an arc)",
+    ("fargo3dlib:h0.07_mu3_st0.01", 3.0): "own 7047, bank 1345 (hydro m3) 32 deg off; test 2 fails",
 }
 """Cases that fail the acceptance as measured, with why (non-strict: a refit of the variants may fix them)."""
 
