@@ -205,7 +205,6 @@ def importance_evidence(logpost, components, fractions, n_draws: int, rng, mappe
         Objects with ``draw(n, rng)`` and ``logpdf(x)``.
     fractions : list of float
         Share of the draws from each component (the mixture weights).
-
     mapper : callable
         ``map(fn, iterable)`` of a pool that evaluates ``logpost`` (default the built-in map).
     with_draws : bool

@@ -288,7 +288,6 @@ class _TableBuilder:
         self.N = int(np.ceil(half / self.delta)) * 2
         self.window = _window(self.N, self.delta, self.sigma_max)
         self.coord = np.ascontiguousarray(TWO_PI * cells.positions / (self.N * self.delta))
-        self.n_builds = 0
 
     def __call__(self, r_p: float) -> np.ndarray:
         import ducc0
@@ -297,5 +296,4 @@ class _TableBuilder:
         T = ducc0.nufft.nu2u(points=self.cells.fluxes(self.profile, r_p), coord=self.coord,
                              out=np.empty((N, N), dtype=complex), forward=False, epsilon=1e-9, nthreads=1)
         g = np.fft.fftshift(np.fft.fft2(np.fft.ifftshift(T * self.window))) / N ** 2
-        self.n_builds += 1
         return g.astype(np.complex64)

@@ -230,11 +230,10 @@ class FamilyPerturbation:
                 if self.family.hand == "L":
                     fp = FastPerturbation(self.u, self.v, self.weights, self.profile, self.family.node(j).mirror(),
                                           self.r_range, self.reference_geometry, mirror_of=fp, **self.table_kwargs)
-                if j in self._build_s:  # built by a worker process (build_nodes)
-                    how, built_s = "built by a worker", self._build_s[j]
-                else:
-                    how = "built" if built_s else "shared with the mirror family"
-                log.log(logging.DEBUG if how == "built by a worker" else logging.INFO,
+                by_worker = j in self._build_s  # build_nodes: its build time was recorded there
+                built_s = self._build_s[j] if by_worker else built_s
+                how = "built by a worker" if by_worker else "built" if built_s else "shared with the mirror family"
+                log.log(logging.DEBUG if by_worker else logging.INFO,
                         "%s: table of mass node %.4g M_th %s (%.1f s; %d of %d nodes)", self.template.name,
                         self.family.masses[j], how, built_s, len(self.tables) + 1, self.family.masses.size)
                 self._build_s[j] = built_s
