@@ -4,7 +4,7 @@ For each antenna phase rms and noise seed, the fiducial preset (C-4 + C-7, 36,12
 disc at 140 pc, inc 30 deg, PA 60 deg; ``--preset taurus`` for the faint Taurus set-up) is simulated
 without a planet and with a 1 M_th planet (``--planet-mass``; the
 command line's ``simulate --planet-mass 1``: the compromise template tau0 = 3, beta = 10, at 50 au,
-phi_p = 0), corrupted by antenna gains (phase rms as given, 5 % amplitudes; 180-s phase and 600-s
+phi_p = 0), corrupted by antenna gains (phase rms as given, 5 % amplitudes or ``--amp-rms``; 180-s phase and 600-s
 amplitude coherence, as in the measurement that motivated the solve), and run through ``spiralbayes
 scan`` (frank, the solve, the scan of the default bank's tau0 = 3 templates on the default grid, the
 competing asymmetry models, the verdict and, when the geometry alternative is significant and nothing
@@ -42,29 +42,32 @@ PLANET_AU, DISTANCE = 50.0, 140.0
 
 PRESET = "fiducial"
 PLANET_MASS = 1.0
+AMP_RMS = 0.05
 
 
 def simulate(planet: bool, phase_rms: float, seed: int, noise: bool = True, preset: str = PRESET,
-             mass: float = PLANET_MASS):
+             mass: float = PLANET_MASS, amp_rms: float = AMP_RMS):
     perturbation = make_template(mass, 3.0, 10.0, "R") if planet else None
-    gains = GainErrors(phase_rms, 0.05, coherence_s=180.0, amp_coherence_s=600.0, seed=seed) if noise else None
+    gains = GainErrors(phase_rms, amp_rms, coherence_s=180.0, amp_coherence_s=600.0, seed=seed) if noise else None
     return simulate_observation(preset, perturbation=perturbation, r_p=PLANET_AU / DISTANCE if planet else None,
                                 phi_p=0.0 if planet else None, seed=seed, gains=gains, add_noise=noise)
 
 
 def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, keep_position: bool = True,
              min_snr: float | None = None, preset: str = PRESET, mass: float = PLANET_MASS,
-             candidate_min_snr: float | None = None) -> dict:
+             candidate_min_snr: float | None = None, amp_rms: float = AMP_RMS) -> dict:
     name = f"{'planet' if planet else 'free'}_{phase_rms:g}deg_seed{seed}_{solve.replace('+', '')}" + \
         ("" if keep_position else "_nokeep") + ("" if min_snr is None else f"_snr{min_snr:g}") + \
-        ("" if candidate_min_snr is None else f"_cand{candidate_min_snr:g}")
+        ("" if candidate_min_snr is None else f"_cand{candidate_min_snr:g}") + \
+        ("" if amp_rms == AMP_RMS else f"_amp{amp_rms:g}")
     calibration = {"solve": solve, "keep_position": keep_position}
     if candidate_min_snr is not None:
         calibration["candidate_min_snr"] = candidate_min_snr
     if min_snr is not None:
         calibration["min_snr"] = min_snr
     folder = out / name
-    data = save_visibilities(simulate(planet, phase_rms, seed, preset=preset, mass=mass), out / f"{name}.h5")
+    data = save_visibilities(simulate(planet, phase_rms, seed, preset=preset, mass=mass, amp_rms=amp_rms),
+                             out / f"{name}.h5")
     config = merge_config({"data": {"path": str(data)}, "geometry": {"inc": 30.0, "PA": 60.0, "distance": DISTANCE},
                            "calibration": calibration,
                            "templates": {"tau0": [3.0]},
@@ -77,7 +80,7 @@ def run_case(out: Path, planet: bool, phase_rms: float, seed: int, solve: str, k
            "detected": bool(v.detected), "template": v.template, "r_p_au": v.r_p * DISTANCE,
            "phi_p_deg": v.phi_p_deg, "delta_bic": v.delta_bic,
            "keep_position": keep_position, "min_snr": min_snr, "preset": preset, "planet_mass": mass,
-           "candidate_min_snr": candidate_min_snr,
+           "candidate_min_snr": candidate_min_snr, "amp_rms": amp_rms,
            "test1": v.test1_passed, "test2": v.test2_passed,
            "test3": v.test3_passed, "best_alternative": v.best_alternative,
            "alternative_delta_bic": v.alternative_delta_bic, "explanation": v.explanation,
@@ -136,12 +139,14 @@ def main(argv=None) -> None:
                         help="which simulations to run (default both)")
     parser.add_argument("--preset", default=PRESET, help="observation preset (fiducial, taurus, ...)")
     parser.add_argument("--planet-mass", type=float, default=PLANET_MASS, help="planet mass [M_th]")
+    parser.add_argument("--amp-rms", type=float, default=AMP_RMS,
+                        help=f"antenna amplitude error rms, fractional (default {AMP_RMS})")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
     args.out.mkdir(parents=True, exist_ok=True)
     keep = not args.no_keep_position
     rows = [run_case(args.out, planet, rms, seed, solve, keep, args.min_snr, args.preset, args.planet_mass,
-                     args.candidate_min_snr)
+                     args.candidate_min_snr, args.amp_rms)
             for solve in args.solve
             for planet in {"both": (False, True), "no-planet": (False,), "planet": (True,)}[args.data]
             for rms in args.phase_rms for seed in args.seeds]

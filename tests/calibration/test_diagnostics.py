@@ -55,7 +55,46 @@ def test_sparse_subset_without_gain_errors_gives_no_warning(fiducial, seed):
     keep = np.arange(0, model.size, 4)
     vis = simulate_observation(coverage=cov, seed=seed).subset(keep)
     diag = diagnose_calibration(vis, model[keep])
-    assert diag.phase_rms_deg < 5.0 and diag.amp_rms < 0.1
+    assert diag.phase_rms_deg < 2.0 and diag.amp_rms < 0.015
+    assert diag.warning is None
+
+
+def test_sparse_subset_recovers_the_amplitude_errors(fiducial):
+    """Antennas on one or two baselines have amplitudes the data barely constrain; weighted down,
+    they no longer hide the others' errors (the unweighted mean square read 0 % here)."""
+    import numpy as np
+
+    cov, model = fiducial
+    keep = np.arange(0, model.size, 4)
+    for amp in (0.05, 0.09):
+        vis = simulate_observation(coverage=cov, seed=3, gains=GainErrors(3.0, amp, coherence_s=300.0, seed=3))
+        diag = diagnose_calibration(vis.subset(keep), model[keep])
+        assert diag.amp_rms == pytest.approx(amp, rel=0.2)
+        assert diag.amp_significance > 10 and "amplitude errors" in diag.warning
+
+
+def test_significance_is_unit_normal_without_gain_errors(fiducial):
+    """Without gain errors the scatter estimates are noise: their significance ~ N(0, 1)."""
+    import numpy as np
+
+    cov, model = fiducial
+    keep = np.arange(0, model.size, 4)
+    z = np.array([[d.phase_significance, d.amp_significance]
+                  for d in (diagnose_calibration(simulate_observation(coverage=cov, seed=seed).subset(keep),
+                                                 model[keep]) for seed in range(30))])
+    assert np.all(np.abs(z.mean(axis=0)) < 0.6)  # 30 draws: standard error 0.18
+    assert np.all((z.std(axis=0) > 0.6) & (z.std(axis=0) < 1.5))
+
+
+def test_amplitude_errors_alone_warn(fiducial):
+    """5 % amplitude errors and no phase errors (the level at which an m = 2 pattern is named on
+    the fiducial planet-free data) warn; 1 % does not."""
+    cov, model = fiducial
+    for amp, warns in ((0.05, True), (0.01, False)):
+        diag = diagnose_calibration(simulate_observation(coverage=cov, seed=11,
+                                                         gains=GainErrors(0.0, amp, coherence_s=180.0, seed=11)), model)
+        assert diag.amp_rms == pytest.approx(amp, rel=0.3)
+        assert (diag.warning is not None and "amplitude" in diag.warning) is warns
 
 
 def test_model_object_and_solution_interval(fiducial):

@@ -128,6 +128,17 @@ def evaluate(kind: str, seed: int) -> dict:
             "detected": verdict.detected, "explanation": verdict.explanation}
 
 
+def diagnose(kind: str, seed: int) -> dict:
+    """The calibration diagnostic of one dataset against its true disc (no scan: seconds per dataset)."""
+    from spiralbayes.calibration import diagnose_calibration
+
+    vis, axisym, _, params = dataset(kind, seed)
+    d = diagnose_calibration(vis, axisym)
+    return {"kind": kind, "seed": seed, "params": params, "phase_rms_deg": d.phase_rms_deg, "amp_rms": d.amp_rms,
+            "phase_significance": d.phase_significance, "amp_significance": d.amp_significance,
+            "warns": d.warning is not None}
+
+
 def format_table(rows) -> str:
     """Markdown: per kind, datasets, largest nested ΔBIC (with its seed and alternative), tests 1+2 passed,
     detections."""

@@ -30,3 +30,22 @@ def test_no_planet_is_claimed_on_planet_free_impostor_and_gain_error_data(kind):
     decided = [r for r in rows if r["test1"] and r["test2"]]
     if kind != "gains":
         assert all(r["nested_delta_bic"] <= DetectionSettings().nested_threshold for r in decided), decided
+
+
+@pytest.mark.parametrize("n", [pytest.param(10, id="10-per-kind"),
+                               pytest.param(fa.N_PER_KIND, id="all", marks=pytest.mark.slow)])
+def test_the_calibration_diagnostic_warns_on_gain_errors_only(n):
+    """The diagnostic against the true disc: no warning on the planet-free and impostor datasets (the
+    impostors leave no antenna-based residual), a warning on every gain-error dataset whose errors
+    exceed the warning levels (phase 5 deg or amplitude 3 %, by more than the estimate's scatter)."""
+    from spiralbayes.calibration.diagnostics import AMP_WARN, PHASE_WARN_DEG
+
+    for kind in fa.KINDS:
+        rows = [fa.diagnose(kind, seed) for seed in fa.seeds(kind, n)]
+        if kind != "gains":
+            assert not any(r["warns"] for r in rows), [r for r in rows if r["warns"]]
+            continue
+        for r in rows:
+            clear = r["params"]["phase_rms_deg"] > 1.3 * PHASE_WARN_DEG or r["params"]["amp_rms"] > 1.3 * AMP_WARN
+            if clear:
+                assert r["warns"], r
