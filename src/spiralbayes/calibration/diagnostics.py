@@ -18,7 +18,7 @@ phase of ``r`` when ``|M| sqrt(w) >> 1``); rows with ``|M| sqrt(w) < min_snr`` a
 common to all antennas cannot be measured, each interval's solutions are centred on their mean
 over the antennas; the mean square of the centred values, corrected for centring (``n / (n - 1)``)
 and for the noise of the solutions (their least-squares covariance, subtracted), each weighted
-down where its noise exceeds the warning level (:class:`_Scatter`), estimates the rms gain error of
+down where its noise exceeds the warning level, estimates the rms gain error of
 one antenna. A model error common to every antenna (an overall flux scale) is thereby not counted
 as a gain error. A warning needs the estimate above its level and significant
 (:data:`SIGNIFICANCE_WARN` standard deviations of its noise).
