@@ -12,15 +12,16 @@ import logging
 
 import pytest
 
+from spiralbayes.inference.detection import DetectionSettings
 from tests.inference.detection import planet_free, reference_detection as rd
 
 log = logging.getLogger(__name__)
 
 KNOWN_FAILURES = {
-    # measured 2026-12-03 with the nested test 3 (docs/verdict.md)
+    # measured 2026-12-03 with the nested test 3 (docs/verdict.md); in every one the own map passes test 3
+    # (nested Delta BIC 37 to 37,166, measured 2026-12-04): a template the bank lacks, not the data
     ("fargo3d:h0.07_mu1", 0.3): "bank best Delta BIC -6 against the own map's 63 (test 1 fails)",
     ("fargo3dlib:h0.07_mu1_st0.03", 0.3): "bank best Delta BIC 2 against the own map's 137 (test 1 fails)",
-    ("wakeflow:h0.10_mu0.3", 0.3): "bank best Delta BIC 10 against the own map's 32; test 2 fails",
     ("wakeflow:h0.05_mu1", 0.3): "test 3 Delta BIC 5.5 against an arc at the planet (spiral alone; fitted jointly "
                                  "with the arc -22), below 30 (bank Delta BIC 24, placed exactly)",
     ("fargo3dlib:h0.07_mu1_orbits200", 0.3): "test 3 Delta BIC 9.0 against an arc at the planet (spiral alone; "
@@ -66,6 +67,10 @@ def test_planted_reference_spiral_is_detected_where_its_own_template_is(case, ta
         # the data cannot show it (own template's Delta BIC <= 10): only no false claim at a wrong place
         assert not r["detected"] or rd.accepted(r), r
         return
+    own_nested = r["own_nested_delta_bic"]
+    if not rd.accepted(r) and own_nested is not None and own_nested <= DetectionSettings().nested_threshold:
+        pytest.xfail(f"the true spiral itself fails test 3: own map's nested Delta BIC {own_nested:.0f} against "
+                     f"{r['own_nested_vs']}; no template can pass")
     assert r["detected"] and r["test3"], r
     assert abs(r["mass_steps"]) <= 1 and abs(r["dr_steps"]) <= 1 + 1e-9 and abs(r["dphi_deg"]) <= 4 + 1e-9, r
     lo, hi = r["mass_range_mth"]

@@ -97,7 +97,7 @@ def test_planet_behind_a_phase_centre_false_peak_is_found_after_the_geometry_ref
     planet_before = float(result.delta_chi2()[0, i_true].max())
     assert verdict.best_alternative == "geometry"
     assert alternatives.fits["geometry"].params["d_dRA_mas"] == pytest.approx(-10.0, abs=1.5)
-    follow = rescan_at_fitted_geometry(vis, axisym, pair, alternatives, previous_scan=result,
+    follow = rescan_at_fitted_geometry(vis, axisym, pair, alternatives, scan_result=result,
                                        refit=exact_model(), refit_alternatives=False)
     assert follow.verdict.detected and follow.verdict.template.endswith("_R")
     assert follow.verdict.r_p == pytest.approx(R_P_TRUE, abs=0.02)
@@ -134,6 +134,6 @@ def test_planet_behind_false_peak_with_frank_refit(planet_templates):
         assert not verdict.detected and verdict.best_alternative == "geometry" and verdict.test3_passed is False
         if verdict.candidate is not None:  # version-1 templates: the false peak failed test 2 (see above)
             assert verdict.candidate["r_p"] == pytest.approx(R_P_TRUE, abs=0.02)
-        follow = rescan_at_fitted_geometry(vis, axisym, pair, alternatives, previous_scan=result)
+        follow = rescan_at_fitted_geometry(vis, axisym, pair, alternatives, scan_result=result)
     assert follow.verdict.detected and follow.verdict.test3_passed
     assert follow.verdict.r_p == pytest.approx(R_P_TRUE, abs=0.02)

@@ -216,7 +216,7 @@ def _spirals(result, best, vis, axisymmetric, template, geometry, d_rp: int, d_p
     n_phi = len(result.phi_p)
     for i in range(max(0, best.i_rp - d_rp), min(len(result.r_p), best.i_rp + d_rp + 1)):
         r_p = float(result.r_p[i])
-        ctx = ScanContext.build(vis, axisymmetric, geometry, [r_p], 8)
+        ctx = ScanContext.build(vis, axisymmetric, geometry, [r_p], 8, x_max=float(np.max(template.x)))
         quad = ctx.quadrature(template, r_p)
         width = max(float(h_p) * r_p, MIN_PEAK_WIDTH)
         for dj in range(-d_phi, d_phi + 1):

@@ -87,7 +87,7 @@ def spiral_with_planet_peak(result, vis, axisymmetric, templates, geometry, *, t
     out = None
     for i in range(max(0, best.i_rp - d_rp), min(len(result.r_p), best.i_rp + d_rp + 1)):
         r_p = float(result.r_p[i])
-        ctx = ScanContext.build(vis, axisymmetric, geometry, [r_p], 8)
+        ctx = ScanContext.build(vis, axisymmetric, geometry, [r_p], 8, x_max=float(np.max(t.x)))
         quad = ctx.quadrature(t, r_p)
         width = max(float(h_p) * r_p, min_width)
         for dj in range(-d_phi, d_phi + 1):

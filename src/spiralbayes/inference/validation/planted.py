@@ -130,8 +130,9 @@ def planted_exclusion_rate(vis, axisymmetric, family_templates, planted, r_p: fl
         raise InputError(f"n_realisations must be >= 1, got {n_realisations}")
     geometry = geometry or axisymmetric.geometry
     vis = vis.standardised()
-    context = ScanContext.build(vis, axisymmetric, geometry, [float(r_p)], n_phi_p)
     templates = list(family_templates)
+    context = ScanContext.build(vis, axisymmetric, geometry, [float(r_p)], n_phi_p,
+                                x_max=max(float(np.max(t.x)) for t in templates))
     power = np.array([scan_template(context, t)[1] for t in templates])
     dv = amplitude * perturbation_visibilities(vis.u, vis.v, geometry, context.profile, planted, r_p, phi_p,
                                                cell_factor=context.cell_factor)
