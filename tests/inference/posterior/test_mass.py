@@ -19,6 +19,7 @@ from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.exceptions import InputError
 from spiralbayes.inference.posterior import (
     MASS_SAMPLE_NAMES,
+    MASS_SYSTEMATIC,
     FamilyPerturbation,
     MarginalSpiralLikelihood,
     MassLikelihood,
@@ -105,6 +106,20 @@ def test_families_group_the_bank_by_morphology_and_refuse_foreign_templates():
         family_of(replace(other, delta=other.delta * 1.1))
 
 
+def test_the_planet_mass_is_the_template_mass_with_the_mismatch_scatter():
+    rng = np.random.default_rng(3)
+    template_mass = np.full(40000, 0.8)
+    same, mjup = MassPrior(mstar_sigma=0.0, systematic=0.0).planet_masses(template_mass, 0.07, rng)
+    np.testing.assert_array_equal(same, template_mass)
+    np.testing.assert_allclose(mjup / same, thermal_mass(50.0, 0.8, h_ref=0.07, r_ref=50.0, unit="Mjup"), rtol=1e-12)
+    mass, mjup = MassPrior(mstar_sigma=0.0, systematic=0.3).planet_masses(template_mass, 0.07, rng)
+    ln_ratio = np.log(mass / template_mass)
+    assert ln_ratio.mean() == pytest.approx(0.0, abs=0.006) and ln_ratio.std() == pytest.approx(0.3, rel=0.02)
+    np.testing.assert_allclose(mjup / mass, thermal_mass(50.0, 0.8, h_ref=0.07, r_ref=50.0, unit="Mjup"), rtol=1e-12)
+    with pytest.raises(InputError, match="systematic"):
+        MassPrior(systematic=-0.1)
+
+
 def test_settings_name_the_mass_options():
     with pytest.raises(InputError, match="mass = 'grid'"):
         SamplingSettings(mass="grid")
@@ -114,6 +129,9 @@ def test_settings_name_the_mass_options():
         PriorSettings(mass_min=1.0, mass_max=0.5)
     with pytest.raises(InputError, match="mstar_sigma"):
         PriorSettings(mstar_sigma=-0.1)
+    with pytest.raises(InputError, match="mass_systematic"):
+        PriorSettings(mass_systematic=float("nan"))
+    assert PriorSettings(mass_systematic=0.0).mass_prior().systematic == 0.0
     assert PriorSettings(mstar=1.0, mstar_sigma=0.2).mass_prior().sigma == pytest.approx(0.2)
 
 
@@ -137,13 +155,17 @@ def test_continuous_run_end_to_end(case, tmp_path):
     assert left.diagnostics["build_time_s"] < 0.5 * run.diagnostics["build_time_s"]
     assert post.planet_preferred and "M_p sampled" in post.verdict
     m = run.samples[:, 7]
-    assert m.min() >= 0.2 and m.max() <= 1.5
     ratio = run.samples[:, 8] / m  # M_Jup per M_th: h_p^3 M_* with M_* ~ N(0.8, 0.08)
     per_mth = thermal_mass(50.0, 0.8, h_ref=0.07, r_ref=50.0, unit="Mjup")
     assert np.mean(ratio) == pytest.approx(per_mth, rel=0.03) and np.std(ratio) / per_mth == pytest.approx(0.1, rel=0.3)
     idata = post.to_inference_data()
     assert {"M_p", "M_p_MJup", "lnM_p"} <= set(idata.posterior.data_vars)
-    np.testing.assert_allclose(idata.posterior["M_p"].values, np.exp(idata.posterior["lnM_p"].values))
+    template_mass = np.exp(idata.posterior["lnM_p"].values)
+    assert template_mass.min() >= 0.2 and template_mass.max() <= 1.5
+    # the planet's mass is the template's scattered by the mismatch systematic, and only by it
+    scatter = np.log(idata.posterior["M_p"].values / template_mass).ravel()
+    assert abs(scatter.mean()) < 4 * MASS_SYSTEMATIC / np.sqrt(scatter.size)
+    assert scatter.std() == pytest.approx(MASS_SYSTEMATIC, rel=4 / np.sqrt(2 * scatter.size))
     summary = post.mass_posterior()
     assert summary["mth"]["lo95"] <= summary["mth"]["median"] <= summary["mth"]["hi95"]
     # the chain file resumes: a second call reads the finished family back

@@ -133,7 +133,7 @@ def test_a_family_without_a_chain_has_mass_samples():
     rng = np.random.default_rng(0)
     null = SimpleNamespace(samples=rng.normal([30, 60, 0, 0], [1, 1, 0.01, 0.01], size=(100, 4)),
                            geometry_map=np.array([30.0, 60.0, 0.0, 0.0]), ln_evidence=-10.0, ln_evidence_err=0.1)
-    mass_prior = MassPrior((0.1, 3.0), 0.8, 0.0)
+    mass_prior = MassPrior((0.1, 3.0), 0.8, 0.0, systematic=0.0)
     run = grid_run("fam", {"name": "fam", "mass_mode": "continuous"}, grid, null, priors, rng, mass_prior=mass_prior,
                    h_p=0.07)
     assert run.continuous_mass and run.samples.shape == (400, 9) and run.theta_map.shape == (7,)

@@ -51,6 +51,7 @@ from .stopping import MAX_LN_B_ERROR, StoppingRule, template_evidence
 from .settings import CONVERGENCE_POLICIES, MASS_MODES, PRUNED_EVIDENCE, PriorSettings, SamplingSettings
 from .mass import (
     MASS_PARAMETER_NAMES,
+    MASS_SYSTEMATIC,
     FamilyPerturbation,
     MassLikelihood,
     MassLogPosterior,
@@ -81,6 +82,7 @@ __all__ = [
     "MASS_MODES",
     "MASS_PARAMETER_NAMES",
     "MASS_SAMPLE_NAMES",
+    "MASS_SYSTEMATIC",
     "MassLikelihood",
     "MassLogPosterior",
     "MassPrior",

@@ -169,8 +169,8 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
         draws = draws[[np.isfinite(f7(d)) for d in draws]]
         terms = np.array([likelihood.amplitude_terms(d) for d in draws]).reshape(-1, 3)
         samples = _with_amplitude(draws[:, :6], terms[:, 1], terms[:, 2], priors, rng_amp)
-        mass = np.exp(draws[:, 6])
-        samples = np.column_stack([samples, mass, mass_prior.to_mjup(mass, float(family.h_ps[0]), rng_amp)])
+        samples = np.column_stack([samples, *mass_prior.planet_masses(np.exp(draws[:, 6]), float(family.h_ps[0]),
+                                                                      rng_amp)])
         info = {"likelihood": likelihood.describe(), "build_time_s": fp.build_time_s,
                 "time_s": time.perf_counter() - t0}
         run = TemplateRun(name, meta, "laplace", samples, theta_map, cov, lnz_laplace, float("nan"), lnz_laplace,
@@ -201,8 +201,8 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
         fb = blobs[sl].reshape(-1, 2)
         ev = evidence(walkers.log_prob, flat, rng_evidence, walkers.map)
     samples = _with_amplitude(flat[:, :6], fb[:, 0], fb[:, 1], priors, rng_amp)
-    mass = np.exp(flat[:, 6])
-    samples = np.column_stack([samples, mass, mass_prior.to_mjup(mass, float(family.h_ps[0]), rng_amp)])
+    samples = np.column_stack([samples, *mass_prior.planet_masses(np.exp(flat[:, 6]), float(family.h_ps[0]),
+                                                                  rng_amp)])
     diag = {**diag, "likelihood": likelihood.describe(), "build_time_s": fp.build_time_s, "evidence": ev,
             "acceptance": float(np.mean(accepted) / max(chain.shape[0], 1)), "time_s": time.perf_counter() - t0}
     run = TemplateRun(name, meta, "mcmc", samples, theta_map, cov, ev["ln_evidence"], ev["ln_evidence_err"],

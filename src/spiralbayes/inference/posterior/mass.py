@@ -20,6 +20,13 @@ template columns: ``M_p,Jup = M_p h_p³ M_* / M_Jup`` with ``h_p`` the family's 
 (``M_th = h_p³ M_*``) and ``M_*`` drawn for every sample from its prior
 (:class:`MassPrior`: a Gaussian truncated at zero).
 
+``M_p`` is the planet's mass, not the template's: no family is the true spiral, and a planted
+hydrodynamic planet's template mass is off by more than its statistical width (docs/templates.md,
+"The mass in the posterior"). The sampled coordinate ``lnM_p`` is the template's mass; each sample's
+``M_p = exp(lnM_p + ε)`` with ``ε ~ N(0, σ_sys²)`` (``MassPrior.systematic``, calibrated
+on planted reference spirals one source held out at a time). ``ε`` does not enter the likelihood, so
+its posterior is its prior and it widens the mass only.
+
 The template at an arbitrary mass is what the generator would make there only to the family's
 interpolation accuracy (docs/templates.md, "Continuous family"); :meth:`FamilyPerturbation.exact_template`
 gives the interpolated template so tests compare the fast path with a table built for it.
@@ -44,13 +51,18 @@ from .likelihood import MarginalSpiralLikelihood
 from .perturbation import FastPerturbation
 from .priors import Priors
 
-__all__ = ["MASS_PARAMETER_NAMES", "FamilyPerturbation", "MassLikelihood", "MassLogPosterior", "MassPrior",
-           "family_of", "group_families"]
+__all__ = ["MASS_PARAMETER_NAMES", "MASS_SYSTEMATIC", "FamilyPerturbation", "MassLikelihood", "MassLogPosterior",
+           "MassPrior", "family_of", "group_families"]
 
 log = logging.getLogger(__name__)
 
 MASS_PARAMETER_NAMES = (*PARAMETER_NAMES, "lnM_p")
 """emcee's coordinates in a family run: the template's six and ``ln(M_p / M_th)``."""
+
+MASS_SYSTEMATIC = 0.2
+"""Standard deviation of ``ln M_p`` between a planet and the family template that fits it best
+(template mismatch): the maximum-likelihood value over planted reference spirals from FARGO3D and
+wakeflow, calibrated and checked one source held out at a time (docs/templates.md)."""
 
 
 @dataclass(frozen=True)
@@ -66,11 +78,15 @@ class MassPrior:
     mstar_sigma : float or None
         Its standard deviation [M_sun] (truncated at zero); None: 10 % of ``mstar``, a typical
         dynamical-mass uncertainty; 0 fixes ``M_*``.
+    systematic : float
+        Standard deviation of ``ln M_p`` for the template mismatch (:data:`MASS_SYSTEMATIC`); 0 when
+        the data were made from the family itself (simulation-based calibration).
     """
 
     mass_range: tuple = (0.1, 3.0)
     mstar: float = DEFAULT_MSTAR_MSUN
     mstar_sigma: float | None = None
+    systematic: float = MASS_SYSTEMATIC
 
     def __post_init__(self):
         lo, hi = (float(m) for m in self.mass_range)
@@ -81,6 +97,8 @@ class MassPrior:
             raise InputError(f"mstar = {self.mstar!r} must be a positive stellar mass [M_sun]")
         if self.mstar_sigma is not None and not (np.isfinite(self.mstar_sigma) and self.mstar_sigma >= 0):
             raise InputError(f"mstar_sigma = {self.mstar_sigma!r} must be >= 0 [M_sun] (or None: 10 % of mstar)")
+        if not (np.isfinite(self.systematic) and self.systematic >= 0):
+            raise InputError(f"mass systematic = {self.systematic!r} must be a standard deviation of ln M_p >= 0")
 
     @property
     def sigma(self) -> float:
@@ -107,11 +125,26 @@ class MassPrior:
     def to_mjup(self, mass_mth: np.ndarray, h_p: float, rng) -> np.ndarray:
         """Masses [M_Jup] of ``mass_mth`` [M_th] at aspect ratio ``h_p``, one ``M_*`` draw per mass."""
         mass_mth = np.asarray(mass_mth, float)
-        return mass_mth * h_p ** 3 * self.draw_mstar(mass_mth.size, rng) * M_SUN / M_JUP
+        return mass_mth * h_p ** 3 * self.draw_mstar(mass_mth.size, rng).reshape(mass_mth.shape) * M_SUN / M_JUP
+
+    def planet_masses(self, template_mass: np.ndarray, h_p: float, rng) -> tuple[np.ndarray, np.ndarray]:
+        """The planet's masses [M_th] and [M_Jup] for samples of the template's mass [M_th]: each
+        scattered by the template mismatch (``systematic``), then converted at ``h_p``."""
+        mass = np.asarray(template_mass, float)
+        if self.systematic > 0:
+            mass = mass * np.exp(self.systematic * rng.standard_normal(mass.shape))
+        return mass, self.to_mjup(mass, h_p, rng)
 
     def to_dict(self) -> dict:
         return {"mass_range_mth": list(self.mass_range), "mass_prior": "log-uniform", "mstar_msun": self.mstar,
-                "mstar_sigma_msun": self.sigma}
+                "mstar_sigma_msun": self.sigma, "mass_systematic_ln": self.systematic}
+
+    @classmethod
+    def from_metadata(cls, metadata: dict) -> MassPrior:
+        """The prior recorded in a family run's metadata (``to_dict``; runs written without a
+        systematic had none)."""
+        return cls(tuple(metadata["mass_range_mth"]), metadata["mstar_msun"], metadata["mstar_sigma_msun"],
+                   metadata.get("mass_systematic_ln", 0.0))
 
 
 def family_of(template, mass_range=(0.1, 3.0), n_masses: int | None = None):

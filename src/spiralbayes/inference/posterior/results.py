@@ -165,8 +165,9 @@ class TemplateRun(ResultMixin):
     def inference_data(self):
         """arviz ``InferenceData`` (walkers as chains; caveat: emcee walkers are not independent).
 
-        A continuous-mass run's posterior also holds ``M_p`` [M_th] and ``M_p_MJup`` [M_Jup] (one
-        stellar mass drawn from its prior per draw, seeded by the run's name)."""
+        A continuous-mass run's posterior also holds ``M_p`` [M_th] and ``M_p_MJup`` [M_Jup] (the
+        template mass ``lnM_p`` with the mismatch systematic and one stellar mass drawn per draw,
+        seeded by the run's name)."""
         import zlib
 
         import emcee
@@ -179,11 +180,9 @@ class TemplateRun(ResultMixin):
             return chain_inference_data(wrap_phi(chain)[0], lp)
         from .mass import MASS_PARAMETER_NAMES, MassPrior
 
-        mass = np.exp(chain[..., 6])
-        m = self.metadata
-        prior = MassPrior(tuple(m["mass_range_mth"]), m["mstar_msun"], m["mstar_sigma_msun"])
         rng = np.random.default_rng(zlib.crc32(self.name.encode()))
-        mjup = prior.to_mjup(mass.ravel(), float(m["h_p"]), rng).reshape(mass.shape)
+        mass, mjup = MassPrior.from_metadata(self.metadata).planet_masses(np.exp(chain[..., 6]),
+                                                                          float(self.metadata["h_p"]), rng)
         full = np.concatenate([wrap_phi(chain)[0], mass[..., None], mjup[..., None]], axis=2)
         return chain_inference_data(full, lp, names=(*MASS_PARAMETER_NAMES, "M_p", "M_p_MJup"))
 
@@ -384,7 +383,9 @@ class PosteriorResult(ResultMixin):
             t, j = post["mth"], post["mjup"]
             return (f"; planet mass {t['median']:.2g} M_th (68 %: {t['lo']:.2g}-{t['hi']:.2g}, 95 %: "
                     f"{t['lo95']:.2g}-{t['hi95']:.2g}) = {j['median']:.2g} M_Jup (95 %: {j['lo95']:.2g}-"
-                    f"{j['hi95']:.2g}; M_* = {post['mstar']:g} +- {post['mstar_sigma']:.2g} M_sun), M_p sampled")
+                    f"{j['hi95']:.2g}; M_* = {post['mstar']:g} +- {post['mstar_sigma']:.2g} M_sun), M_p sampled"
+                    + (f" with a template-mismatch scatter of {post['systematic']:.2g} in ln M_p"
+                       if post["systematic"] > 0 else ""))
         m = self.mass_range()
         if m is None:
             return ""
@@ -445,7 +446,8 @@ class PosteriorResult(ResultMixin):
         dict or None
             ``mth`` [M_th] and ``mjup`` [M_Jup], each with ``median``, ``lo``/``hi`` (16/84 %) and
             ``lo95``/``hi95`` (2.5/97.5 %); ``mstar``, ``mstar_sigma`` [M_sun] of the conversion's
-            prior (of the most probable family); ``n_samples``. None without a family run.
+            prior and ``systematic`` (the template mismatch's σ of ln M_p; of the most probable family);
+            ``n_samples``. None without a family run.
         """
         runs = [r for r in self.runs if r.continuous_mass]
         if not runs:
@@ -460,7 +462,7 @@ class PosteriorResult(ResultMixin):
         stats = _stats(pooled[:, 7:9], ("mth", "mjup"))
         best = runs[int(np.argmax(p))].metadata
         return {**stats, "mstar": float(best["mstar_msun"]), "mstar_sigma": float(best["mstar_sigma_msun"]),
-                "n_samples": int(n)}
+                "systematic": float(best.get("mass_systematic_ln", 0.0)), "n_samples": int(n)}
 
     def marginals(self) -> dict:
         """``P(value | data, planet)`` of each value of hand, mass, beta, tau0, h_p and morphology variant

@@ -169,9 +169,8 @@ def grid_run(name: str, metadata: dict, grid: GridEvidence, null, priors: Priors
     if grid.masses is not None:
         if mass_prior is None or h_p is None:
             raise InputError("a family's grid run needs its mass_prior and h_p (for M_p in M_Jup)")
-        mass = draws[:, 7]
-        params = np.column_stack([params, np.log(mass)])
-        draws = np.column_stack([draws, mass_prior.to_mjup(mass, float(h_p), rng)])
+        params = np.column_stack([params, np.log(draws[:, 7])])
+        draws = np.column_stack([draws[:, :7], *mass_prior.planet_masses(draws[:, 7], float(h_p), rng)])
     cov = np.atleast_2d(np.cov(params, rowvar=False))
     ln_z = float(null.ln_evidence) + grid.ln_bayes
     err = float(np.hypot(null.ln_evidence_err, GRID_LN_B_ERROR))

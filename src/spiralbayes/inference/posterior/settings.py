@@ -10,7 +10,7 @@ from ...exceptions import InputError
 from ...settings import documented, is_finite_number, is_integer, option
 from ...settings import DEFAULT_MSTAR_MSUN
 from .likelihood import DEFAULT_AMPLITUDE_MAX
-from .mass import MassPrior
+from .mass import MASS_SYSTEMATIC, MassPrior
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 
 __all__ = ["MASS_MODES", "PRUNED_EVIDENCE", "CONVERGENCE_POLICIES", "PriorSettings", "SamplingSettings"]
@@ -144,6 +144,8 @@ class PriorSettings:
     mass_max: float = option(3.0, "largest planet mass [M_th] of the log-uniform prior (mass = 'continuous')")
     mstar: float = option(DEFAULT_MSTAR_MSUN, "stellar mass [M_sun]: mean of its Gaussian prior, for M_p in M_Jup")
     mstar_sigma: float = option(0.1, "fractional width of the stellar-mass prior (0: M_* fixed)")
+    mass_systematic: float = option(MASS_SYSTEMATIC, "standard deviation of ln M_p between the planet and the "
+                                                     "template that fits it (template mismatch; 0: none)")
 
     def __post_init__(self):
         if not is_finite_number(self.mass_min) or self.mass_min <= 0:
@@ -154,6 +156,9 @@ class PriorSettings:
         if not is_finite_number(self.mstar) or self.mstar <= 0:
             raise InputError(f"mstar = {self.mstar!r} must be a positive stellar mass [M_sun]")
         self.mstar_sigma_msun  # noqa: B018 - validates mstar_sigma
+        if not is_finite_number(self.mass_systematic) or self.mass_systematic < 0:
+            raise InputError(f"mass_systematic = {self.mass_systematic!r} must be a standard deviation of ln M_p "
+                             ">= 0 (0: the template's mass is the planet's)")
         for name in ("r_p_min", "r_p_max"):
             value = getattr(self, name)
             if value is not None and (not is_finite_number(value) or value <= 0):
@@ -183,7 +188,7 @@ class PriorSettings:
 
     def mass_prior(self) -> MassPrior:
         """The :class:`~.mass.MassPrior` of a continuous-mass run."""
-        return MassPrior((self.mass_min, self.mass_max), self.mstar, self.mstar_sigma_msun)
+        return MassPrior((self.mass_min, self.mass_max), self.mstar, self.mstar_sigma_msun, self.mass_systematic)
 
     def priors(self, axisymmetric, *, geometry=None) -> Priors:
         """The :class:`Priors` of ``axisymmetric`` (its extent for unset radii, its geometry as the centre

@@ -86,7 +86,8 @@ class CalibrationSetup:
     def mass_prior(self):
         from ..posterior.mass import MassPrior
 
-        return MassPrior(tuple(self.mass_range), mstar_sigma=0.0)
+        # The data come from the family itself: no template mismatch to allow for.
+        return MassPrior(tuple(self.mass_range), mstar_sigma=0.0, systematic=0.0)
 
 
 def draw_truth(setup: CalibrationSetup, rng, planet: bool = True) -> dict:
