@@ -34,6 +34,10 @@ for the side of the optional secondary arm (φ_wake − φ_sep in version 1, + s
 the 1 M_th maps inside 0.75 r_p only; the issue-9 report's "before" table ran version 1 itself."""
 
 REF_DIR = Path(__file__).resolve().parents[1] / "data" / "references"
+PHYSICS_FILE = REF_DIR / "physics" / "fargo3d_library.h5"
+"""The ``physics`` run set (another surface-density slope or viscosity, masses and H/r between the
+bank's, a longer run), reduced beside the library: references of disc physics the library holds fixed,
+kept out of the library's file (and so out of the variant fit)."""
 SOURCE_LABELS = {"fargo3d_library": "fargo3dlib"}
 """Case-label source of a file (default: its name up to the first '_'); the issue-21 library
 (``fargo3d_library.h5``) gets its own so that its labels differ from ``fargo3d_isothermal.h5``'s."""
@@ -132,6 +136,12 @@ def _role(group: str) -> str:
     then ``_beta<b>`` / ``_st<St>`` for the physics, then ``_<role>`` for a check of one setting)."""
     extra = [t for t in group.split("_")[2:] if not (t.startswith("beta") or t.startswith("st"))]
     return "_".join(extra) or "library"
+
+
+def physics_cases() -> list[Case]:
+    """The reference cases of the ``physics`` run set (:data:`PHYSICS_FILE`): planted by the checks,
+    never fitted by the variants."""
+    return [c for c in reference_cases([PHYSICS_FILE]) if c.is_reference]
 
 
 def acceptance_cases() -> list[Case]:

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tests.templates.fidelity import PHYSICS_FILE as PHYSICS_FILE  # the physics run set, for callers of this module
 from tests.templates.fidelity import REF_DIR, Case, reference_cases, reference_template
 
 log = logging.getLogger(__name__)
@@ -48,10 +49,6 @@ TAUS = (0.3, 3.0)
 BANK_MASSES = (0.1, 0.3, 1.0, 3.0)
 OWN_THRESHOLD = 10.0
 """Cases whose own template gives ΔBIC above this must be detected (issue 22)."""
-PHYSICS_FILE = REF_DIR / "physics" / "fargo3d_library.h5"
-"""The ``physics`` run set (another surface-density slope or viscosity, masses and H/r between the
-bank's, a longer run), reduced beside the library: references of disc physics the library holds fixed,
-kept out of the library's file (and so out of the variant fit and the limits' calibration)."""
 
 
 def detection_cases(files=None) -> list[Case]:

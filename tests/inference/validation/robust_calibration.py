@@ -144,14 +144,20 @@ def loso_fits(held_out: str, rows=None) -> dict:
     return VF.fit_variants([r for r in rows if VF.calibration_source(r[0]) != held_out])
 
 
-def loso_table(powers=(100.0, 400.0), n: int = 1000, seed: int = 0, taus=(0.3, 3.0)) -> list[dict]:
+def loso_table(powers=(100.0, 400.0), n: int = 1000, seed: int = 0, taus=(0.3, 3.0),
+               sources=VF.SOURCES + VF.HELD_OUT_SOURCES) -> list[dict]:
     """Every source held out in turn: each of its maps (τ0 in ``taus``) planted, robust and
-    compromise-alone rates at the truth instance (fiducial set-up), and the control."""
+    compromise-alone rates at the truth instance (fiducial set-up), and the control. The sources of
+    ``VF.HELD_OUT_SOURCES`` are never in a fit, so their variants are those fitted to every reference."""
     rows = VF.reference_rows()
+    planted = rows
+    if set(sources) & set(VF.HELD_OUT_SOURCES):
+        planted = rows + [(c, t, VF.case_gram(c, t)) for c in F.physics_cases() for t in c.taus
+                          if any(np.isclose(t, x) for x in taus)]
     out = []
-    for source in VF.SOURCES:
+    for source in sources:
         fits = loso_fits(source, rows)
-        for case, tau0, g in rows:
+        for case, tau0, g in planted:
             if VF.calibration_source(case) != source or not any(np.isclose(tau0, t) for t in taus):
                 continue
             amps = [(1.0, 0.0)] + [VF.fitted_amplitudes(f, case.mu) for f in fits.values()]
@@ -165,12 +171,13 @@ def loso_table(powers=(100.0, 400.0), n: int = 1000, seed: int = 0, taus=(0.3, 3
 
 
 def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int, seed: int = 50,
-                       control: bool = False, hand: str = "R"):
+                       control: bool = False, hand: str = "R", h_ps: tuple | None = None):
     """:func:`calibrate` in the fiducial set-up (``variant_fit``'s observation: 36k visibilities,
     beam 0.061″, planet at 50 au = 0.357″ = 5.9 beams, φ_p = 40° on the 90-azimuth grid) — resolved,
     unlike §4c's C-4 set-up, whose r_p = 0.3″ lies inside its 0.34″ beam (``compute_limits`` flags
     it "unresolved" unless told ``resolution=0``). The weights are scaled so that the compromise
-    template of the true mass has ``Σ w |ΔV|² = power`` at the planet."""
+    template of the true mass has ``Σ w |ΔV|² = power`` at the planet. ``h_ps``: the aspect ratios of
+    the limit's families (default the case's own; the bank's neighbours for a run between them)."""
     from spiralbayes import DiscGeometry
     from spiralbayes.simulate import simulate_observation
 
@@ -182,9 +189,10 @@ def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int
     r_p, phi_p = F.R_P_AU / F.DISTANCE, np.radians(40.0)
     fam = []
     for v in variants:
-        for m in neighbour_masses(case.mu):
-            right = variant_template(m, tau0, case.beta, "R", v, h_p=case.h_p)
-            fam += [right, right.mirror()] if hand == "both" else [right]
+        for h_p in (case.h_p,) if h_ps is None else h_ps:
+            for m in neighbour_masses(case.mu):
+                right = variant_template(m, tau0, case.beta, "R", v, h_p=h_p)
+                fam += [right, right.mirror()] if hand == "both" else [right]
     bank = variant_template(case.mu, tau0, case.beta, "R", "compromise", h_p=case.h_p)
     ctx = ScanContext.build(vis0.standardised(), axisym, geometry, [r_p], 90)
     p0 = float(scan_template(ctx, bank)[1][0, 10])
