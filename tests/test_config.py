@@ -1,5 +1,6 @@
 """The configuration schema: defaults, documentation round trip, rejection of bad input."""
 
+import numpy as np
 import pytest
 
 from spiralbayes.config import (
@@ -9,6 +10,7 @@ from spiralbayes.config import (
     load_config,
     merge_config,
 )
+from spiralbayes.exceptions import InputError
 
 
 def test_described_defaults_read_back_as_defaults(tmp_path):
@@ -119,6 +121,35 @@ def test_built_in_banks_are_names_not_paths(tmp_path, monkeypatch, name, robust)
     chosen = sorted(t.name for t in inputs.load_templates(config["templates"]))
     expected = ["hydro_m1_tau0.3_b0_h0.07_R", "wake_m1_tau0.3_b0_h0.07_R"] if robust else ["wake_m1_tau0.3_b0_h0.07_R"]
     assert chosen == expected
+
+
+def test_aspect_ratios_the_built_in_bank_lacks_make_it_at_them(tmp_path, monkeypatch):
+    """``[templates] h_p`` values outside the built-in bank's 0.05, 0.07, 0.10 make that bank at
+    exactly those aspect ratios (the generator's templates at H/r 0.0625 and 0.075, the variants'
+    constants as in the cached bank); values it holds select from it; a bank file is only selected."""
+    from spiralbayes.config import load_config
+    from spiralbayes.pipeline import inputs
+    from spiralbayes.templates import TemplateBank
+    from spiralbayes.templates.variants import default_bank, variant_template
+
+    path = tmp_path / "c.toml"
+    path.write_text('[data]\npath = "d.txt"\n[geometry]\ninc = 30\nPA = 60\n[templates]\nmass = [1.0]\n'
+                    'tau0 = [3.0]\nbeta = [10.0]\nhand = ["R"]\nh_p = [0.0625, 0.075]\n')
+    config = load_config(path)
+    cache = tmp_path / "cache"
+    monkeypatch.setitem(inputs.BANKS, "default", lambda **kw: default_bank(cache_dir=cache, **kw))
+    chosen = inputs.load_templates(config["templates"])
+    assert sorted(t.name for t in chosen) == sorted(f"{v}_m1_tau3_b10_h{h:g}_R" for v in ("wake", "hydro", "wakeflow")
+                                                    for h in (0.0625, 0.075))
+    exact = variant_template(1.0, 3.0, 10.0, "R", "hydro", h_p=0.075)
+    made = next(t for t in chosen if t.name.startswith("hydro") and t.h_p == 0.075)
+    np.testing.assert_allclose(made.delta, exact.delta, rtol=1e-6, atol=1e-6)
+    # a bank file holding other aspect ratios is only selected from
+    small = TemplateBank([variant_template(1.0, 3.0, 10.0, "R", "compromise", h_p=0.07, n_x=60, n_phi=90)])
+    small.save(tmp_path / "bank.h5")
+    section = dict(config["templates"], bank=str(tmp_path / "bank.h5"))
+    with pytest.raises(InputError, match="h_p=\\[0.0625, 0.075\\]"):
+        inputs.load_templates(section)
 
 
 def test_templates_without_options_use_the_robust_default_bank():

@@ -12,6 +12,7 @@ from ..exceptions import ConfigError, InputError
 from ..geometry import DiscGeometry
 from ..io import load_visibilities
 from ..templates import TemplateBank, compromise_bank, default_bank
+from ..templates.bank import DEFAULT_H_PS
 from ..visibilities import estimate_weights
 
 __all__ = ["load_axisymmetric", "load_data", "load_templates", "select_templates"]
@@ -73,11 +74,16 @@ BANKS: dict[str, Callable[[], TemplateBank]] = {"default": default_bank, "varian
 def load_templates(templates: dict) -> list:
     """The templates chosen by the ``[templates]`` section of a configuration: a built-in bank by
     name (:data:`BANKS`; the default is robust to the spiral's morphology, docs/limits.md §4d) or
-    a TemplateBank file, then the section's selection."""
+    a TemplateBank file, then the section's selection. ``h_p`` values a built-in bank does not hold
+    (it has :data:`~spiralbayes.templates.bank.DEFAULT_H_PS`) make that bank at those aspect ratios."""
     name = templates["bank"]
+    h_ps = sorted({float(h) for h in templates.get("h_p", ())})
+    if name in BANKS and h_ps and not set(h_ps) <= set(DEFAULT_H_PS):
+        # aspect ratios the cached bank lacks: the same built-in bank made at them (generator templates, cached)
+        return select_templates(BANKS[name](h_ps=tuple(h_ps)), templates["mass"], templates["tau0"],
+                                templates["beta"], templates["hand"])
     bank = BANKS[name]() if name in BANKS else TemplateBank.load(name)
-    return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"],
-                            templates.get("h_p", ()))
+    return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"], h_ps)
 
 
 def _geometry(config: dict) -> DiscGeometry:

@@ -65,6 +65,7 @@ def test_summary_excluded_and_plot_work_without_family_on_the_default_bank_layou
     assert len(limits.families) == 6
     text = limits.summary()
     assert "Over all 6 template families" in text and "variant=hydro" in text
+    assert "aspect ratios (0.05, 0.07, 0.1) are up to 0.03 apart" in text
     # robust: 1 M_th is excluded by the compromise variant but not by hydro, so not at all
     assert not limits.excluded(mass=1.0).any() and limits.excluded(mass=3.0).all()
     assert limits.excluded().shape == (3, 3)
@@ -263,3 +264,21 @@ def test_a_verdict_dict_flags_the_planet_as_the_verdict_does(planted_planet_limi
     b = compute_limits(result, resolution=0.0, planets=verdict.to_dict(), planet_beam=0.08)
     np.testing.assert_array_equal(a.flags, b.flags)
     assert "near_planet" in b.flags.tolist()
+
+
+def test_aspect_ratio_note_only_where_the_families_are_further_apart_than_calibrated():
+    """The bank's three aspect ratios (0.03 apart) get the warning; the family's five nodes (0.0125
+    apart, the spacing at which the held-out planet between them was covered) and one H/r do not."""
+    from types import SimpleNamespace
+
+    from spiralbayes.inference.limits.robust import H_P_SPACING, aspect_ratio_note
+    from spiralbayes.templates.family import H_NODES
+
+    def limits(h_ps):
+        return SimpleNamespace(families=[SimpleNamespace(key={"h_p": h, "variant": v}) for h in h_ps
+                                         for v in ("compromise", "hydro")])
+
+    assert "wrongly excluded" in aspect_ratio_note(limits((0.05, 0.07, 0.10)))
+    assert np.max(np.diff(H_NODES)) == pytest.approx(H_P_SPACING)
+    assert aspect_ratio_note(limits(H_NODES)) == ""
+    assert aspect_ratio_note(limits((0.07,))) == ""

@@ -33,9 +33,9 @@ import numpy as np
 
 from ...exceptions import InputError
 
-__all__ = ["SINGLE_VARIANT", "UNLABELLED", "combined_m_lim", "combined_m_lim_mjup", "describe_over_families",
-           "family_morphology", "morphologies", "morphology_note", "near_planet_mask", "overall_price",
-           "price_of_robustness", "variant_groups"]
+__all__ = ["H_P_SPACING", "SINGLE_VARIANT", "UNLABELLED", "aspect_ratio_note", "combined_m_lim",
+           "combined_m_lim_mjup", "describe_over_families", "family_morphology", "morphologies", "morphology_note",
+           "near_planet_mask", "overall_price", "price_of_robustness", "variant_groups"]
 
 SINGLE_VARIANT = "compromise"
 """The variant the price of robustness is measured against (the wake generator as fitted to the reference maps)."""
@@ -44,6 +44,10 @@ UNLABELLED = "unlabelled"
 """The morphology of templates that carry no variant and were not made by the built-in generator."""
 GENERATOR_PREFIX = "wake_"
 """Name prefix of the built-in generator's templates (the compromise morphology)."""
+H_P_SPACING = 0.0125
+"""The largest spacing of the families' aspect ratios H/r at which the robust limits were found to
+hold for a planet between them (docs/limits.md §4d: a hydrodynamic 0.5 M_th planet at H/r 0.06, τ0 3,
+was wrongly excluded with families at 0.05 and 0.07 but not with families 0.0125 apart)."""
 _LIMITED = ("limit", "below_bank")
 _LISTED_FAMILIES = 6  # more families than this are described by their parameter values, not one label each
 
@@ -178,6 +182,17 @@ def near_planet_mask(r_p, planets, beam: float) -> np.ndarray:
     return np.any(np.abs(r_p[:, None] - planets[None, :]) <= beam * (1 + 1e-9), axis=1)
 
 
+def aspect_ratio_note(limits) -> str:
+    """A sentence when the families' aspect ratios are further apart than :data:`H_P_SPACING` (empty otherwise)."""
+    h_ps = sorted({float(f.key["h_p"]) for f in limits.families if f.key.get("h_p") is not None})
+    if len(h_ps) < 2 or np.max(np.diff(h_ps)) <= H_P_SPACING * (1 + 1e-6):
+        return ""
+    return (f"The families' aspect ratios ({', '.join(f'{h:g}' for h in h_ps)}) are up to {np.max(np.diff(h_ps)):.2g} "
+            "apart: a planet between them can be wrongly excluded (measured at tau0 3, docs/limits.md 4d); "
+            f"aspect ratios at most {H_P_SPACING:g} apart (e.g. [templates] h_p = [0.05, 0.0625, 0.075, 0.0875, 0.1]) "
+            "remove that.")
+
+
 def describe_over_families(limits) -> str:
     """Sentences for :meth:`.ExclusionLimits.summary` without ``family=``: the robust limit over every
     family, the set named, and the price of robustness where variants exist."""
@@ -187,6 +202,8 @@ def describe_over_families(limits) -> str:
     m_lim, status = combined_m_lim(limits, fams)
     out = [f"Over all {len(fams)} template families ({_family_set(limits)}), a planet counts as ruled out only "
            "where every family rules it out.", morphology_note(limits)]
+    if note := aspect_ratio_note(limits):
+        out.append(note)
     for mass in THRESHOLDS:
         ok = np.isin(status, _LIMITED) & (np.nan_to_num(m_lim, nan=np.inf) <= mass * (1 + 1e-9))
         where = format_ranges(limits, runs(limits.r_p, ok), mass, empty="no radius")
