@@ -301,7 +301,7 @@ def main(argv=None):
             "sigma_axisym": {"description": "<Sigma>_phi / Sigma_0(r_p) (the gap); NaN where not valid"},
             "valid": {"description": "x inside the undamped domain of the run"},
             **{f"delta_tau{t:g}": {"description": f"I/<I>_phi - 1 for tau0 = {t:g}, isothermal, gap included "
-                                   "through tau; spiralbayes.templates.wake.template_from_perturbation"}
+                                   "through tau; spiralbayes.templates.radiative.template_from_perturbation"}
                for t in deltas},
         }}
         print(f"{name}: output {n} ({orbits:.1f} orbits, {state}, wall {wall} s); orientation {orient}")
@@ -324,7 +324,7 @@ def main(argv=None):
                        "gas move towards +phi; trailing arms: outer arm at phi < 0 just outside r_p)",
         "mass_conventions": "mu_Mth = M_p/M_th, M_th = h_p^3 M_* (q_planet = mu h_p^3); "
                             "mu_M1 = M_p/M_1 = 1.5 mu_Mth (M_1 = (2/3) h_p^3 M_*)",
-        "radiative_transfer": "spiralbayes.templates.wake.template_from_perturbation, isothermal, "
+        "radiative_transfer": "spiralbayes.templates.radiative.template_from_perturbation, isothermal, "
                               "tau = tau0 Sigma/Sigma_0(r_p) with the run's own gap, M_* = 0.8 Msun, "
                               f"r_p = 50 au, wavelength {rc.WAVELENGTH} m",
         "grid": f"n_x = {x.size} log-spaced cell centres in [{rc.X_MIN}, {rc.X_MAX}] (edges), "

@@ -68,7 +68,8 @@ REGIMES = {0: "linear box (|x-1| < 4h/3; wakeflow's linear solution, zero outsid
 
 
 def case_name(h_p, mu):
-    return f"h{h_p:.2f}_mu{mu:g}"
+    h = f"{h_p:.2f}" if np.isclose(round(h_p, 2), h_p) else f"{h_p:g}"
+    return f"h{h}_mu{mu:g}"
 
 
 _RECORD = {"tf": [], "nonlinear": [], "patched": False}
@@ -195,6 +196,8 @@ def main(argv=None):
                     help="scratch folder for wakeflow's own outputs (kept out of git)")
     ap.add_argument("--n-x", type=int, default=rc.N_X)
     ap.add_argument("--n-phi", type=int, default=rc.N_PHI)
+    ap.add_argument("--h-ps", type=float, nargs="+", default=list(H_PS), help="aspect ratios H/r at r_p")
+    ap.add_argument("--mus", type=float, nargs="+", default=list(MUS), help="planet masses [M_th]")
     args = ap.parse_args(argv)
 
     x, phi = rc.reference_grid(args.n_x, args.n_phi)
@@ -202,8 +205,8 @@ def main(argv=None):
     cases, summary = {}, {}
     t_start = time.perf_counter()
     with open(args.workdir / "wakeflow_runs.log", "w") as log:
-        for h_p in H_PS:
-            for mu in MUS:
+        for h_p in args.h_ps:
+            for mu in args.mus:
                 name = case_name(h_p, mu)
                 rel, regime, params = run_case(h_p, mu, x, phi, args.workdir, log)
                 dsigma, mean = rc.normalise_to_azimuthal_mean(1.0 + rel)
@@ -231,7 +234,7 @@ def main(argv=None):
                     "valid": {"description": "x where wakeflow's single-wake model applies (regime != 3); "
                                              "values elsewhere are kept, not masked"},
                     **{f"delta_tau{t:g}": {"description": f"I/<I>_phi - 1 for tau0 = {t:g}, isothermal, "
-                                           "spiralbayes.templates.wake.template_from_perturbation"}
+                                           "spiralbayes.templates.radiative.template_from_perturbation"}
                        for t in deltas},
                 }}
                 summary[name] = {k: v for k, v in diag.items()}
@@ -250,7 +253,7 @@ def main(argv=None):
         "mass_conventions": "mu_Mth = M_p/M_th with M_th = h_p^3 M_* (Stevenson et al. 2024; S22); "
                             "mu_M1 = M_p/M_1 = 1.5 mu_Mth with M_1 = (2/3) h_p^3 M_* (wakeflow)",
         "disc": "M_* = 0.8 Msun, r_p = 50 au, c_s ∝ r^-0.25 (H/r ∝ r^0.25), Sigma ∝ r^-1",
-        "radiative_transfer": "spiralbayes.templates.wake.template_from_perturbation, isothermal (no "
+        "radiative_transfer": "spiralbayes.templates.radiative.template_from_perturbation, isothermal (no "
                               "temperature perturbation), tau = tau0 Sigma/Sigma_0(r_p), "
                               f"wavelength {rc.WAVELENGTH} m, mu_gas {rc.MU_GAS}",
         "grid": f"n_x = {x.size} log-spaced cell centres in [{rc.X_MIN}, {rc.X_MAX}] (edges), "

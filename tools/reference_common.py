@@ -49,12 +49,12 @@ def normalise_to_azimuthal_mean(sigma_over_ref: np.ndarray) -> tuple[np.ndarray,
 
 def brightness_residuals(x, phi, dsigma, sigma_axisym, h_p, tau0s=TAU0S, wavelength=WAVELENGTH):
     """``{tau0: δ}`` with ``δ = I/<I>_φ − 1`` from the package's isothermal radiative transfer,
-    :func:`spiralbayes.templates.wake.template_from_perturbation` (``I = B_ν(T)(1 − e^{−τ})``,
+    :func:`spiralbayes.templates.radiative.template_from_perturbation` (``I = B_ν(T)(1 − e^{−τ})``,
     ``τ = τ0 Σ/Σ_0(r_p)``, ``T = T_0(x)``: no temperature perturbation).
 
     ``dsigma`` must be finite; ``sigma_axisym`` is ``<Σ>_φ/Σ_0(r_p)`` (the gap, if any, enters here).
     """
-    from spiralbayes.templates.wake import template_from_perturbation
+    from spiralbayes.templates.radiative import template_from_perturbation
 
     out = {}
     for tau0 in tau0s:

@@ -65,7 +65,7 @@ def load_data(data: dict, geometry: DiscGeometry | None = None):
     return estimate_weights(vis, method="neighbours") if data["estimate_weights"] else vis
 
 
-BANKS: dict[str, Callable[[], TemplateBank]] = {"default": default_bank, "variants": default_bank,
+BANKS: dict[str, Callable[..., TemplateBank]] = {"default": default_bank, "variants": default_bank,
                                                  "compromise": compromise_bank}
 """The built-in banks by their ``[templates] bank`` name (:data:`spiralbayes.config.BUILT_IN_BANKS`):
 ``default`` and ``variants`` are the morphology-robust bank, ``compromise`` the single-morphology one."""

@@ -65,7 +65,7 @@ def test_summary_excluded_and_plot_work_without_family_on_the_default_bank_layou
     assert len(limits.families) == 6
     text = limits.summary()
     assert "Over all 6 template families" in text and "variant=hydro" in text
-    assert "aspect ratios (0.05, 0.07, 0.1) are up to 0.03 apart" in text
+    assert "aspect ratios" not in text  # the test scan's families are at tau0 <= 1
     # robust: 1 M_th is excluded by the compromise variant but not by hydro, so not at all
     assert not limits.excluded(mass=1.0).any() and limits.excluded(mass=3.0).all()
     assert limits.excluded().shape == (3, 3)
@@ -266,19 +266,18 @@ def test_a_verdict_dict_flags_the_planet_as_the_verdict_does(planted_planet_limi
     assert "near_planet" in b.flags.tolist()
 
 
-def test_aspect_ratio_note_only_where_the_families_are_further_apart_than_calibrated():
-    """The bank's three aspect ratios (0.03 apart) get the warning; the family's five nodes (0.0125
-    apart, the spacing at which the held-out planet between them was covered) and one H/r do not."""
+def test_aspect_ratio_note_only_where_the_templates_are_optically_thick():
+    """Families with τ0 above H_P_SENSITIVE_TAU0 get the sentence naming their aspect ratios (those
+    of the optically thick families only); families at τ0 <= 1 do not."""
     from types import SimpleNamespace
 
-    from spiralbayes.inference.limits.robust import H_P_SPACING, aspect_ratio_note
-    from spiralbayes.templates.family import H_NODES
+    from spiralbayes.inference.limits.robust import H_P_SENSITIVE_TAU0, aspect_ratio_note
 
-    def limits(h_ps):
-        return SimpleNamespace(families=[SimpleNamespace(key={"h_p": h, "variant": v}) for h in h_ps
-                                         for v in ("compromise", "hydro")])
+    def limits(h_ps, taus):
+        return SimpleNamespace(families=[SimpleNamespace(key={"h_p": h, "tau0": t, "variant": "hydro"})
+                                         for h in h_ps for t in taus])
 
-    assert "wrongly excluded" in aspect_ratio_note(limits((0.05, 0.07, 0.10)))
-    assert np.max(np.diff(H_NODES)) == pytest.approx(H_P_SPACING)
-    assert aspect_ratio_note(limits(H_NODES)) == ""
-    assert aspect_ratio_note(limits((0.07,))) == ""
+    note = aspect_ratio_note(limits((0.05, 0.07, 0.10), (0.3, 3.0)))
+    assert "(H/r = 0.05, 0.07, 0.1) only" in note and f"tau0 > {H_P_SENSITIVE_TAU0:g}" in note
+    assert "(H/r = 0.07) only" in aspect_ratio_note(limits((0.07,), (3.0,)))
+    assert aspect_ratio_note(limits((0.05, 0.07, 0.10), (0.1, 0.3, 1.0))) == ""

@@ -171,13 +171,14 @@ def loso_table(powers=(100.0, 400.0), n: int = 1000, seed: int = 0, taus=(0.3, 3
 
 
 def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int, seed: int = 50,
-                       control: bool = False, hand: str = "R", h_ps: tuple | None = None):
+                       control: bool = False, hand: str = "R", h_ps: tuple | None = None, planted=None):
     """:func:`calibrate` in the fiducial set-up (``variant_fit``'s observation: 36k visibilities,
     beam 0.061″, planet at 50 au = 0.357″ = 5.9 beams, φ_p = 40° on the 90-azimuth grid) — resolved,
     unlike §4c's C-4 set-up, whose r_p = 0.3″ lies inside its 0.34″ beam (``compute_limits`` flags
     it "unresolved" unless told ``resolution=0``). The weights are scaled so that the compromise
     template of the true mass has ``Σ w |ΔV|² = power`` at the planet. ``h_ps``: the aspect ratios of
-    the limit's families (default the case's own; the bank's neighbours for a run between them)."""
+    the limit's families (default the case's own; the bank's neighbours for a run between them).
+    ``planted``: a template planted instead of the case's map (the case then gives mass, H/r and β)."""
     from spiralbayes import DiscGeometry
     from spiralbayes.simulate import simulate_observation
 
@@ -197,7 +198,57 @@ def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int
     ctx = ScanContext.build(vis0.standardised(), axisym, geometry, [r_p], 90)
     p0 = float(scan_template(ctx, bank)[1][0, 10])
     vis = vis0.with_weights(vis0.weights * power / p0, note=f"scaled to bank power {power:g}")
-    planted = bank if control else F.reference_template(case, tau0)
+    if planted is None:
+        planted = bank if control else F.reference_template(case, tau0)
     return planted_exclusion_rate(vis, axisym, fam, planted, r_p, phi_p, case.mu, n_realisations=n, cl=CL,
                                   n_phi_p=90, geometry=geometry, seed=seed, robust=True, hand=hand)
 
+
+
+def between_aspect_ratios(wakeflow_file=None, n: int = 100, taus=(0.3, 3.0)):
+    """Wrong-exclusion rates of spirals planted at H/r between the bank's (docs/limits.md §4d), one
+    dict per case, printed as JSON lines: the physics run set's 0.5 M_th (H/r 0.06) and 2 M_th (H/r
+    0.08) runs, the hydro and wakeflow variants' own templates at H/r 0.06 and 0.085 (0.3, 1 and
+    3 M_th: the variants are lower envelopes, so this is the harshest case), and optionally the maps
+    of ``wakeflow_file`` (``tools/make_wakeflow_references.py --h-ps 0.06 0.085 --mus 0.3 1``), with
+    limit families at the bank's neighbouring H/r and at the five ``H_NODES``; bank power 400."""
+    import json
+    from dataclasses import replace
+
+    from spiralbayes.templates.bank import DEFAULT_H_PS
+    from spiralbayes.templates.family import H_NODES
+
+    def neighbours(h):
+        bank = sorted(DEFAULT_H_PS)
+        return tuple(b for b in bank if b < h)[-1:] + tuple(b for b in bank if b > h)[:1]
+
+    held_out = {"shipped": loso_variants("physics"), "wakeflow held out": loso_variants("wakeflow")}
+    physics = {c.label: c for c in F.physics_cases()}
+    jobs = [(physics[label], t, None, "shipped") for label in ("fargo3dlib:h0.06_mu0.5", "fargo3dlib:h0.08_mu2")
+            for t in taus]
+    base = physics["fargo3dlib:h0.06_mu0.5"]
+    for v in ("hydro", "wakeflow"):
+        for mu in (0.3, 1.0, 3.0):
+            for h in (0.06, 0.085):
+                for t in taus:
+                    case = replace(base, source=f"{v}_variant", mu=mu, h_p=h, group=f"h{h:g}_mu{mu:g}")
+                    jobs.append((case, t, variant_template(mu, t, 0.0, "R", v, h_p=h), "shipped"))
+    if wakeflow_file is not None:
+        for case in F.reference_cases([wakeflow_file]):
+            jobs += [(case, t, None, which) for t in taus if any(np.isclose(t, x) for x in case.taus)
+                     for which in held_out]
+    out = []
+    for case, tau0, planted, which in jobs:
+        for label, h_ps in (("bank", neighbours(case.h_p)), ("H_NODES", tuple(H_NODES))):
+            res = calibrate_fiducial(case, tau0, 400.0, held_out[which], n, h_ps=h_ps, planted=planted)
+            row = dict(case=case.label, tau0=tau0, variants=which, families=label, h_ps=list(h_ps), rate=res.rate)
+            print(json.dumps(row), flush=True)
+            out.append(row)
+    return out
+
+
+if __name__ == "__main__":
+    import sys
+
+    between_aspect_ratios(sys.argv[1] if len(sys.argv) > 1 and sys.argv[1] else None,
+                          taus=tuple(float(t) for t in sys.argv[2:]) or (0.3, 3.0))

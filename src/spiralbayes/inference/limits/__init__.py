@@ -50,8 +50,10 @@ from .recovery import (
 from .forecasting import Forecast, compare_setups, detectable_mass, forecast, format_minutes, setup_for_time
 
 from .robust import (
+    H_P_SENSITIVE_TAU0,
     SINGLE_VARIANT,
     UNLABELLED,
+    aspect_ratio_note,
     combined_m_lim,
     combined_m_lim_mjup,
     describe_over_families,
@@ -65,6 +67,8 @@ from .robust import (
 )
 
 __all__ = [
+    "H_P_SENSITIVE_TAU0",
+    "aspect_ratio_note",
     "UNLABELLED",
     "family_morphology",
     "morphologies",
