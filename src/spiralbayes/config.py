@@ -82,8 +82,8 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "beta": ([], "cooling times t_c Omega to keep (empty: all)"),
         "hand": ([], "'R' and/or 'L' (empty: both)"),
         "h_p": ([], "disc aspect ratios H/r at r_p (empty: all the bank has; the built-in banks have 0.05, 0.07, "
-                    "0.10 and are made at any others given, e.g. [0.05, 0.0625, 0.075, 0.0875, 0.1] for limits that "
-                    "hold between those three, docs/limits.md 4d; with a bank file, the ones to keep)"),
+                    "0.10 and are made at any others given, e.g. a disc's measured H/r: at tau0 > 1 the limits hold "
+                    "for the templates' H/r only, docs/limits.md 4d; with a bank file, the ones to keep)"),
     },
     "grid": config_options(ScanSettings, GRID_FIELDS),
     "scan": {

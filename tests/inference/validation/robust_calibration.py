@@ -204,7 +204,6 @@ def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int
                                   n_phi_p=90, geometry=geometry, seed=seed, robust=True, hand=hand)
 
 
-
 def between_aspect_ratios(wakeflow_file=None, n: int = 100, taus=(0.3, 3.0)):
     """Wrong-exclusion rates of spirals planted at H/r between the bank's (docs/limits.md §4d), one
     dict per case, printed as JSON lines: the physics run set's 0.5 M_th (H/r 0.06) and 2 M_th (H/r
