@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 from functools import cache
+from pathlib import Path
 
 import numpy as np
 
@@ -275,8 +276,6 @@ out from every fit, so the shipped variants are its leave-one-source-out variant
 
 def calibration_source(case) -> str:
     """The :data:`SOURCES` (or :data:`HELD_OUT_SOURCES`) entry of a reference case."""
-    from pathlib import Path
-
     if Path(case.file).resolve() == F.PHYSICS_FILE.resolve():
         return "physics"
     if case.source == "wakeflow":

@@ -33,7 +33,6 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.templates.fidelity import PHYSICS_FILE as PHYSICS_FILE  # the physics run set, for callers of this module
 from tests.templates.fidelity import REF_DIR, Case, reference_cases, reference_template
 
 log = logging.getLogger(__name__)

@@ -14,6 +14,7 @@ import pytest
 
 from spiralbayes.inference.detection import DetectionSettings
 from tests.inference.detection import planet_free, reference_detection as rd
+from tests.templates.fidelity import PHYSICS_FILE
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +51,7 @@ KNOWN_FAILURES = {
 
 def _cases():
     out = []
-    cases = rd.detection_cases() + rd.detection_cases([rd.PHYSICS_FILE])
+    cases = rd.detection_cases() + rd.detection_cases([PHYSICS_FILE])
     for case in sorted(cases, key=lambda c: -c.mu):
         for tau0 in rd.TAUS:
             reason = KNOWN_FAILURES.get((case.label, tau0))
