@@ -7,8 +7,14 @@ for one template, their ratio, and the table build per mass node against one tem
 0.5 M_th planet): one family with the mass sampled against the same family's four bank templates
 sampled one by one (today's discrete run), same walkers and steps.
 
+``--node-tables VIS AXISYMMETRIC`` builds mass-node tables of two families on an observation and its
+frank fit (e.g. ``spiralbayes simulate``'s file and ``spiralbayes scan``'s ``axisymmetric.h5``) over the
+default ``r_p`` prior, and prints for each node its build time, its step against the heaviest node's,
+the error at the checked midpoints and, built afresh, at every midpoint.
+
     python benchmarks/bench_mass.py --n-vis 100000
     python benchmarks/bench_mass.py --runs --skip-calls
+    python benchmarks/bench_mass.py --skip-calls --node-tables vis.h5 out/axisymmetric.h5
 """
 
 from __future__ import annotations
@@ -54,12 +60,48 @@ def main() -> None:
     parser.add_argument("--skip-calls", action="store_true", help="skip the per-call timings")
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--walkers", type=int, default=28)
+    parser.add_argument("--node-tables", nargs=2, metavar=("VIS", "AXISYMMETRIC"),
+                        help="check the families' node tables on these data (several minutes)")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     if not args.skip_calls:
         calls(args)
     if args.runs:
         runs(args)
+    if args.node_tables:
+        node_tables(*args.node_tables)
+
+
+def node_tables(vis_path: str, model_path: str, nodes=(0, 8, 16, 24, 32, 40)) -> None:
+    from spiralbayes.inference.posterior import Priors
+    from spiralbayes.inference.posterior.interpolation import _TableBuilder
+    from spiralbayes.inference.posterior.perturbation import _midpoint_errors
+    from spiralbayes.io import load_visibilities
+    from spiralbayes.templates.variants import variant_template
+    from spiralbayes.units import ARCSEC
+
+    vis = load_visibilities(vis_path)
+    model = AxisymmetricModel.load(model_path)
+    r_range = tuple(Priors.default(model).r_p)
+    print(f"{vis.u.size} visibilities, r_p prior {r_range[0]:.4f}-{r_range[1]:.4f} arcsec")
+    for variant, tau0, beta in (("wakeflow", 3.0, 10.0), ("compromise", 0.3, 0.0)):
+        family = family_of(variant_template(1.0, tau0, beta, "R", variant))
+        fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, r_range, model.geometry)
+        heaviest = family.masses.size - 1
+        for j in (heaviest, *nodes):
+            t = time.perf_counter()
+            table = fp.node_table(j)
+            built = time.perf_counter() - t
+            exact = _TableBuilder(table._cells, model.brightness, r_range[1] * ARCSEC * table.uv_max,
+                                  table._cells.x_max, 1.5)
+            every = _midpoint_errors(table, table.table, lambda radii, b=exact: [b(r) for r in radii])[1].max()
+            rounds = [f"{r['max_midpoint_error']:.2e}" + (f" ({r['midpoints_checked']} checked)"
+                                                          if "midpoints_checked" in r else "")
+                      for r in table.table.refinement]
+            step, ref_step = table.table.step * 1e3, fp.node_table(heaviest).table.step * 1e3
+            print(f"{variant} tau0 {tau0:g} beta {beta:g}, node {j} ({family.masses[j]:.3g} M_th): {built:.1f} s, "
+                  f"step {step:.3f} mas (heaviest node {ref_step:.3f}); rounds {', '.join(rounds)}; "
+                  f"every midpoint {every:.2e} (rp_tolerance 0.01)", flush=True)
 
 
 def runs(args) -> None:
@@ -94,6 +136,9 @@ def runs(args) -> None:
 
 
 def calls(args) -> None:
+    from spiralbayes.inference.posterior.forked import pin_threads
+
+    pin_threads()  # one BLAS thread, as in the chain's walker processes
     vis, model, geometry = observation(args.n_vis, args.uv_max)
     base = ProfileMarginal(vis, model)
     r_range = (0.15, 0.6)

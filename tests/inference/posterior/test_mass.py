@@ -57,6 +57,7 @@ def test_family_perturbation_is_the_interpolated_templates_table(case, hand):
     for mass, r_p, phi_p in (((0.2, 0.3, 0.4), (2.0, 0.45, 5.5)) if hand == "R" else ((0.5, 0.35, 2.0),)):
         fast = fp.disc_frame(r_p, phi_p, 40.0, 70.0, mass)
         ref = FastPerturbation(vis.u, vis.v, w, model.brightness, family.at(mass), R_RANGE, TRUE_GEOMETRY,
+                               refine_from=fp._right[family.masses.size - 1],  # the nodes' r_p step
                                **TABLES).disc_frame(r_p, phi_p, 40.0, 70.0)
         norm = np.sqrt(np.sum(w * np.abs(ref) ** 2))
         assert norm > 0.5  # the spiral is far above the noise: the comparison means something
@@ -71,9 +72,11 @@ def test_mass_likelihood_at_a_node_is_the_node_templates_likelihood(case):
     fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, R_RANGE, TRUE_GEOMETRY, **TABLES)
     j = 20
     node = family.node(j)
-    fixed = MarginalSpiralLikelihood(base, FastPerturbation(vis.u, vis.v, vis.weights, model.brightness, node,
-                                                            R_RANGE, TRUE_GEOMETRY, **TABLES))
     mass = MassLikelihood(base, fp)
+    mass.amplitude_terms(np.array([0.35, 2.0, 40.0, 70.0, 0.0, 0.0, np.log(family.masses[j])]))
+    fixed = MarginalSpiralLikelihood(base, FastPerturbation(vis.u, vis.v, vis.weights, model.brightness, node,
+                                                            R_RANGE, TRUE_GEOMETRY, **TABLES,
+                                                            refine_from=fp._right[family.masses.size - 1]))
     theta = np.array([0.35, 2.0, 40.0, 70.0, 0.005, -0.01])
     a = fixed.amplitude_terms(theta)
     b = mass.amplitude_terms(np.append(theta, np.log(family.masses[j])))
@@ -206,7 +209,8 @@ def test_mirror_families_share_their_node_tables(case):
     fast = fp_l.disc_frame(0.35, 2.0, 40.0, 70.0, 0.7)
     assert fp_l._right is fp_r._right and all(fp_l._right[j] is t for j, t in built.items())  # nothing rebuilt
     assert fp_l.build_time_s == 0.0
-    ref = FastPerturbation(*args, left.at(0.7), R_RANGE, TRUE_GEOMETRY, **TABLES).disc_frame(0.35, 2.0, 40.0, 70.0)
+    ref = FastPerturbation(*args, left.at(0.7), R_RANGE, TRUE_GEOMETRY, refine_from=fp_r._right[right.masses.size - 1],
+                           **TABLES).disc_frame(0.35, 2.0, 40.0, 70.0)
     w = vis.weights
     assert np.sqrt(np.sum(w * np.abs(fast - ref) ** 2)) < 1e-5 * np.sqrt(np.sum(w * np.abs(ref) ** 2))
     with pytest.raises(InputError, match="not the mirror"):
@@ -236,12 +240,15 @@ def test_walker_threads_reaching_a_new_node_build_it_once(case):
     fp = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family, R_RANGE, TRUE_GEOMETRY, **TABLES)
     with ThreadPoolExecutor(4) as pool:
         tables = list(pool.map(lambda _: fp.node_table(2), range(8)))
-    assert all(t is tables[0] for t in tables) and list(fp.tables) == [2] and list(fp._right) == [2]
+    # the heaviest node (4) first: node 2 starts its r_p refinement from it
+    assert all(t is tables[0] for t in tables) and list(fp.tables) == [2] and list(fp._right) == [4, 2]
 
 
 def test_node_tables_sharing_radial_integrals_are_the_standalone_tables(case):
-    """The mass nodes share each radius's rule and radial integrals (one radial grid, one profile): the
-    tables are bit for bit those of each node template built on its own, and a second node adds no radius."""
+    """The mass nodes share each radius's rule and radial integrals (one radial grid, one profile) and
+    start their r_p refinement from the heaviest node's: the tables are bit for bit those of each node
+    template built on its own (the heaviest refined in full, the others from its table), and a second
+    node adds no radius."""
     vis, model = case
     family = family_of(make_template(1.0, 0.3, 0.0, "R", **GRID), (0.2, 1.5), n_masses=5)
     brightness = model.brightness
@@ -250,12 +257,15 @@ def test_node_tables_sharing_radial_integrals_are_the_standalone_tables(case):
     radii = len(fp._radial)
     second = fp.node_table(3)
     assert radii > 0 and len(fp._radial) == radii
+    args = (vis.u, vis.v, vis.weights, brightness)
+    heaviest = FastPerturbation(*args, family.node(4), R_RANGE, TRUE_GEOMETRY, **TABLES)
+    np.testing.assert_array_equal(fp._right[4].table.grids, heaviest.table.grids)
     for j, shared in ((1, first), (3, second)):
-        alone = FastPerturbation(vis.u, vis.v, vis.weights, brightness, family.node(j), R_RANGE, TRUE_GEOMETRY,
-                                 **TABLES)
+        alone = FastPerturbation(*args, family.node(j), R_RANGE, TRUE_GEOMETRY, refine_from=heaviest, **TABLES)
         np.testing.assert_array_equal(shared.table.grids, alone.table.grids)
         np.testing.assert_array_equal(shared.table.r_nodes, alone.table.r_nodes)
         assert shared.quadrature_error == alone.quadrature_error
+        assert shared.table.refinement[0]["midpoints_checked"] <= 8
 
 
 def test_node_tables_built_by_worker_processes_are_the_lazily_built_tables(case):

@@ -65,3 +65,48 @@ def test_node_grids_built_by_worker_processes_are_the_same_table(setup):
     np.testing.assert_array_equal(one.table.grids, two.table.grids)
     assert one.table.refinement == two.table.refinement and len(one.table.refinement) >= 2
     assert one.n_node_builds == two.n_node_builds > one.table.r_nodes.size  # midpoints of the last round too
+
+
+def test_interpolated_grid_is_the_stencils_weighted_sum(setup):
+    """The table's one-pass product over the stencil's grids against the grid-by-grid sum (float64
+    reference), at radii near both ends and inside."""
+    vis, template = setup["vis"], setup["template"]
+    fp = FastPerturbation(vis.u, vis.v, vis.weights, profile, template, R_RANGE, TRUE_GEOMETRY, rp_tolerance=0.05)
+    table = fp.table
+    for r_p in (R_RANGE[0], 0.3137, R_RANGE[1]):
+        i0, w = table.stencil(r_p)
+        exact = np.tensordot(w * 2.5, table.grids[i0:i0 + table.order].astype(complex), axes=1)
+        fast = table.grid(r_p, scale=2.5)
+        assert fast.dtype == np.complex64 and fast.shape == (table.N, table.N)
+        np.testing.assert_allclose(fast, exact, rtol=0, atol=1e-6 * np.max(np.abs(exact)))
+        np.testing.assert_allclose(table.grid_reference(r_p, 2.5), exact, rtol=0, atol=1e-6 * np.max(np.abs(exact)))
+
+
+def _every_midpoint_error(fp):
+    """The table's interpolation error at every node midpoint, from exact grids built afresh."""
+    from spiralbayes.inference.posterior.perturbation import _midpoint_errors
+
+    builder = _TableBuilder(fp._cells, profile, fp.r_range[1] * ARCSEC * fp.uv_max, fp._cells.x_max, 1.5)
+    return _midpoint_errors(fp, fp.table, lambda radii: [builder(r) for r in radii])[1].max()
+
+
+def test_a_table_started_from_another_templates_step_meets_the_tolerance_at_every_midpoint(setup):
+    """``refine_from``: a second template on the same radial grid starts at the first table's step and
+    checks only the first table's worst midpoints. Reference: the error measured afresh at every
+    midpoint, below the tolerance both where the check passes (same step) and where it fails (a
+    stricter tolerance: the step is refined further)."""
+    from spiralbayes.templates import make_template
+
+    vis = setup["vis"]
+    args = (vis.u, vis.v, vis.weights, profile)
+    first = FastPerturbation(*args, setup["template"], R_RANGE, TRUE_GEOMETRY, rp_tolerance=0.02)
+    assert len(first.table.refinement[-1]["worst_midpoints_arcsec"]) == 8
+    lighter = make_template(1.0, 0.3, 0.0, "R", n_x=160, n_phi=360)
+    same = FastPerturbation(*args, lighter, R_RANGE, TRUE_GEOMETRY, rp_tolerance=0.02, refine_from=first)
+    assert same.table.step == first.table.step and len(same.table.refinement) == 1
+    assert same.table.refinement[0]["midpoints_checked"] <= 8
+    assert same.n_node_builds <= same.table.r_nodes.size + 8
+    assert _every_midpoint_error(same) <= 0.02
+    strict = FastPerturbation(*args, lighter, R_RANGE, TRUE_GEOMETRY, rp_tolerance=0.0005, refine_from=first)
+    assert strict.table.step < first.table.step and strict.table.refinement[0]["max_midpoint_error"] > 0.0005
+    assert _every_midpoint_error(strict) <= 0.0005

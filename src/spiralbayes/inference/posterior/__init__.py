@@ -26,7 +26,7 @@ from .likelihood import (
 )
 from .conditional import PARAMETER_LABELS, PARAMETER_NAMES, SpiralLikelihood, geometry_from_theta
 from .interpolation import AxisymmetricTable, PerturbationTable
-from .perturbation import FastPerturbation
+from .perturbation import CHECK_MARGIN, CHECKED_MIDPOINTS, FastPerturbation
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
 from .moves import WrappedDEMove, default_moves
 from .diagnostics import TAU_FACTOR, arviz_diagnostics, chain_inference_data, convergence_diagnostics
@@ -99,6 +99,8 @@ __all__ = [
     "CONVERGENCE_POLICIES",
     "DEFAULT_AMPLITUDE_MAX",
     "DEFAULT_WIDTHS",
+    "CHECKED_MIDPOINTS",
+    "CHECK_MARGIN",
     "FastPerturbation",
     "GEOMETRY_NAMES",
     "GaussianGeometry",

@@ -99,6 +99,56 @@ def _start_mass(members, scan, mass_prior: MassPrior) -> float:
     return float(max(inside, key=lambda t: scan_peak(scan, t.name)).mass)
 
 
+class _AtMass:
+    """The family's log posterior over the template's six parameters at a fixed ``ln M_p`` (picklable:
+    a pool's workers evaluate it through their own copy of ``log_prob``)."""
+
+    def __init__(self, log_prob, ln_mass: float):
+        self.log_prob, self.ln_mass = log_prob, float(ln_mass)
+
+    def __call__(self, theta):
+        return self.log_prob(np.append(theta, self.ln_mass))
+
+
+def _in_window(logpost, r_range):
+    """``ln p`` of 7 parameters, ``-inf`` outside the family's ``r_p`` window."""
+    return lambda t: float(logpost(t)[0]) if r_range[0] <= t[0] <= r_range[1] else -np.inf
+
+
+def _family_mode(logpost, members, scan, priors: Priors, null, mass_prior: MassPrior, r_range, name: str,
+                 walkers=None) -> tuple:
+    """The family's mode, Laplace covariance, ``ln p`` there and Laplace ``ln Z``: the template's six at the
+    scan's best bank mass (start points and local optimisations in ``walkers``' pool where given), then
+    ``ln M_p`` freed."""
+    g_sigma, scales6, max_var6 = _scales(priors, null)
+    lo, hi = mass_prior.ln_range
+    scales = np.append(scales6, (hi - lo) / np.sqrt(12.0))
+    max_var = np.append(max_var6, (hi - lo) ** 2 / 12.0)
+    m0 = _start_mass(members, scan, mass_prior)
+    start_name = next((t.name for t in members if float(t.mass) == m0), name)
+    f7 = _in_window(logpost, r_range)
+    pool = {} if walkers is None else {"pool_map": walkers.map, "pool_log_prob": _AtMass(walkers.log_prob,
+                                                                                          np.log(m0))}
+    six = find_map(lambda t: f7(np.append(t, np.log(m0))), priors, scan, start_name, null.geometry_map, g_sigma,
+                   **pool)
+    masses = [m for m in sorted({m0, *(float(t.mass) for t in members)}) if np.exp(lo) <= m <= np.exp(hi)]
+    starts = [np.append(six, np.log(m)) for m in masses]
+    x0 = max(starts, key=f7)
+    steps = np.concatenate([[0.01 * (priors.r_p[1] - priors.r_p[0]), 0.02], 3.0 * g_sigma, [0.2]])
+    theta_map = _nelder_mead(f7, x0, steps, 700, restarts=2)
+    theta_map[6] = np.clip(theta_map[6], lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
+    room = np.full(7, np.inf)
+    room[0] = 0.9 * min(theta_map[0] - r_range[0], r_range[1] - theta_map[0])
+    room[2] = 0.9 * min(theta_map[2], 90.0 - theta_map[2])
+    room[6] = 0.9 * min(theta_map[6] - lo, hi - theta_map[6])
+    cov = hessian_cov(f7, theta_map, scales * 1e-2, room=room, max_var=max_var)
+    lp_map = f7(theta_map)
+    lnz_laplace = laplace_evidence(lp_map, cov)
+    log.info("%s: optimum ln p = %.2f at M_p = %.3g M_th, %s; Laplace ln Z = %.2f", name, lp_map,
+             np.exp(theta_map[6]), np.round(theta_map[:6], 5), lnz_laplace)
+    return theta_map, cov, lp_map, lnz_laplace
+
+
 def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: MassPrior, *, scan, chain_path,
                   settings, mode: str = "mcmc", r_range=None, mirror_of: FamilyPerturbation | None = None) -> tuple:
     """One family's posterior over ``(r_p, phi_p, geometry, ln M_p)``; returns ``(TemplateRun, likelihood)``.
@@ -135,38 +185,15 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
         fp.build_nodes(mass_prior.mass_range, processes=processes if sampling.pool is None else 1)
     likelihood = MassLikelihood(base, fp, amplitude_max=priors.amplitude_max)
     logpost = MassLogPosterior(likelihood, priors, mass_prior)
-    g_sigma, scales6, max_var6 = _scales(priors, null)
     lo, hi = mass_prior.ln_range
-    scales = np.append(scales6, (hi - lo) / np.sqrt(12.0))
-    max_var = np.append(max_var6, (hi - lo) ** 2 / 12.0)
-
-    # the mode: the template's six at the scan's best bank mass, then the mass freed
-    m0 = _start_mass(members, scan, mass_prior)
-    start_name = next((t.name for t in members if float(t.mass) == m0), name)
-    f7 = lambda t: float(logpost(t)[0]) if r_range[0] <= t[0] <= r_range[1] else -np.inf  # noqa: E731
-    six = find_map(lambda t: f7(np.append(t, np.log(m0))), priors, scan, start_name, null.geometry_map, g_sigma)
-    masses = [m for m in sorted({m0, *(float(t.mass) for t in members)}) if np.exp(lo) <= m <= np.exp(hi)]
-    starts = [np.append(six, np.log(m)) for m in masses]
-    x0 = max(starts, key=f7)
-    steps = np.concatenate([[0.01 * (priors.r_p[1] - priors.r_p[0]), 0.02], 3.0 * g_sigma, [0.2]])
-    theta_map = _nelder_mead(f7, x0, steps, 700, restarts=2)
-    theta_map[6] = np.clip(theta_map[6], lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
-    room = np.full(7, np.inf)
-    r_lo, r_hi = r_range
-    room[0] = 0.9 * min(theta_map[0] - r_lo, r_hi - theta_map[0])
-    room[2] = 0.9 * min(theta_map[2], 90.0 - theta_map[2])
-    room[6] = 0.9 * min(theta_map[6] - lo, hi - theta_map[6])
-    cov = hessian_cov(f7, theta_map, scales * 1e-2, room=room, max_var=max_var)
-    lp_map = f7(theta_map)
-    lnz_laplace = laplace_evidence(lp_map, cov)
-    log.info("%s: optimum ln p = %.2f at M_p = %.3g M_th, %s; Laplace ln Z = %.2f", name, lp_map,
-             np.exp(theta_map[6]), np.round(theta_map[:6], 5), lnz_laplace)
-
+    scales = np.append(_scales(priors, null)[1], (hi - lo) / np.sqrt(12.0))
     _, _, rng_evidence, rng_amp = streams
     if mode == "laplace":
+        theta_map, cov, lp_map, lnz_laplace = _family_mode(logpost, members, scan, priors, null, mass_prior, r_range,
+                                                           name)
         draws = rng_evidence.multivariate_normal(theta_map, cov, size=400)
         draws[:, 1] = np.mod(draws[:, 1], 2 * np.pi)
-        draws = draws[[np.isfinite(f7(d)) for d in draws]]
+        draws = draws[[np.isfinite(_in_window(logpost, r_range)(d)) for d in draws]]
         terms = np.array([likelihood.amplitude_terms(d) for d in draws]).reshape(-1, 3)
         samples = _with_amplitude(draws[:, :6], terms[:, 1], terms[:, 2], priors, rng_amp)
         samples = np.column_stack([samples, *mass_prior.planet_masses(np.exp(draws[:, 6]), float(family.h_ps[0]),
@@ -191,6 +218,9 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
     with walker_pool(sampling.pool, processes, logpost, sampling.threads) as walkers:
         if walkers.is_worker:
             return None, likelihood
+        # the optimiser's start points and local optimisations in the walkers' pool, as for a template
+        theta_map, cov, lp_map, lnz_laplace = _family_mode(logpost, members, scan, priors, null, mass_prior, r_range,
+                                                           name, walkers)
         backend = run_chain(ChainBackend(store, inputs), saved, walkers, theta_map, cov, priors,
                             settings=chain_settings, streams=streams, name=name, progress=s["progress"],
                             logpost=logpost, stop_check=stop)

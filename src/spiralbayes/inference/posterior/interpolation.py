@@ -255,7 +255,20 @@ class PerturbationTable:
         return i0, w
 
     def grid(self, r_p: float, scale: float = 1.0) -> np.ndarray:
-        """Interpolated coefficients at ``r_p`` [arcsec], times ``scale`` (complex64)."""
+        """Interpolated coefficients at ``r_p`` [arcsec], times ``scale`` (complex64).
+
+        The stencil's grids are consecutive in memory, so the weighted sum is one matrix-vector
+        product over them read as float32 (a single pass over the grids; :meth:`grid_reference` is
+        the plain sum)."""
+        i0, w = self.stencil(r_p)
+        w = (w * scale).astype(np.float32)
+        block = self.grids[i0:i0 + self.order]
+        if block.dtype != np.complex64 or not block.flags.c_contiguous:
+            return self.grid_reference(r_p, scale)
+        return (w @ block.view(np.float32).reshape(self.order, -1)).view(np.complex64).reshape(block.shape[1:])
+
+    def grid_reference(self, r_p: float, scale: float = 1.0) -> np.ndarray:
+        """:meth:`grid` as the stencil's weighted sum, grid by grid."""
         i0, w = self.stencil(r_p)
         w = (w * scale).astype(np.float32)
         g = self.grids[i0] * w[0]

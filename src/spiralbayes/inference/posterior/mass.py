@@ -9,7 +9,8 @@ Fourier-series tables of :mod:`.interpolation`, so for the interpolated template
 
 holds exactly: :class:`FamilyPerturbation` adds the (``r_p``-interpolated) grids of the four nodes
 with their weights and evaluates the series at the data with one type-2 NUFFT — one template's call
-plus three grid sums. A node's table is built the first time a walker needs it.
+plus three grid sums. A node's table is built the first time a walker needs it, starting its ``r_p``
+refinement from the heaviest node's table, which is built first (``FastPerturbation(refine_from=...)``).
 
 Parameters of a family run (:data:`MASS_PARAMETER_NAMES`): ``(r_p, phi_p, inc, PA, dRA, dDec,
 lnM_p)``, with ``ln M_p`` uniform on ``[ln M_min, ln M_max]`` (``M_p`` log-uniform over the family's
@@ -241,14 +242,18 @@ class FamilyPerturbation:
         """Node ``j``'s hand-R table (shared with a mirror family) and the seconds spent building it here."""
         if j in self._right:
             return self._right[j], 0.0
+        heaviest = self.family.masses.size - 1
+        if not self._right and j != heaviest:
+            # every node starts its r_p refinement from the heaviest node's (the largest spiral, the
+            # largest interpolation error), whichever node a walker reaches first
+            self._build_s[heaviest] = self._right_table(heaviest)[1]
+        first = next(iter(self._right.values()), None)
         fp = FastPerturbation(self.u, self.v, self.weights, self.profile, self.family.node(j), self.r_range,
                               self.reference_geometry, progress=self.progress, radial_cache=self._radial,
-                              **self.table_kwargs)
-        if self._right:
-            first = next(iter(self._right.values()))
-            if fp.table.N != first.table.N or fp._delta != first._delta:
-                raise InputError("the family's node tables differ in their Fourier grids: the nodes must share "
-                                 "one (x, phi) grid")
+                              refine_from=first, **self.table_kwargs)
+        if first is not None and (fp.table.N != first.table.N or fp._delta != first._delta):
+            raise InputError("the family's node tables differ in their Fourier grids: the nodes must share "
+                             "one (x, phi) grid")
         self._right[j] = fp
         return fp, fp.build_time_s
 
@@ -293,8 +298,11 @@ class FamilyPerturbation:
         scale = np.cos(np.radians(inc)) * (r_p * ARCSEC) ** 2
         grid = None
         for j, _, w in terms:
-            g = self.node_table(j).table.grid(r_p, scale=scale * w)
-            grid = g if grid is None else grid + g
+            g = self.node_table(j).table.grid(r_p, scale=scale * w)  # a new array: safe to add into
+            if grid is None:
+                grid = g
+            else:
+                grid += g
         first = self.node_table(terms[0][0])
         return first.u2nu(grid, first.coords(r_p, phi_p, inc, PA))
 
@@ -331,6 +339,11 @@ class FamilyPerturbation:
         needed = sorted({j for m in np.geomspace(lo, hi, 8 * self.family.masses.size)
                          for j, _, _ in self.family.weights(float(m))})
         missing = [j for j in needed if j not in self._right and j not in self.tables]
+        if missing and not self._right:
+            # the heaviest node, whose step the others start from, here: the workers inherit its
+            # table and radial integrals
+            self.node_table(self.family.masses.size - 1)
+            missing = [j for j in missing if j not in self._right]
         if processes > 1 and len(missing) > 1:
             t0 = time.perf_counter()
             with forked_map(self._built_right_table, processes) as build:
