@@ -10,7 +10,7 @@ sampled one by one (today's discrete run), same walkers and steps.
 ``--node-tables VIS AXISYMMETRIC`` builds mass-node tables of two families on an observation and its
 frank fit (e.g. ``spiralbayes simulate``'s file and ``spiralbayes scan``'s ``axisymmetric.h5``) over the
 default ``r_p`` prior, and prints for each node its build time, its step against the heaviest node's,
-the error at the checked midpoints and, built afresh, at every midpoint.
+the error at the checked midpoints and, built afresh, at every midpoint (``--all-nodes``: all 49).
 
     python benchmarks/bench_mass.py --n-vis 100000
     python benchmarks/bench_mass.py --runs --skip-calls
@@ -62,6 +62,7 @@ def main() -> None:
     parser.add_argument("--walkers", type=int, default=28)
     parser.add_argument("--node-tables", nargs=2, metavar=("VIS", "AXISYMMETRIC"),
                         help="check the families' node tables on these data (several minutes)")
+    parser.add_argument("--all-nodes", action="store_true", help="with --node-tables: every node (~10 min)")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     if not args.skip_calls:
@@ -69,7 +70,7 @@ def main() -> None:
     if args.runs:
         runs(args)
     if args.node_tables:
-        node_tables(*args.node_tables)
+        node_tables(*args.node_tables, nodes=range(48) if args.all_nodes else (0, 8, 16, 24, 32, 40))
 
 
 def node_tables(vis_path: str, model_path: str, nodes=(0, 8, 16, 24, 32, 40)) -> None:
