@@ -75,11 +75,8 @@ def main() -> None:
 
 def node_tables(vis_path: str, model_path: str, nodes=(0, 8, 16, 24, 32, 40)) -> None:
     from spiralbayes.inference.posterior import Priors
-    from spiralbayes.inference.posterior.interpolation import _TableBuilder
-    from spiralbayes.inference.posterior.perturbation import _midpoint_errors
     from spiralbayes.io import load_visibilities
     from spiralbayes.templates.variants import variant_template
-    from spiralbayes.units import ARCSEC
 
     vis = load_visibilities(vis_path)
     model = AxisymmetricModel.load(model_path)
@@ -93,9 +90,7 @@ def node_tables(vis_path: str, model_path: str, nodes=(0, 8, 16, 24, 32, 40)) ->
             t = time.perf_counter()
             table = fp.node_table(j)
             built = time.perf_counter() - t
-            exact = _TableBuilder(table._cells, model.brightness, r_range[1] * ARCSEC * table.uv_max,
-                                  table._cells.x_max, 1.5)
-            every = _midpoint_errors(table, table.table, lambda radii, b=exact: [b(r) for r in radii])[1].max()
+            every = table.midpoint_errors()[1].max()
             rounds = [f"{r['max_midpoint_error']:.2e}" + (f" ({r['midpoints_checked']} checked)"
                                                           if "midpoints_checked" in r else "")
                       for r in table.table.refinement]

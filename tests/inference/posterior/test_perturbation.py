@@ -82,14 +82,6 @@ def test_interpolated_grid_is_the_stencils_weighted_sum(setup):
         np.testing.assert_allclose(table.grid_reference(r_p, 2.5), exact, rtol=0, atol=1e-6 * np.max(np.abs(exact)))
 
 
-def _every_midpoint_error(fp):
-    """The table's interpolation error at every node midpoint, from exact grids built afresh."""
-    from spiralbayes.inference.posterior.perturbation import _midpoint_errors
-
-    builder = _TableBuilder(fp._cells, profile, fp.r_range[1] * ARCSEC * fp.uv_max, fp._cells.x_max, 1.5)
-    return _midpoint_errors(fp, fp.table, lambda radii: [builder(r) for r in radii])[1].max()
-
-
 def test_a_table_started_from_another_templates_step_meets_the_tolerance_at_every_midpoint(setup):
     """``refine_from``: a second template on the same radial grid starts at the first table's step and
     checks only the first table's worst midpoints. Reference: the error measured afresh at every
@@ -106,7 +98,7 @@ def test_a_table_started_from_another_templates_step_meets_the_tolerance_at_ever
     assert same.table.step == first.table.step and len(same.table.refinement) == 1
     assert same.table.refinement[0]["midpoints_checked"] <= 8
     assert same.n_node_builds <= same.table.r_nodes.size + 8
-    assert _every_midpoint_error(same) <= 0.02
+    assert same.midpoint_errors()[1].max() <= 0.02
     strict = FastPerturbation(*args, lighter, R_RANGE, TRUE_GEOMETRY, rp_tolerance=0.0005, refine_from=first)
     assert strict.table.step < first.table.step and strict.table.refinement[0]["max_midpoint_error"] > 0.0005
-    assert _every_midpoint_error(strict) <= 0.0005
+    assert strict.midpoint_errors()[1].max() <= 0.0005

@@ -115,15 +115,20 @@ def _in_window(logpost, r_range):
     return lambda t: float(logpost(t)[0]) if r_range[0] <= t[0] <= r_range[1] else -np.inf
 
 
+def _family_scales(priors: Priors, null, mass_prior: MassPrior) -> tuple:
+    """:func:`.optimise._scales` with ``ln M_p`` (uniform over its prior) appended."""
+    g_sigma, scales6, max_var6 = _scales(priors, null)
+    lo, hi = mass_prior.ln_range
+    return g_sigma, np.append(scales6, (hi - lo) / np.sqrt(12.0)), np.append(max_var6, (hi - lo) ** 2 / 12.0)
+
+
 def _family_mode(logpost, members, scan, priors: Priors, null, mass_prior: MassPrior, r_range, name: str,
                  walkers=None) -> tuple:
     """The family's mode, Laplace covariance, ``ln p`` there and Laplace ``ln Z``: the template's six at the
     scan's best bank mass (start points and local optimisations in ``walkers``' pool where given), then
     ``ln M_p`` freed."""
-    g_sigma, scales6, max_var6 = _scales(priors, null)
+    g_sigma, scales, max_var = _family_scales(priors, null, mass_prior)
     lo, hi = mass_prior.ln_range
-    scales = np.append(scales6, (hi - lo) / np.sqrt(12.0))
-    max_var = np.append(max_var6, (hi - lo) ** 2 / 12.0)
     m0 = _start_mass(members, scan, mass_prior)
     start_name = next((t.name for t in members if float(t.mass) == m0), name)
     f7 = _in_window(logpost, r_range)
@@ -185,15 +190,15 @@ def sample_family(vis, base, null, family, members, priors: Priors, mass_prior: 
         fp.build_nodes(mass_prior.mass_range, processes=processes if sampling.pool is None else 1)
     likelihood = MassLikelihood(base, fp, amplitude_max=priors.amplitude_max)
     logpost = MassLogPosterior(likelihood, priors, mass_prior)
-    lo, hi = mass_prior.ln_range
-    scales = np.append(_scales(priors, null)[1], (hi - lo) / np.sqrt(12.0))
+    scales = _family_scales(priors, null, mass_prior)[1]
     _, _, rng_evidence, rng_amp = streams
     if mode == "laplace":
         theta_map, cov, lp_map, lnz_laplace = _family_mode(logpost, members, scan, priors, null, mass_prior, r_range,
                                                            name)
         draws = rng_evidence.multivariate_normal(theta_map, cov, size=400)
         draws[:, 1] = np.mod(draws[:, 1], 2 * np.pi)
-        draws = draws[[np.isfinite(_in_window(logpost, r_range)(d)) for d in draws]]
+        in_window = _in_window(logpost, r_range)
+        draws = draws[[np.isfinite(in_window(d)) for d in draws]]
         terms = np.array([likelihood.amplitude_terms(d) for d in draws]).reshape(-1, 3)
         samples = _with_amplitude(draws[:, :6], terms[:, 1], terms[:, 2], priors, rng_amp)
         samples = np.column_stack([samples, *mass_prior.planet_masses(np.exp(draws[:, 6]), float(family.h_ps[0]),
