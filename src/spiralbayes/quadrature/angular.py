@@ -31,6 +31,7 @@ class TemplateSpectrum:
         self._dft = np.fft.rfft(delta, axis=1)  # m = 0 .. n_t / 2; other m by periodicity and symmetry
         self.abs_mean = np.mean(np.abs(delta), axis=1)  # >= (1 / 2 pi) int |row| dphi
         self._rows: dict[int, np.ndarray] = {}
+        self._abs_means: dict[int, np.ndarray] = {}
 
     def coefficients(self, m_max: int) -> np.ndarray:
         """``c_m`` for ``m = 0 .. m_max`` (shape ``(n_x, m_max + 1)``); ``c_{-m} = conj(c_m)``."""
@@ -57,8 +58,10 @@ class TemplateSpectrum:
         return self._rows[n_phi]
 
     def rows_abs_mean(self, n_phi: int) -> np.ndarray:
-        """Mean ``|delta~|`` over the ``n_phi`` samples of each row (the L1 estimate of the series)."""
-        return np.mean(np.abs(self.rows(n_phi)), axis=1)
+        """Mean ``|delta~|`` over the ``n_phi`` samples of each row (the L1 estimate of the series; cached)."""
+        if n_phi not in self._abs_means:
+            self._abs_means[n_phi] = np.mean(np.abs(self.rows(n_phi)), axis=1)
+        return self._abs_means[n_phi]
 
 
 # --- angular rule -----------------------------------------------------------------------------------

@@ -20,11 +20,16 @@ def test_node_grids_hold_the_rules_exact_transform(setup):
     angle = rng.uniform(0, TWO_PI, 400)
     sigma = np.stack([radius * np.cos(angle), radius * np.sin(angle)], -1)
     for r_p in (R_RANGE[0], 0.4):
-        series = ducc0.nufft.u2nu(grid=builder(r_p).astype(complex), coord=TWO_PI * builder.delta * sigma,
-                                  forward=False, epsilon=1e-12, nthreads=1)
         exact = ducc0.nufft.experimental.nu2nu(points_in=cells.fluxes(profile, r_p), coord_in=TWO_PI * cells.positions,
                                                coord_out=sigma, forward=False, epsilon=1e-12, nthreads=1)
-        assert np.max(np.abs(series - exact)) < 1e-6 * np.max(np.abs(exact))  # complex64 grids
+        # the single-precision build and the double-precision reference (both stored as complex64)
+        for grid in (builder(r_p), builder.reference(r_p)):
+            series = ducc0.nufft.u2nu(grid=grid.astype(complex), coord=TWO_PI * builder.delta * sigma,
+                                      forward=False, epsilon=1e-12, nthreads=1)
+            assert np.max(np.abs(series - exact)) < 1e-6 * np.max(np.abs(exact))
+        fast, reference = builder(r_p), builder.reference(r_p)
+        assert fast.dtype == np.complex64
+        assert np.linalg.norm(fast - reference) < 2e-6 * np.linalg.norm(reference)
 
 
 def test_mirror_template_shares_its_partners_table(setup):
