@@ -73,8 +73,8 @@ def test_node_grids_built_by_worker_processes_are_the_same_table(setup):
 
 
 def test_interpolated_grid_is_the_stencils_weighted_sum(setup):
-    """The table's one-pass product over the stencil's grids against the grid-by-grid sum (float64
-    reference), at radii near both ends and inside."""
+    """The table's one-pass product over the stencil's grids, also added into another radius's sum
+    (``out``), against the grid-by-grid sum (float64 reference), at radii near both ends and inside."""
     vis, template = setup["vis"], setup["template"]
     fp = FastPerturbation(vis.u, vis.v, vis.weights, profile, template, R_RANGE, TRUE_GEOMETRY, rp_tolerance=0.05)
     table = fp.table
@@ -85,6 +85,12 @@ def test_interpolated_grid_is_the_stencils_weighted_sum(setup):
         assert fast.dtype == np.complex64 and fast.shape == (table.N, table.N)
         np.testing.assert_allclose(fast, exact, rtol=0, atol=1e-6 * np.max(np.abs(exact)))
         np.testing.assert_allclose(table.grid_reference(r_p, 2.5), exact, rtol=0, atol=1e-6 * np.max(np.abs(exact)))
+        # added into a grid already holding another radius's sum (a family's mass nodes)
+        j0, v = table.stencil(0.5 * (R_RANGE[0] + r_p))
+        other = np.tensordot(v * -1.5, table.grids[j0:j0 + table.order].astype(complex), axes=1)
+        out = table.grid(0.5 * (R_RANGE[0] + r_p), scale=-1.5)
+        assert table.grid(r_p, scale=2.5, out=out) is out
+        np.testing.assert_allclose(out, exact + other, rtol=0, atol=2e-6 * np.max(np.abs(exact + other)))
 
 
 def test_a_table_started_from_another_templates_step_meets_the_tolerance_at_every_midpoint(setup):

@@ -255,18 +255,35 @@ class PerturbationTable:
                     w[j] *= (t - nodes[m]) / (nodes[j] - nodes[m])
         return i0, w
 
-    def grid(self, r_p: float, scale: float = 1.0) -> np.ndarray:
-        """Interpolated coefficients at ``r_p`` [arcsec], times ``scale`` (complex64).
+    def grid(self, r_p: float, scale: float = 1.0, out: np.ndarray | None = None) -> np.ndarray:
+        """Interpolated coefficients at ``r_p`` [arcsec], times ``scale`` (complex64), added into ``out``
+        when given (a C-contiguous complex64 ``(N, N)`` array; it is returned).
 
         The stencil's grids are consecutive in memory, so the weighted sum is one matrix-vector
         product over them read as float32 (a single pass over the grids; :meth:`grid_reference` is
-        the plain sum)."""
+        the plain sum). Adding into ``out`` lets a family sum its mass nodes without a temporary
+        grid per node."""
         i0, w = self.stencil(r_p)
         w = (w * scale).astype(np.float32)
         block = self.grids[i0:i0 + self.order]
         if block.dtype != np.complex64 or not block.flags.c_contiguous:
-            return self.grid_reference(r_p, scale)
-        return (w @ block.view(np.float32).reshape(self.order, -1)).view(np.complex64).reshape(block.shape[1:])
+            g = self.grid_reference(r_p, scale)
+            if out is None:
+                return g
+            out += g
+            return out
+        a = block.view(np.float32).reshape(self.order, -1)
+        if out is None:
+            return (w @ a).view(np.complex64).reshape(block.shape[1:])
+        if out.dtype != np.complex64 or not out.flags.c_contiguous or out.shape != block.shape[1:]:
+            raise InputError(f"out must be a C-contiguous complex64 array of shape {block.shape[1:]}")
+        from scipy.linalg.blas import sgemv
+
+        y = out.reshape(-1).view(np.float32)
+        summed = sgemv(1.0, a.T, w, beta=1.0, y=y, overwrite_y=True)  # y += a.T @ w, in place
+        if not np.shares_memory(summed, y):
+            y[:] = summed
+        return out
 
     def grid_reference(self, r_p: float, scale: float = 1.0) -> np.ndarray:
         """:meth:`grid` as the stencil's weighted sum, grid by grid."""

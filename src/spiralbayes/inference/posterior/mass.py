@@ -296,14 +296,10 @@ class FamilyPerturbation:
         """``cos i P_hat`` at the data [Jy] for the template at ``mass`` [M_th] (no phase-centre factor)."""
         terms = self.family.weights(float(mass))
         scale = np.cos(np.radians(inc)) * (r_p * ARCSEC) ** 2
-        grid = None
-        for j, _, w in terms:
-            g = self.node_table(j).table.grid(r_p, scale=scale * w)  # a new array: safe to add into
-            if grid is None:
-                grid = g
-            else:
-                grid += g
         first = self.node_table(terms[0][0])
+        grid = first.table.grid(r_p, scale=scale * terms[0][2])  # a new array: safe to add into
+        for j, _, w in terms[1:]:
+            self.node_table(j).table.grid(r_p, scale=scale * w, out=grid)
         return first.u2nu(grid, first.coords(r_p, phi_p, inc, PA))
 
     def exact_template(self, mass: float):
