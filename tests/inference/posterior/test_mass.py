@@ -270,8 +270,9 @@ def test_node_tables_sharing_radial_integrals_are_the_standalone_tables(case):
 
 def test_node_tables_built_by_worker_processes_are_the_lazily_built_tables(case):
     """``build_nodes(processes=2)`` builds a family's missing node tables in forked workers before a
-    chain: the tables (reference: each node built in this process on first use) bit for bit, and the
-    family's perturbation the same at a mass between the nodes."""
+    chain, their grids written to memory shared with this process: the tables (reference: each node
+    built in this process on first use) bit for bit, and the family's perturbation the same at a mass
+    between the nodes."""
     vis, model = case
     family = family_of(make_template(1.0, 0.3, 0.0, "R", **GRID), (0.2, 1.5), n_masses=5)
     args = (vis.u, vis.v, vis.weights, model.brightness, family, R_RANGE, TRUE_GEOMETRY)
@@ -282,6 +283,9 @@ def test_node_tables_built_by_worker_processes_are_the_lazily_built_tables(case)
         np.testing.assert_array_equal(pooled.node_table(j).table.grids, lazy.node_table(j).table.grids)
         np.testing.assert_array_equal(pooled.node_table(j).table.r_nodes, lazy.node_table(j).table.r_nodes)
         assert pooled._build_s[j] > 0  # the workers' build times are kept
+    # the workers' nodes (all but the heaviest, built here first) arrived in one shared block, not pickled
+    assert len({id(pooled.node_table(j).table.grids.base) for j in range(4)}) == 1
+    assert pooled.node_table(4).table.grids.base is not pooled.node_table(0).table.grids.base
     at = (0.35, 2.0, 40.0, 70.0, 0.7)
     np.testing.assert_array_equal(pooled.disc_frame(*at), lazy.disc_frame(*at))
     left = FamilyPerturbation(vis.u, vis.v, vis.weights, model.brightness, family_of(
