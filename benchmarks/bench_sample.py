@@ -27,6 +27,12 @@ bank and of the single-morphology compromise bank, on the same set-up, and print
 
     python benchmarks/bench_sample.py --skip-likelihood --skip-build --bank
 
+``--mass`` runs the default posterior on the ``--converge`` set-up twice, one after the other: for the
+planet's template alone and with ``mass="continuous"`` for its family (49 mass nodes over 0.1-3 M_th),
+and prints the wall times, their ratio (target <= 1.5) and the planet mass:
+
+    python benchmarks/bench_sample.py --skip-likelihood --skip-build --mass
+
 ``--walker-pools`` times one ensemble step's log posteriors serially, with two walker threads (the
 default where workers cannot be forked) and with two worker processes (the default on Linux), and
 prints the ratios:
@@ -305,6 +311,34 @@ def bench_bank(args) -> dict:
     return {**record, "wall_ratio": ratio}
 
 
+def bench_mass(args) -> dict:
+    """The default posterior for one template against its continuous-mass family, on the same data."""
+    from spiralbayes.inference.posterior.sampler import sample_posterior
+
+    vis, model, template = fiducial(Path(args.out))
+    priors = Priors.default(model, widths={"dRA": 0.02, "dDec": 0.02})
+    out, record = Path(args.out), {}
+    print(f"\nfiducial posterior (frank fitted 3 deg off), {template.name}: one template against its family "
+          f"({args.walkers} walkers, {args.processes} processes):")
+    for mode in ("bank", "continuous"):
+        t0 = time.perf_counter()
+        result = sample_posterior(vis, model, [template], priors=priors, run_name=f"bench_mass_{mode}",
+                                  chains_dir=out / "chains", n_walkers=args.walkers, max_steps=args.max_steps,
+                                  processes=args.processes, convergence="warn", progress=False, mass=mode,
+                                  seed=args.seed)
+        wall = time.perf_counter() - t0
+        d = result.runs[0].diagnostics
+        post = result.mass_posterior()
+        mass = post["mth"] if post else None
+        shown = (f"; M_p {mass['median']:.2f} M_th (95 %: {mass['lo95']:.2f}-{mass['hi95']:.2f})" if mass else "")
+        print(f"  mass = {mode!r:13s} wall {wall / 60:.1f} min, {d['n_steps']} steps (largest tau "
+              f"{max(d['tau'].values()):.1f}){shown} (load average {os.getloadavg()[0]:.1f})")
+        record[mode] = {"wall_s": wall, "n_steps": d["n_steps"], "tau": d["tau"], "mass_posterior": mass}
+    ratio = record["continuous"]["wall_s"] / record["bank"]["wall_s"]
+    print(f"  family / one template: wall time {ratio:.2f} (target <= 1.5)")
+    return {**record, "wall_ratio": ratio}
+
+
 def bench_walker_pools(args) -> dict:
     """Wall time of one ensemble step's log posteriors (``--walkers`` positions around the planet), serial
     against walker threads and worker processes (the default on Linux), on the synthetic disc."""
@@ -361,6 +395,8 @@ def main(argv=None):
     parser.add_argument("--bank", action="store_true",
                         help="the default posterior on the default (robust) bank against the compromise bank")
     parser.add_argument("--skip-likelihood", action="store_true", help="skip the likelihood timings")
+    parser.add_argument("--mass", action="store_true",
+                        help="the default posterior for one template against its continuous-mass family")
     parser.add_argument("--walker-pools", action="store_true",
                         help="one ensemble step serial, with 2 walker threads and 2 processes (the default on Linux)")
     parser.add_argument("--pool-repeat", type=int, default=10)
@@ -379,6 +415,8 @@ def main(argv=None):
         record["planet_free"] = bench_planet_free(args)
     if args.bank:
         record["bank"] = bench_bank(args)
+    if args.mass:
+        record["mass"] = bench_mass(args)
     if args.walker_pools:
         record["walker_pools"] = bench_walker_pools(args)
     with open(Path(args.out) / "bench_sample.json", "w") as f:

@@ -18,10 +18,10 @@ it is multiplied by a smooth radial window ``W`` (1 to 1e-8 inside ``sigma_max``
 (spacing ``Delta = 1 / (2 oversample sigma_max)``, ``N ~ 100-200`` per side):
 ``T(sigma) = sum_k g_k exp(2 pi i sigma . x_k)``. The coefficients ``g_k`` of each node come from
 one type-1 NUFFT of the quadrature (ducc0 ``nu2u``, single precision, ``epsilon = 1e-6``) and one
-FFT; each likelihood call combines four node grids and evaluates the series at the data with one type-2 NUFFT (ducc0
-``u2nu``, single precision, ``epsilon = 1e-5``) — about 3-4 ms for 1e5 visibilities, against
-10-90 ms for the direct type-3 transform of the ~2e5-1e6 quadrature cells. Node spacing in
-``r_p`` is refined until the interpolation error at the midpoints between nodes changes
+FFT; each likelihood call combines four node grids and evaluates the series at the data with one
+type-2 NUFFT (ducc0 ``u2nu``, single precision, ``epsilon = 1e-5``) — about 3-4 ms for 1e5
+visibilities, against 10-90 ms for the direct type-3 transform of the ~2e5-1e6 quadrature cells.
+Node spacing in ``r_p`` is refined until the interpolation error at the midpoints between nodes changes
 ``chi2`` by less than ``rp_tolerance`` (data-weighted norm ``sqrt(sum w |dV|^2)``).
 
 Cheap nodes: the rule's rings carry only the azimuths the baselines need
@@ -311,8 +311,8 @@ class _TableBuilder:
 
     Both transforms run in single precision (:data:`BUILD_EPSILON`): the grids are stored as complex64
     and each likelihood call evaluates them with a single-precision type-2 NUFFT at ``epsilon = 1e-5``,
-    so the build's ~1e-6 relative error (L2 over a grid, against a double-precision ``1e-9`` build on
-    the fiducial observation) stays a tenth of the call's, at half the build's cost.
+    so the build's error (6e-7 in L2 over a grid against a double-precision ``1e-9`` build on the
+    demo observation; requested 1e-6) stays a tenth of what the call is allowed, at half the cost.
     """
 
     def __init__(self, cells: _Cells, profile, sigma_max: float, x_max: float, oversample: float):
