@@ -43,6 +43,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg.blas import sgemv
 
 from ...exceptions import InputError
 from ...geometry import DiscGeometry
@@ -277,8 +278,6 @@ class PerturbationTable:
             return (w @ a).view(np.complex64).reshape(block.shape[1:])
         if out.dtype != np.complex64 or not out.flags.c_contiguous or out.shape != block.shape[1:]:
             raise InputError(f"out must be a C-contiguous complex64 array of shape {block.shape[1:]}")
-        from scipy.linalg.blas import sgemv
-
         y = out.reshape(-1).view(np.float32)
         summed = sgemv(1.0, a.T, w, beta=1.0, y=y, overwrite_y=True)  # y += a.T @ w, in place
         if not np.shares_memory(summed, y):
