@@ -264,6 +264,9 @@ class PerturbationTable:
         product over them read as float32 (a single pass over the grids; :meth:`grid_reference` is
         the plain sum). Adding into ``out`` lets a family sum its mass nodes without a temporary
         grid per node."""
+        if out is not None and (out.dtype != np.complex64 or not out.flags.c_contiguous
+                                or out.shape != self.grids.shape[1:]):
+            raise InputError(f"out must be a C-contiguous complex64 array of shape {self.grids.shape[1:]}")
         i0, w = self.stencil(r_p)
         w = (w * scale).astype(np.float32)
         block = self.grids[i0:i0 + self.order]
@@ -276,8 +279,6 @@ class PerturbationTable:
         a = block.view(np.float32).reshape(self.order, -1)
         if out is None:
             return (w @ a).view(np.complex64).reshape(block.shape[1:])
-        if out.dtype != np.complex64 or not out.flags.c_contiguous or out.shape != block.shape[1:]:
-            raise InputError(f"out must be a C-contiguous complex64 array of shape {block.shape[1:]}")
         y = out.reshape(-1).view(np.float32)
         summed = sgemv(1.0, a.T, w, beta=1.0, y=y, overwrite_y=True)  # y += a.T @ w, in place
         if not np.shares_memory(summed, y):
