@@ -4,8 +4,8 @@ Reference: the generator's own template at 0.5 and 2 M_th (made directly, not by
 interpolation), planted with the exact type-3 transform into the weak observation's disc (1500
 baselines, the planet alone at chi2 = 400). The run knows the family's four bank masses (0.1, 0.3, 1,
 3 M_th) and samples M_p log-uniform on 0.1-3 M_th with the amplitude free on [0, 2]. Measured: 0.5 M_th
-gives 0.40 (95 %: 0.32-0.84), 2 M_th gives 2.13 (95 %: 1.38-2.62) — the free amplitude trades
-against the mass (A = 1.35 at 0.40 M_th), which is why the intervals span a factor of 2-3.
+gives 0.39 (95 %: 0.31-0.84), 2 M_th gives 2.11 (95 %: 1.34-2.59) — the free amplitude trades
+against the mass (A = 1.37 at 0.39 M_th), which is why the intervals span a factor of 2-3.
 About 90 s per mass on 2 cores.
 """
 

@@ -28,7 +28,7 @@ from .conditional import PARAMETER_LABELS, PARAMETER_NAMES, SpiralLikelihood, ge
 from .interpolation import AxisymmetricTable, PerturbationTable
 from .perturbation import CHECK_MARGIN, CHECKED_MIDPOINTS, FastPerturbation
 from .priors import DEFAULT_WIDTHS, GEOMETRY_NAMES, N_DIM, Priors
-from .moves import WrappedDEMove, default_moves
+from .moves import DEFAULT_MOVES, EnsembleGaussianMove, WrappedDEMove, default_moves
 from .diagnostics import TAU_FACTOR, arviz_diagnostics, chain_inference_data, convergence_diagnostics
 from .results import MASS_SAMPLE_NAMES, SAMPLE_NAMES, NullRun, PosteriorResult, TemplateRun, wrap_phi
 from .chains import CHAIN_KIND, ChainBackend, ChainState, ChainStore
@@ -98,9 +98,11 @@ __all__ = [
     "ChainStore",
     "CONVERGENCE_POLICIES",
     "DEFAULT_AMPLITUDE_MAX",
+    "DEFAULT_MOVES",
     "DEFAULT_WIDTHS",
     "CHECKED_MIDPOINTS",
     "CHECK_MARGIN",
+    "EnsembleGaussianMove",
     "FastPerturbation",
     "GEOMETRY_NAMES",
     "GaussianGeometry",

@@ -23,8 +23,9 @@ Procedure (:func:`sample_posterior`):
    peak instead). Without a scan every template is sampled.
 3. **Each sampled template** gets its likelihood tables (mirror templates share their partner's), its
    mode (started from the no-planet geometry and the scan's best instances,
-   :func:`.optimise.find_map`), then a chain. emcee samples ``(r_p, phi_p, inc, PA, dRA, dDec)``; ``phi_p`` lives on the
-   circle (:class:`.moves.WrappedDEMove`), ``A`` is integrated out of the target and drawn
+   :func:`.optimise.find_map`), then a chain. emcee samples ``(r_p, phi_p, inc, PA, dRA, dDec)`` with
+   differential evolution and normal proposals fitted to the ensemble (:func:`.moves.default_moves`);
+   ``phi_p`` lives on the circle. ``A`` is integrated out of the target and drawn
    exactly for every stored sample from its conditional posterior (the amplitude terms are
    emcee "blobs"). The evidence: importance sampling with a defensive mixture, cross-checked by
    Laplace and Savage–Dickey (:mod:`.evidence`).
@@ -96,6 +97,7 @@ from .likelihood import MarginalSpiralLikelihood, ProfileMarginal
 from .optimise import _scales, find_map, fit_null_geometry
 from .family_run import family_metadata, family_name, sample_family, scan_peak
 from .mass import MassPrior, group_families
+from .moves import DEFAULT_MOVES
 from .perturbation import FastPerturbation
 from .priors import N_DIM, Priors
 from .results import NullRun, PosteriorResult, TemplateRun, _with_amplitude, wrap_phi
@@ -410,7 +412,7 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
               "model_hash": _model_hash(axisymmetric, profile_prior), "priors": priors.to_dict(), "seed": int(seed),
               "likelihood_kwargs": likelihood_kwargs, "spiralbayes": __version__}
     run_settings = {"inputs": {**common, "n_walkers": int(n_walkers), "evidence_draws": int(evidence_draws),
-                               "moves": "wrapped DE, joint and block moves" if moves is None else repr(moves)},
+                               "moves": DEFAULT_MOVES if moves is None else repr(moves)},
                     "sampling": s, "progress": progress, "likelihood_kwargs": likelihood_kwargs}
     _set_mpi_rank(pool)
     overall = _Stages(len(hypotheses) - len(on_grid) + 1 + bool(on_grid), progress)
