@@ -5,7 +5,7 @@
 # β = 10, right-handed, at 50 au and 140 pc), frank, a scan of the family's bank templates, then the
 # posterior with `mass="continuous"`: M_p is sampled (log-uniform on 0.1–3 M_th) with the planet's
 # position and the disc geometry, and reported in M_th and M_Jup (M_* = 0.8 ± 0.08 M_sun).
-# Run with `python examples/mass_posterior_demo.py` (5.2 minutes measured on 2 cores).
+# Run with `python examples/mass_posterior_demo.py` (4.3 minutes measured on 2 cores).
 
 # %%
 import os
