@@ -153,10 +153,9 @@ class EnsembleGaussianMove(RedBlueMove):
         """Log density of the proposal at ``points`` (up to the constant shared by every point): the
         normal summed over whole turns of the periodic coordinates."""
         z = points - centre - mean
-        if not self.angles.size:
-            return -0.5 * np.sum(np.linalg.solve(chol, z.T) ** 2, axis=0)
         z[:, self.angles] = wrap_angle(z[:, self.angles])
         # turns out to 38 standard deviations: the terms left out are below double precision
+        # (without periodic coordinates the product has one term, the normal itself)
         sd = np.sqrt(np.sum(chol[self.angles] ** 2, axis=1))
         turns = [np.arange(-k, k + 1) for k in np.ceil(38 * sd / TWO_PI).astype(int) + 1]
         terms = []
