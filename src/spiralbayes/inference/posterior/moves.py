@@ -15,7 +15,7 @@ positions, independently of where they are, from a normal distribution with the 
 covariance of the complementary half of the ensemble, and accept them with the independence
 sampler's Metropolis–Hastings ratio ``pi(x') q(x) / (pi(x) q(x'))``. The proposal depends only on
 the complementary walkers, so emcee's red–blue split keeps the ensemble's target invariant (the
-argument of emcee's ``KDEMove`` and of kombine, Farr & Farr 2015, arXiv:1309.7709, whose proposal
+argument of emcee's ``KDEMove`` and of B. Farr and W. M. Farr's kombine sampler, whose proposal
 is a clustered kernel density estimate where this one is a single normal). Where the posterior is
 close to normal — the planet's position and the geometry around a detected planet — an accepted
 proposal is an independent draw, so the chain decorrelates in a few steps whatever the dimension;
