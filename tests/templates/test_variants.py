@@ -21,6 +21,7 @@ from spiralbayes.templates.variants import (
     DEFAULT_VARIANTS,
     VARIANTS,
     blob_template,
+    coorbital_template,
     variant_template,
 )
 from tests.templates import fidelity as F
@@ -48,6 +49,37 @@ def test_a_variant_is_scale_times_the_generator_plus_the_near_planet_peak_and_th
     # the peak sits at the planet: its largest |delta| lies within one H_p of (x, phi) = (1, 0)
     i, j = np.unravel_index(np.argmax(np.abs(blob.delta)), blob.delta.shape)
     assert abs(blob.x[i] - 1) < 0.07 and min(blob.phi[j], 2 * np.pi - blob.phi[j]) < 0.07
+
+
+@pytest.mark.parametrize("tau0", [0.1, 0.3, 1.0, 3.0])
+@pytest.mark.parametrize("mass", [0.3, 1.0, 3.0])
+def test_the_coorbital_block_is_the_linearised_isothermal_slab(mass, tau0):
+    """Reference: an isothermal slab's brightness ``∝ 1 − exp(−τ)``, so a small ``δΣ/Σ`` changes it by
+    ``δ = τ / (exp τ − 1) δΣ/Σ`` with ``τ = τ0 Σ(x)/Σ_0(r_p)`` (the generator's gapped profile):
+    the band ``−exp(−(x − 1)²/2w²) sin φ`` dimmed where the disc is thick."""
+    from spiralbayes.templates.wake import WakeSettings, gap_profile
+
+    d = coorbital_template(mass, tau0, 0.0, "R", h_p=0.07, width=1.0, **SMALL)
+    st = WakeSettings(h_p=0.07, **SMALL)
+    tau = tau0 * d.x ** -st.sigma_slope * gap_profile(d.x, mass, st)
+    expected = (tau / np.expm1(tau) * np.exp(-0.5 * ((d.x - 1.0) / 0.07) ** 2))[:, None] * -np.sin(d.phi)[None, :]
+    # the block is a central difference with a step of 1e-3 in δΣ/Σ: its error is of order 1e-6
+    assert np.max(np.abs(d.delta - expected)) < 1e-5 * np.max(np.abs(expected))
+    assert d.provenance["width_Hp"] == 1.0 and d.name.startswith("coorbital_")
+
+
+def test_the_coorbital_block_alone_does_not_tell_the_hands_apart():
+    """Dust piles up behind the planet, so the block is handed (L is R mirrored: ``+ sin φ``), but
+    the left-handed block half a turn on is the right-handed one: only arms can tell the hands apart."""
+    right = coorbital_template(1.0, 0.3, 0.0, "R", h_p=0.07, **SMALL)
+    left = coorbital_template(1.0, 0.3, 0.0, "L", h_p=0.07, **SMALL)
+    np.testing.assert_allclose(left.delta, -right.delta, atol=1e-10)
+    half = right.phi.size // 2
+    np.testing.assert_allclose(np.roll(left.delta, half, axis=1), right.delta, atol=1e-10)
+    behind = (right.phi > np.pi + 0.01) & (right.phi < 2 * np.pi - 0.01)  # behind a planet moving towards +φ
+    ahead = (right.phi > 0.01) & (right.phi < np.pi - 0.01)
+    ring = np.argmin(np.abs(right.x - 1.0))
+    assert np.all(right.delta[ring, behind] > 0.01) and np.all(right.delta[ring, ahead] < -0.01)
 
 
 def test_variant_is_carried_by_names_metadata_mirror_and_families():

@@ -46,6 +46,7 @@ from .scan import (  # not ``scan``: that name is the subpackage
     gaussian_log_likelihood,
     grid_radii,
     level_radii,
+    pair_terms,
     perturbation_spectrum,
     power_all_phi,
     profile_and_model_vis,

@@ -57,8 +57,8 @@ from .radiative import template_from_perturbation
 from .template import SpiralTemplate, template_name, validate_hand
 from .wake import PAPER_BETAS, PAPER_MASSES, PAPER_TAUS, WakeSettings, gap_profile
 
-__all__ = ["DEFAULT_VARIANTS", "VARIANTS", "Variant", "blob_template", "broad_template", "default_bank", "get_variant",
-           "variant_bank", "variant_grid", "variant_template"]
+__all__ = ["DEFAULT_VARIANTS", "VARIANTS", "Variant", "blob_template", "broad_template", "coorbital_template",
+           "default_bank", "get_variant", "variant_bank", "variant_grid", "variant_template"]
 
 log = logging.getLogger(__name__)
 
@@ -206,6 +206,43 @@ def _blob_delta(tau0: float, mass: float, h_p: float, width: float, settings: Wa
     out = np.asarray(t.delta, dtype=float) / eps
     out.setflags(write=False)
     return out
+
+
+@functools.lru_cache(maxsize=64)
+def _coorbital_delta(tau0: float, mass: float, h_p: float, width: float, settings: WakeSettings) -> np.ndarray:
+    x, phi = settings.grid()
+    band = np.exp(-0.5 * ((x - 1.0) / (width * h_p)) ** 2)[:, None] * -np.sin(phi)[None, :]
+    sig_ax = x**-settings.sigma_slope * (gap_profile(x, mass, settings) if settings.gap else 1.0)
+
+    def brightness_delta(step: float) -> np.ndarray:
+        t = template_from_perturbation(x, phi, step * band, tau0, sigma_axisym=sig_ax, h_p=h_p,
+                                       flaring=settings.flaring, sigma_slope=settings.sigma_slope,
+                                       wavelength=settings.wavelength, mstar=settings.mstar,
+                                       r_p_au=settings.r_p_au, mu=settings.mu, store_brightness=False)
+        return np.asarray(t.delta, dtype=float)
+
+    eps = 1e-3  # a central difference: δ per unit δΣ/Σ, odd in φ like the band (no second-order term)
+    out = (brightness_delta(eps) - brightness_delta(-eps)) / (2 * eps)
+    out -= out.mean(axis=1, keepdims=True)  # an m = 1 pattern: nothing for the axisymmetric model to absorb
+    out.setflags(write=False)
+    return out
+
+
+def coorbital_template(mass: float, tau0: float, beta: float, hand: str = "R", *, h_p: float = 0.07,
+                       width: float = 1.0, **options) -> SpiralTemplate:
+    """The co-orbital dust block ``D`` alone: ``δΣ/Σ = -exp(-(x - 1)²/2w²) sin Δφ`` with
+    ``w = width H_p``, dust piled up behind the planet and depleted ahead of it (hand R: the planet
+    moves towards +φ), through the same radiative transfer as the near-planet peak (δ per unit
+    δΣ/Σ; module docstring)."""
+    st = WakeSettings(h_p=h_p, **options)
+    x, phi = st.grid()
+    delta = _coorbital_delta(float(tau0), float(mass), float(h_p), float(width), st)
+    t = SpiralTemplate(x=x, phi=phi, delta=np.array(delta), mass=float(mass), tau0=float(tau0), beta=float(beta),
+                       h_p=float(h_p), flaring=st.flaring, wavelength=st.wavelength, hand="R",
+                       name=template_name(mass, tau0, beta, "R", prefix="coorbital", h_p=h_p),
+                       provenance={"generator": "spiralbayes.templates.variants.coorbital_template",
+                                   "width_Hp": width})
+    return t if validate_hand(hand) == "R" else t.mirror()
 
 
 def blob_template(mass: float, tau0: float, beta: float, hand: str = "R", *, h_p: float = 0.07,

@@ -5,7 +5,7 @@
 * :mod:`.engine` — one template at every position (:class:`ScanContext`, :class:`EngineSettings`);
 * :mod:`.uv_levels` — polar uv grids for the power term;
 * :mod:`.building_blocks` — morphology variants ``s T + a B`` scanned through their generator
-  templates and near-planet peaks;
+  templates and near-planet peaks, and the cross power of any two templates;
 * :mod:`.accuracy` — the self-check against exact sums and the tolerance rule;
 * :mod:`.statistics` — χ², the Gaussian likelihood, ΔBIC.
 """
@@ -33,7 +33,7 @@ from .engine import (
     with_residual,
 )
 from .accuracy import CHECK_AZIMUTHS, EXACT_EPSILON, TOLERANCE, check_terms, exact_terms, warn_if_inaccurate
-from .building_blocks import VariantGroup, building_block_groups, scan_group
+from .building_blocks import VariantGroup, building_block_groups, pair_terms, scan_group
 from .run import ScanPeak, ScanResult, default_rp_grid, resume_key, scan
 
 __all__ = [
@@ -62,6 +62,7 @@ __all__ = [
     "fitted_amplitude",
     "gaussian_log_likelihood",
     "level_radii",
+    "pair_terms",
     "perturbation_spectrum",
     "grid_radii",
     "power_all_phi",

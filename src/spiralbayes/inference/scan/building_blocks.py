@@ -50,6 +50,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..._threads import blas_threads
+from ...exceptions import InputError
 from ...quadrature import ProductQuadrature, TemplateSpectrum
 from ...templates.template import SpiralTemplate
 from ...templates.variants import Variant
@@ -63,7 +64,7 @@ from .engine import (
 )
 from .uv_levels import power_all_phi
 
-__all__ = ["VariantGroup", "scan_group", "building_block_groups"]
+__all__ = ["VariantGroup", "building_block_groups", "pair_terms", "scan_group"]
 
 log = logging.getLogger(__name__)
 
@@ -283,6 +284,40 @@ def _cross_power(context: ScanContext, quad, a: _Block, b: _Block) -> np.ndarray
         x, y = a.transform, b.transform
         return ci2 * ((x.real * y.real + x.imag * y.imag) @ context.weights)
     return ci2 * power_all_phi(context.level(quad), a.transform, context.n_phi_p, other=b.transform)
+
+
+def pair_terms(context: ScanContext, first, second) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                               np.ndarray]:
+    """Scan terms of two templates on one grid and their cross power, at every planet position.
+
+    The weighted inner products of a two-block linear model ``ΔV = a ΔV_1 + b ΔV_2`` over the
+    context's ``r_p`` × ``phi_p`` grid, from the blocks' transforms as the variant scan computes
+    ``s T + a B``: the best free amplitudes at a position are the 2 × 2 solve of these numbers.
+
+    Parameters
+    ----------
+    context : ScanContext
+    first, second : SpiralTemplate
+        Two templates on the same ``(x, phi)`` grid (so that they share the quadrature).
+
+    Returns
+    -------
+    cross_1, power_1, cross_2, power_2, power_12 : ndarray, shape (n_rp, n_phi_p)
+        ``Re Σ w R conj ΔV_i`` (R the residual), ``Σ w |ΔV_i|²`` and ``Re Σ w ΔV_1 conj ΔV_2`` [the
+        scan's units: weights × Jy²].
+    """
+    if _grid_key(first) != _grid_key(second):
+        raise InputError(f"pair_terms: {getattr(first, 'name', 'first')!r} and {getattr(second, 'name', 'second')!r} "
+                         "are on different (x, phi) grids; build both with the same grid settings")
+    shape = (context.r_p.size, context.n_phi_p)
+    out = [np.empty(shape) for _ in range(5)]
+    with blas_threads(1):
+        for i, r_p in enumerate(context.r_p):
+            quad = context.quadrature(first, r_p)
+            a, b = _blocks(context, quad, [TemplateSpectrum(first), TemplateSpectrum(second)])
+            for arr, value in zip(out, (a.cross, a.power, b.cross, b.power, _cross_power(context, quad, a, b))):
+                arr[i] = value
+    return tuple(out)
 
 
 def scan_group(context: ScanContext, group) -> dict[int, TemplateTerms]:
