@@ -18,6 +18,11 @@ linear combination of two building blocks on the generator's grid:
   block of this width lifts the span's mean correlation with the 30 FARGO3D maps from 0.82 to 0.87
   (``T`` and ``B`` alone; 0.86 for twice the width, 0.84 for a narrower profile).
 
+A fourth block, the **co-orbital dust band** ``D`` (:func:`coorbital_template`: dust piled up behind
+the planet along its orbit and missing ahead of it, as the library's St 0.03–0.1 dust runs show),
+is in no built-in variant: its amplitude spans two decades across Stokes numbers and disc ages
+(docs/verdict.md, "The block in the scan").
+
 A variant's δ is ``(M_p/M_th)^scale_slope (scale T + broad W) + blob (M_p/M_th)^blob_slope B``. Templates
 enter the visibilities linearly, so these are exactly the spirals the scan sees; the constants were
 fitted with ``tools/fit_variants.py`` by least squares of the noise-free visibilities (the fiducial
