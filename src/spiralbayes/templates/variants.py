@@ -31,8 +31,10 @@ in each variant's ``fitted_to``, with the two powers chosen on a grid, then shru
 that the variant's amplitude fit to each of those maps is at least ``1 / margin`` (a variant that
 carries less power than the spiral it stands for cannot exclude it). **Hydrodynamics is the
 reference** (docs/limits.md §4d): ``hydro`` is fitted to every finished FARGO3D reference run (the two runs of
-``fargo3d_isothermal.h5`` and the library's ``role = library`` runs: isothermal gas at H/r 0.07 and
-0.10, β = 10 against the β = 10 generator, gas + dust), at every τ0 they were reduced for; wakeflow
+``fargo3d_isothermal.h5`` and the library's ``role = library`` runs: isothermal gas at H/r 0.05, 0.07 and
+0.10, β = 10 against the β = 10 generator, gas + dust at St 0.03; the St 0.01 and 0.1 dust run set and
+the ``physics`` run set are held out, as leave-one-source-out sources of their own), at every τ0 they
+were reduced for; wakeflow
 is a second witness with its own variant. The references are ``tests/data/references/``
 (tools/README.md); the fit and the acceptance are in docs/templates.md ("Morphology variants") and
 docs/limits.md §4d.
