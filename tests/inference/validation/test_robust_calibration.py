@@ -86,7 +86,7 @@ def test_limit_machinery_with_variants_held_out_source(label, tau0):
 BETWEEN_H_CASES = [("fargo3dlib:h0.08_mu2", 0.3, (0.07, 0.10)), ("fargo3dlib:h0.08_mu2", 3.0, (0.07, 0.10)),
                    ("fargo3dlib:h0.06_mu0.5", 0.3, (0.05, 0.07)),
                    pytest.param("fargo3dlib:h0.06_mu0.5", 3.0, (0.05, 0.07), marks=pytest.mark.xfail(
-                       strict=True, reason="wrongly excluded in 21 of 100 realisations (0 of 100 with limit "
+                       strict=True, reason="wrongly excluded in 22 of 100 realisations (0 of 100 with limit "
                        "families at its own H/r 0.06): the bank's aspect ratios miss the arms between them "
                        "(docs/limits.md 4d)"))]
 
