@@ -31,11 +31,12 @@ from spiralbayes.inference.validation.sbc import CalibrationSetup, run_dataset, 
 from spiralbayes.simulate import preset_coverage  # noqa: E402
 
 
-def report(records, setup, wall_s=None) -> None:
+def report(records, setup: dict, wall_s=None) -> None:
+    """The table of ``records``; ``setup`` is the run's ``setup.json`` (:func:`setup_dict`)."""
     s = summarise(records)
     n_p = sum(r["planet"] for r in records)
     print(f"\nsimulation-based calibration: {n_p} planet datasets, {len(records) - n_p} planet-free "
-          f"({setup.preset}, template {setup.template}, {setup.sampler})")
+          f"({setup.get('preset')}, template {setup.get('template')}, {setup.get('sampler')})")
     print(f"{'parameter':>9} | {'68 % coverage':>15} | {'95 % coverage':>15} | rank histogram (5 bins)")
     for name, row in s["parameters"].items():
         print(f"{name:>9} | {row['coverage68']:6.2f} +- {row['coverage68_err']:.2f}  | "
@@ -91,10 +92,18 @@ def main(argv=None):
                              mass=args.mass, n_mass_nodes=args.mass_nodes)
     path = out / "records.jsonl"
     records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
+    wanted = json.loads(json.dumps(setup_dict(setup)))  # as it reads back from the file
+    written = out / "setup.json"
     if args.report:
-        report(records, setup)
+        report(records, json.loads(written.read_text()) if written.exists() else wanted)
         return
-    (out / "setup.json").write_text(json.dumps(setup_dict(setup), indent=2))
+    if written.exists() and records:
+        before = json.loads(written.read_text())
+        changed = sorted(k for k in set(before) | set(wanted) if before.get(k) != wanted.get(k))
+        if changed:
+            raise SystemExit(f"{out} holds {len(records)} records of another set-up (differing: {changed}); "
+                             "give the options of that run to resume it, or a new --out")
+    written.write_text(json.dumps(wanted, indent=2))
     done = {(r["index"], r["planet"]) for r in records}
     coverage = preset_coverage(args.preset)
     template = setup.make_template()
@@ -111,7 +120,7 @@ def main(argv=None):
         records.append(record)
         with open(path, "a") as f:
             f.write(json.dumps(record) + "\n")
-    report(records, setup, time.perf_counter() - t0)
+    report(records, wanted, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":
