@@ -310,14 +310,14 @@ def pair_terms(context: ScanContext, first, second) -> tuple[np.ndarray, np.ndar
         raise InputError(f"pair_terms: {getattr(first, 'name', 'first')!r} and {getattr(second, 'name', 'second')!r} "
                          "are on different (x, phi) grids; build both with the same grid settings")
     shape = (context.r_p.size, context.n_phi_p)
-    out = [np.empty(shape) for _ in range(5)]
+    cross_1, power_1, cross_2, power_2, power_12 = (np.empty(shape) for _ in range(5))
     with blas_threads(1):
         for i, r_p in enumerate(context.r_p):
             quad = context.quadrature(first, r_p)
             a, b = _blocks(context, quad, [TemplateSpectrum(first), TemplateSpectrum(second)])
-            for arr, value in zip(out, (a.cross, a.power, b.cross, b.power, _cross_power(context, quad, a, b))):
-                arr[i] = value
-    return tuple(out)
+            cross_1[i], power_1[i], cross_2[i], power_2[i] = a.cross, a.power, b.cross, b.power
+            power_12[i] = _cross_power(context, quad, a, b)
+    return cross_1, power_1, cross_2, power_2, power_12
 
 
 def scan_group(context: ScanContext, group) -> dict[int, TemplateTerms]:
