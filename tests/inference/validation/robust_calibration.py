@@ -170,15 +170,32 @@ def loso_table(powers=(100.0, 400.0), n: int = 1000, seed: int = 0, taus=(0.3, 3
     return out
 
 
+def inner_template(template, half_width: float):
+    """``template`` with its arms kept within about ``half_width`` [r_p] of the orbit,
+    ``δ exp(−((x − 1)/half_width)⁴)``, as a morphology of its own (``<variant>_inner``): a limit
+    template whose outer arms, which wind by an angle ∝ 1/(H/r), cannot miss a planet between the
+    bank's aspect ratios (docs/limits.md §4d)."""
+    from dataclasses import replace
+
+    window = np.exp(-(((np.asarray(template.x, float) - 1.0) / half_width) ** 4))[:, None]
+    variant = f"{template.provenance.get('variant', 'compromise')}_inner"
+    return replace(template, delta=(np.asarray(template.delta, float) * window).astype(template.delta.dtype),
+                   brightness=None, name=f"inner_{template.name}",
+                   provenance={**template.provenance, "variant": variant, "inner_half_width": half_width})
+
+
 def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int, seed: int = 50,
-                       control: bool = False, hand: str = "R", h_ps: tuple | None = None, planted=None):
+                       control: bool = False, hand: str = "R", h_ps: tuple | None = None, planted=None,
+                       inner: float | None = None):
     """:func:`calibrate` in the fiducial set-up (``variant_fit``'s observation: 36k visibilities,
     beam 0.061″, planet at 50 au = 0.357″ = 5.9 beams, φ_p = 40° on the 90-azimuth grid) — resolved,
     unlike §4c's C-4 set-up, whose r_p = 0.3″ lies inside its 0.34″ beam (``compute_limits`` flags
     it "unresolved" unless told ``resolution=0``). The weights are scaled so that the compromise
     template of the true mass has ``Σ w |ΔV|² = power`` at the planet. ``h_ps``: the aspect ratios of
     the limit's families (default the case's own; the bank's neighbours for a run between them).
-    ``planted``: a template planted instead of the case's map (the case then gives mass, H/r and β)."""
+    ``planted``: a template planted instead of the case's map (the case then gives mass, H/r and β).
+    ``inner``: each variant's family also truncated to that half-width [r_p] (:func:`inner_template`),
+    a morphology of its own in the robust set."""
     from spiralbayes import DiscGeometry
     from spiralbayes.simulate import simulate_observation
 
@@ -193,7 +210,8 @@ def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int
         for h_p in (case.h_p,) if h_ps is None else h_ps:
             for m in neighbour_masses(case.mu):
                 right = variant_template(m, tau0, case.beta, "R", v, h_p=h_p)
-                fam += [right, right.mirror()] if hand == "both" else [right]
+                for t in (right,) if inner is None else (right, inner_template(right, inner)):
+                    fam += [t, t.mirror()] if hand == "both" else [t]
     bank = variant_template(case.mu, tau0, case.beta, "R", "compromise", h_p=case.h_p)
     ctx = ScanContext.build(vis0.standardised(), axisym, geometry, [r_p], 90)
     p0 = float(scan_template(ctx, bank)[1][0, 10])
@@ -246,8 +264,47 @@ def between_aspect_ratios(wakeflow_file=None, n: int = 100, taus=(0.3, 3.0)):
     return out
 
 
+def inner_families(half_width: float = 0.3, wakeflow_file=None, n: int = 100, tau0: float = 3.0):
+    """Wrong-exclusion rates and median limits with the shipped variants' families and with their
+    truncated copies beside them (``inner``), as JSON lines: the spirals between the bank's aspect
+    ratios of :func:`between_aspect_ratios` (families at the bank's neighbouring H/r) and planted maps
+    at the bank's H/r (the cost: how much weaker the limit gets); bank power 400."""
+    import json
+    from dataclasses import replace
+
+    shipped = loso_variants("physics")
+    cases = {c.label: c for c in F.physics_cases() + F.acceptance_cases()}
+    jobs = [(cases["fargo3dlib:h0.06_mu0.5"], (0.05, 0.07), None), (cases["fargo3dlib:h0.08_mu2"], (0.07, 0.10), None)]
+    if wakeflow_file is not None:
+        jobs += [(c, (0.05, 0.07) if c.h_p < 0.07 else (0.07, 0.10), None) for c in F.reference_cases([wakeflow_file])]
+    base = cases["fargo3dlib:h0.06_mu0.5"]
+    for v in ("hydro", "wakeflow"):
+        for mu in (0.3, 1.0, 3.0):
+            for h in (0.06, 0.085):
+                case = replace(base, source=f"{v}_variant", mu=mu, h_p=h, group=f"h{h:g}_mu{mu:g}")
+                jobs.append((case, (0.05, 0.07) if h < 0.07 else (0.07, 0.10), variant_template(mu, tau0, 0.0, "R", v,
+                                                                                                 h_p=h)))
+    jobs += [(cases[label], None, None) for label in (
+        "fargo3dlib:h0.05_mu1", "fargo3dlib:h0.07_mu1", "fargo3dlib:h0.10_mu1", "fargo3dlib:h0.07_mu0.3",
+        "fargo3dlib:h0.07_mu3", "fargo3dlib:h0.07_mu1_orbits500", "wakeflow:h0.05_mu0.3", "wakeflow:h0.07_mu1")]
+    out = []
+    for case, h_ps, planted in jobs:
+        for label, width in (("shipped", None), ("+inner", half_width)):
+            res = calibrate_fiducial(case, tau0, 400.0, shipped, n, h_ps=h_ps, planted=planted, inner=width)
+            m = np.asarray(res.m_lim, float)
+            row = dict(case=case.label, tau0=tau0, h_ps=None if h_ps is None else list(h_ps), families=label,
+                       rate=res.rate, limits=int(np.isfinite(m).sum()),
+                       median_m_lim=float(np.nanmedian(m)) if np.isfinite(m).any() else None)
+            print(json.dumps(row), flush=True)
+            out.append(row)
+    return out
+
+
 if __name__ == "__main__":
     import sys
 
-    between_aspect_ratios(sys.argv[1] if len(sys.argv) > 1 and sys.argv[1] else None,
-                          taus=tuple(float(t) for t in sys.argv[2:]) or (0.3, 3.0))
+    if len(sys.argv) > 1 and sys.argv[1] == "--inner":
+        inner_families(float(sys.argv[2]), sys.argv[3] if len(sys.argv) > 3 else None)
+    else:
+        between_aspect_ratios(sys.argv[1] if len(sys.argv) > 1 and sys.argv[1] else None,
+                              taus=tuple(float(t) for t in sys.argv[2:]) or (0.3, 3.0))
