@@ -34,6 +34,7 @@ from spiralbayes.io import load_visibilities, save_visibilities
 from spiralbayes.pipeline import run_scan
 from spiralbayes.simulate import GainErrors, simulate_observation
 from spiralbayes.templates import make_template
+from spiralbayes._provenance import atomic_path
 
 log = logging.getLogger("calibration_table")
 
@@ -151,7 +152,8 @@ def main(argv=None) -> None:
             for planet in {"both": (False, True), "no-planet": (False,), "planet": (True,)}[args.data]
             for rms in args.phase_rms for seed in args.seeds]
     (args.out / "table.md").write_text(markdown(rows))
-    (args.out / "rows.json").write_text(json.dumps(rows, indent=1))
+    with atomic_path(args.out / "rows.json") as tmp:
+        tmp.write_text(json.dumps(rows, indent=1))
     print(markdown(rows))
 
 

@@ -19,11 +19,11 @@ from __future__ import annotations
 import json
 import logging
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from tests.inference.detection import reference_detection as rd
+from spiralbayes._provenance import atomic_path
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +84,8 @@ def main(out: str = "reference_selfcal.json") -> None:
         for tau0 in rd.TAUS:
             rows.append(evaluate(case, tau0))
             print(json.dumps(rows[-1]), flush=True)
-            Path(out).write_text(json.dumps(rows, indent=1, default=float))
+            with atomic_path(out) as tmp:  # a run stopped mid-write keeps the rows it had
+                tmp.write_text(json.dumps(rows, indent=1, default=float))
     print(format_table(rows))
 
 

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from tests.inference.detection import planet_free
+from spiralbayes._provenance import atomic_path
 
 log = logging.getLogger(__name__)
 
@@ -172,7 +173,8 @@ def main(out: str = "false_alarms.json", n: str = str(N_PER_KIND), start: str = 
                 continue
             rows.append(evaluate(kind, seed))
             log.info("%s", {k: v for k, v in rows[-1].items() if k != "params"})
-            path.write_text(json.dumps(rows, indent=1, default=float))
+            with atomic_path(path) as tmp:  # a run stopped mid-write keeps the rows it had
+                tmp.write_text(json.dumps(rows, indent=1, default=float))
     print(format_table(rows))
 
 

@@ -21,9 +21,9 @@ import logging
 import sys
 import warnings
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
+from spiralbayes._provenance import atomic_path
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +94,8 @@ def main(out: str = "planet_free.json", frank: str = "") -> None:
     for seed in SEEDS:
         rows.append(evaluate(seed, frank=bool(frank)))
         log.info("%s", rows[-1])
-        Path(out).write_text(json.dumps(rows, indent=1, default=float))
+        with atomic_path(out) as tmp:  # a run stopped mid-write keeps the rows it had
+            tmp.write_text(json.dumps(rows, indent=1, default=float))
     largest = max(rows, key=lambda r: r["delta_bic"])
     print(f"{sum(r['detected'] for r in rows)} detections in {len(rows)} planet-free datasets; test 1 passed in "
           f"{sum(r['test1'] for r in rows)}, tests 1 and 2 in {sum(r['test1'] and r['test2'] for r in rows)}; "

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from tests.templates.fidelity import REF_DIR, Case, reference_cases, reference_template
+from spiralbayes._provenance import atomic_path
 
 log = logging.getLogger(__name__)
 
@@ -233,7 +234,8 @@ def main(out: str = "reference_detection.json", only: str = "", frank: str = "",
             with open(f"{out}.{case.source}_{case.group}_tau{tau0:g}.pkl", "wb") as f:
                 pickle.dump(keep, f)
             log.info("%s", {k: v for k, v in rows[-1].items() if k != "verdict"})
-            Path(out).write_text(json.dumps(rows, indent=1, default=float))
+            with atomic_path(out) as tmp:  # a run stopped mid-write keeps the rows it had
+                tmp.write_text(json.dumps(rows, indent=1, default=float))
     print(format_table(rows))
     req = [r for r in rows if required(r)]
     print(f"{sum(accepted(r) for r in req)}/{len(req)} required cases accepted; "
