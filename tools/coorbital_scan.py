@@ -51,29 +51,34 @@ def _offsets(result, i_rp: int, i_phi: int) -> tuple[int, float]:
     return int(i_rp - rd.N_RP // 2), round(float(dphi), 1)
 
 
-def measure(label: str, tau0: float, width: float = 1.0) -> dict:
-    case = next(c for c in rd.detection_cases() if c.label == label)
-    vis, axisym, geometry, own, bank, templates = rd.plant_and_scan(case, tau0)
-    ctx = ScanContext.build(vis.standardised(), axisym, geometry, np.asarray(bank.r_p), bank.phi_p.size,
+def block_scores(vis, axisym, geometry, result, templates, width: float = 1.0):
+    """Per template and planet position of ``result``: the block at its best amplitude added to the
+    template (Δχ²), the block alone (Δχ²), and that amplitude; and two views of ``result`` whose
+    fixed-amplitude Δχ² are "with the block" and "arms" (module docstring)."""
+    ctx = ScanContext.build(vis.standardised(), axisym, geometry, np.asarray(result.r_p), result.phi_p.size,
                             x_max=max(float(t.x[-1]) for t in templates))
-    plain, block, band = (np.empty_like(bank.cross) for _ in range(3))
-    amplitude = np.empty_like(bank.cross)
+    block, band, amplitude = (np.empty_like(result.cross) for _ in range(3))
     blocks: dict = {}
     for k, t in enumerate(templates):
         key = (t.mass, t.tau0, t.h_p, t.hand)
         if key not in blocks:
             blocks[key] = coorbital_template(t.mass, t.tau0, t.beta, t.hand, h_p=t.h_p, width=width)
         x_t, p_t, x_d, p_d, p_td = pair_terms(ctx, t, blocks[key])
-        plain[k] = 2 * x_t - p_t
         lift = np.maximum(x_d - p_td, 0.0)
-        block[k] = plain[k] + lift**2 / p_d
+        block[k] = 2 * x_t - p_t + lift**2 / p_d
         amplitude[k] = lift / p_d
         band[k] = np.maximum(x_d, 0.0) ** 2 / p_d
 
     def view(values):  # a ScanResult whose Δχ² (fixed amplitude, 2 cross − power) is ``values``
-        return replace(bank, cross=0.5 * (values + bank.power))
+        return replace(result, cross=0.5 * (values + result.power))
 
-    with_block, arms = view(block), view(block - band)
+    return block, band, amplitude, view(block), view(block - band)
+
+
+def measure(label: str, tau0: float, width: float = 1.0) -> dict:
+    case = next(c for c in rd.detection_cases() if c.label == label)
+    vis, axisym, geometry, own, bank, templates = rd.plant_and_scan(case, tau0)
+    block, band, amplitude, with_block, arms = block_scores(vis, axisym, geometry, bank, templates, width)
     extra = float(np.log(bank.n_data))  # the block's amplitude: one more parameter than the scan's six
     first = detect(bank)
     verdict = detect(with_block)
