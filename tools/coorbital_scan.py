@@ -21,6 +21,7 @@ on is the same band), and where ``A`` itself peaks. Usage (``PYTHONPATH=src:.``)
 
     python tools/coorbital_scan.py                      # the library's dust runs, τ0 0.3 and 3
     python tools/coorbital_scan.py fargo3dlib:h0.07_mu1@0.3 --width 1.0
+    python tools/coorbital_scan.py --false-alarms planet_free,lopsided,eccentric_ring,arc 15
 
 One JSON line per case, then a Markdown table.
 """
@@ -105,6 +106,41 @@ def measure(label: str, tau0: float, width: float = 1.0) -> dict:
     return out
 
 
+def false_alarm_probe(kinds, n: int, width: float = 1.0) -> list[dict]:
+    """The block on the false-alarm set's data (:mod:`tests.inference.detection.false_alarms`: its
+    24-template scan, ``n`` datasets of each kind): test 1 with the block (7 parameters) and test 2's
+    mirror ratio and localisation on the arms at the best instance with the block. ``flag``: all
+    three pass (a claim before test 3)."""
+    from spiralbayes.inference.scan.run import scan
+    from tests.inference.detection import false_alarms as fa, planet_free as pf
+
+    rows = []
+    for i in range(n):
+        for kind in kinds:
+            seed = fa.seeds(kind)[i]
+            vis, axisym, geometry, _ = fa.dataset(kind, seed)
+            templates = pf.bank_templates()
+            result = scan(vis, axisym, list(templates), geometry, r_p=pf.R_GRID, distance=pf.DISTANCE, progress=False)
+            block, band, amplitude, with_block, arms = block_scores(vis, axisym, geometry, result, templates, width)
+            b = with_block.best
+            k, i_rp, i_phi = b.template_index, b.i_rp, b.i_phi
+            delta_bic = float(block[k, i_rp, i_phi] - bic_threshold(result.n_data, 7))
+            ratio, area = handedness_ratio(arms, k, i_rp, i_phi), localisation(arms, k)
+            rows.append({"kind": kind, "seed": seed, "scan_delta_bic": round(detect(result).delta_bic, 1),
+                         "with_block_delta_bic": round(delta_bic, 1),
+                         "block_alone": round(float(band[k, i_rp, i_phi]), 1),
+                         "amplitude": round(float(amplitude[k, i_rp, i_phi]), 3),
+                         "arms_handedness_ratio": round(ratio, 3), "arms_localisation": round(area, 3),
+                         "flag": bool(delta_bic > 10 and ratio < 0.5 and area < 0.1)})
+            print(json.dumps(rows[-1]), flush=True)
+    for kind in kinds:
+        mine = [r for r in rows if r["kind"] == kind]
+        print(f"{kind}: {len(mine)} datasets, test 1 passed {sum(r['scan_delta_bic'] > 10 for r in mine)} without "
+              f"the block and {sum(r['with_block_delta_bic'] > 10 for r in mine)} with it, "
+              f"flagged {sum(r['flag'] for r in mine)}")
+    return rows
+
+
 def format_table(rows) -> str:
     head = ("| case | τ0 | own ΔBIC | scan: ΔBIC, best (Δr_p, Δφ_p), tests 1/2 "
             "| with block: ΔBIC, best (Δr_p, Δφ_p), c | block alone / arms at that place "
@@ -129,8 +165,14 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("cases", nargs="*", help="label@tau0 (default: the library's dust runs at τ0 0.3 and 3)")
     parser.add_argument("--width", type=float, default=1.0, help="the band's Gaussian width [H_p] (default 1)")
+    parser.add_argument("--false-alarms", nargs=2, metavar=("KINDS", "N"),
+                        help="instead: the false-alarm set's data, N datasets of each of KINDS (comma-separated, "
+                             "e.g. planet_free,lopsided,eccentric_ring,arc)")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
+    if args.false_alarms:
+        false_alarm_probe(args.false_alarms[0].split(","), int(args.false_alarms[1]), args.width)
+        return
     items = args.cases or [f"{c}@{t:g}" for c in DUST_CASES for t in rd.TAUS]
     rows = []
     for item in items:
