@@ -199,18 +199,24 @@ def get_variant(variant) -> Variant:
                          "or a templates.variants.Variant") from None
 
 
-@functools.lru_cache(maxsize=64)
-def _blob_delta(tau0: float, mass: float, h_p: float, width: float, settings: WakeSettings) -> np.ndarray:
+def _perturbed_delta(dsig: np.ndarray, tau0: float, mass: float, h_p: float, settings: WakeSettings) -> np.ndarray:
+    """δ of the generator's (gapped) disc perturbed by ``δΣ/Σ = dsig`` on ``settings.grid()``, through
+    its radiative transfer."""
     x, phi = settings.grid()
-    d2 = x[:, None] ** 2 + 1.0 - 2.0 * x[:, None] * np.cos(phi[None, :])
-    eps = 1e-3  # linearised: δ per unit peak δΣ/Σ
-    dsig = eps * np.exp(-0.5 * d2 / (width * h_p) ** 2)
     sig_ax = x**-settings.sigma_slope * (gap_profile(x, mass, settings) if settings.gap else 1.0)
     t = template_from_perturbation(x, phi, dsig, tau0, sigma_axisym=sig_ax, h_p=h_p, flaring=settings.flaring,
                                    sigma_slope=settings.sigma_slope, wavelength=settings.wavelength,
                                    mstar=settings.mstar, r_p_au=settings.r_p_au, mu=settings.mu,
                                    store_brightness=False)
-    out = np.asarray(t.delta, dtype=float) / eps
+    return np.asarray(t.delta, dtype=float)
+
+
+@functools.lru_cache(maxsize=64)
+def _blob_delta(tau0: float, mass: float, h_p: float, width: float, settings: WakeSettings) -> np.ndarray:
+    x, phi = settings.grid()
+    d2 = x[:, None] ** 2 + 1.0 - 2.0 * x[:, None] * np.cos(phi[None, :])
+    eps = 1e-3  # linearised: δ per unit peak δΣ/Σ
+    out = _perturbed_delta(eps * np.exp(-0.5 * d2 / (width * h_p) ** 2), tau0, mass, h_p, settings) / eps
     out.setflags(write=False)
     return out
 
@@ -219,20 +225,26 @@ def _blob_delta(tau0: float, mass: float, h_p: float, width: float, settings: Wa
 def _coorbital_delta(tau0: float, mass: float, h_p: float, width: float, settings: WakeSettings) -> np.ndarray:
     x, phi = settings.grid()
     band = np.exp(-0.5 * ((x - 1.0) / (width * h_p)) ** 2)[:, None] * -np.sin(phi)[None, :]
-    sig_ax = x**-settings.sigma_slope * (gap_profile(x, mass, settings) if settings.gap else 1.0)
-
-    def brightness_delta(step: float) -> np.ndarray:
-        t = template_from_perturbation(x, phi, step * band, tau0, sigma_axisym=sig_ax, h_p=h_p,
-                                       flaring=settings.flaring, sigma_slope=settings.sigma_slope,
-                                       wavelength=settings.wavelength, mstar=settings.mstar,
-                                       r_p_au=settings.r_p_au, mu=settings.mu, store_brightness=False)
-        return np.asarray(t.delta, dtype=float)
-
     eps = 1e-3  # a central difference: δ per unit δΣ/Σ, odd in φ like the band (no second-order term)
-    out = (brightness_delta(eps) - brightness_delta(-eps)) / (2 * eps)
+    out = (_perturbed_delta(eps * band, tau0, mass, h_p, settings)
+           - _perturbed_delta(-eps * band, tau0, mass, h_p, settings)) / (2 * eps)
     out -= out.mean(axis=1, keepdims=True)  # an m = 1 pattern: nothing for the axisymmetric model to absorb
     out.setflags(write=False)
     return out
+
+
+def _block_template(delta_of, prefix: str, mass: float, tau0: float, beta: float, hand: str, h_p: float,
+                    width: float, options: dict) -> SpiralTemplate:
+    """A building block as a template: ``delta_of(tau0, mass, h_p, width, settings)`` on the generator's
+    grid, right-handed, mirrored for ``hand = "L"``."""
+    st = WakeSettings(h_p=h_p, **options)
+    x, phi = st.grid()
+    delta = delta_of(float(tau0), float(mass), float(h_p), float(width), st)
+    t = SpiralTemplate(x=x, phi=phi, delta=np.array(delta), mass=float(mass), tau0=float(tau0), beta=float(beta),
+                       h_p=float(h_p), flaring=st.flaring, wavelength=st.wavelength, hand="R",
+                       name=template_name(mass, tau0, beta, "R", prefix=prefix, h_p=h_p),
+                       provenance={"generator": f"spiralbayes.templates.variants.{prefix}_template", "width_Hp": width})
+    return t if validate_hand(hand) == "R" else t.mirror()
 
 
 def coorbital_template(mass: float, tau0: float, beta: float, hand: str = "R", *, h_p: float = 0.07,
@@ -241,28 +253,13 @@ def coorbital_template(mass: float, tau0: float, beta: float, hand: str = "R", *
     ``w = width H_p``, dust piled up behind the planet and depleted ahead of it (hand R: the planet
     moves towards +φ), through the same radiative transfer as the near-planet peak (δ per unit
     δΣ/Σ; module docstring)."""
-    st = WakeSettings(h_p=h_p, **options)
-    x, phi = st.grid()
-    delta = _coorbital_delta(float(tau0), float(mass), float(h_p), float(width), st)
-    t = SpiralTemplate(x=x, phi=phi, delta=np.array(delta), mass=float(mass), tau0=float(tau0), beta=float(beta),
-                       h_p=float(h_p), flaring=st.flaring, wavelength=st.wavelength, hand="R",
-                       name=template_name(mass, tau0, beta, "R", prefix="coorbital", h_p=h_p),
-                       provenance={"generator": "spiralbayes.templates.variants.coorbital_template",
-                                   "width_Hp": width})
-    return t if validate_hand(hand) == "R" else t.mirror()
+    return _block_template(_coorbital_delta, "coorbital", mass, tau0, beta, hand, h_p, width, options)
 
 
 def blob_template(mass: float, tau0: float, beta: float, hand: str = "R", *, h_p: float = 0.07,
                   width: float = 0.5, **options) -> SpiralTemplate:
     """The near-planet peak ``B`` alone (δ per unit peak δΣ/Σ; module docstring)."""
-    st = WakeSettings(h_p=h_p, **options)
-    x, phi = st.grid()
-    delta = _blob_delta(float(tau0), float(mass), float(h_p), float(width), st)
-    t = SpiralTemplate(x=x, phi=phi, delta=np.array(delta), mass=float(mass), tau0=float(tau0), beta=float(beta),
-                       h_p=float(h_p), flaring=st.flaring, wavelength=st.wavelength, hand="R",
-                       name=template_name(mass, tau0, beta, "R", prefix="blob", h_p=h_p),
-                       provenance={"generator": "spiralbayes.templates.variants.blob_template", "width_Hp": width})
-    return t if validate_hand(hand) == "R" else t.mirror()
+    return _block_template(_blob_delta, "blob", mass, tau0, beta, hand, h_p, width, options)
 
 
 def broad_template(mass: float, tau0: float, beta: float, hand: str = "R", *, h_p: float = 0.07,
