@@ -35,13 +35,17 @@ from dataclasses import replace
 
 import numpy as np
 
-from spiralbayes.inference.detection import detect
+from spiralbayes.inference.detection import DetectionSettings, detect
 from spiralbayes.inference.detection.verdict import handedness_ratio, localisation
 from spiralbayes.inference.scan import ScanContext, bic_threshold, pair_terms
 from spiralbayes.templates.variants import coorbital_template
 from tests.inference.detection import reference_detection as rd
 
 log = logging.getLogger("coorbital_scan")
+
+SETTINGS = DetectionSettings()
+N_WITH_BLOCK = 7
+"""Parameters of a template with the block: the scan's six and the block's amplitude."""
 
 DUST_CASES = ("fargo3dlib:h0.07_mu1_st0.03", "fargo3dlib:h0.07_mu1_st0.01", "fargo3dlib:h0.07_mu1_st0.1",
               "fargo3dlib:h0.07_mu1_st0.1_orbits200", "fargo3dlib:h0.07_mu3_st0.01")
@@ -80,22 +84,22 @@ def measure(label: str, tau0: float, width: float = 1.0) -> dict:
     case = next(c for c in rd.detection_cases() if c.label == label)
     vis, axisym, geometry, own, bank, templates = rd.plant_and_scan(case, tau0)
     block, band, amplitude, with_block, arms = block_scores(vis, axisym, geometry, bank, templates, width)
-    extra = float(np.log(bank.n_data))  # the block's amplitude: one more parameter than the scan's six
     first = detect(bank)
     verdict = detect(with_block)
     best = with_block.best
     k, i, j = best.template_index, best.i_rp, best.i_phi
     a = arms.delta_chi2()
     top = np.unravel_index(int(np.argmax(a)), a.shape)
+    delta_bic = float(block[k, i, j] - bic_threshold(bank.n_data, N_WITH_BLOCK))
     out = {
         "case": label, "tau0": tau0, "width_Hp": width, "own_delta_bic": round(own.best.delta_bic, 1),
         "scan": {"delta_bic": round(first.delta_bic, 1), "template": bank.best.template,
                  "offset": _offsets(bank, bank.best.i_rp, bank.best.i_phi), "test1": first.test1_passed,
                  "test2": first.test2_passed},
-        "with_block": {"delta_bic": round(float(block[k, i, j] - bic_threshold(bank.n_data, 6) - extra), 1),
+        "with_block": {"delta_bic": round(delta_bic, 1),
                        "template": best.template, "offset": _offsets(bank, i, j),
                        "amplitude": round(float(amplitude[k, i, j]), 3), "block_alone": round(float(band[k, i, j]), 1),
-                       "arms": round(float(a[k, i, j]), 1), "test1": verdict.test1_passed,
+                       "arms": round(float(a[k, i, j]), 1), "test1": delta_bic > SETTINGS.bic_threshold_value,
                        "test2": verdict.test2_passed, "handedness_ratio": round(verdict.handedness_ratio, 3),
                        "localisation": round(verdict.localisation, 3),
                        "arms_handedness_ratio": round(handedness_ratio(arms, k, i, j), 3),
@@ -124,19 +128,21 @@ def false_alarm_probe(kinds, n: int, width: float = 1.0) -> list[dict]:
             block, band, amplitude, with_block, arms = block_scores(vis, axisym, geometry, result, templates, width)
             b = with_block.best
             k, i_rp, i_phi = b.template_index, b.i_rp, b.i_phi
-            delta_bic = float(block[k, i_rp, i_phi] - bic_threshold(result.n_data, 7))
+            delta_bic = float(block[k, i_rp, i_phi] - bic_threshold(result.n_data, N_WITH_BLOCK))
             ratio, area = handedness_ratio(arms, k, i_rp, i_phi), localisation(arms, k)
             rows.append({"kind": kind, "seed": seed, "scan_delta_bic": round(detect(result).delta_bic, 1),
                          "with_block_delta_bic": round(delta_bic, 1),
                          "block_alone": round(float(band[k, i_rp, i_phi]), 1),
                          "amplitude": round(float(amplitude[k, i_rp, i_phi]), 3),
                          "arms_handedness_ratio": round(ratio, 3), "arms_localisation": round(area, 3),
-                         "flag": bool(delta_bic > 10 and ratio < 0.5 and area < 0.1)})
+                         "flag": bool(delta_bic > SETTINGS.bic_threshold_value and ratio < SETTINGS.max_handedness_ratio
+                                      and area < SETTINGS.max_localisation)})
             print(json.dumps(rows[-1]), flush=True)
     for kind in kinds:
         mine = [r for r in rows if r["kind"] == kind]
-        print(f"{kind}: {len(mine)} datasets, test 1 passed {sum(r['scan_delta_bic'] > 10 for r in mine)} without "
-              f"the block and {sum(r['with_block_delta_bic'] > 10 for r in mine)} with it, "
+        passed = SETTINGS.bic_threshold_value
+        print(f"{kind}: {len(mine)} datasets, test 1 passed {sum(r['scan_delta_bic'] > passed for r in mine)} without "
+              f"the block and {sum(r['with_block_delta_bic'] > passed for r in mine)} with it, "
               f"flagged {sum(r['flag'] for r in mine)}")
     return rows
 
