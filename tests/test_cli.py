@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import json
 import warnings
 
@@ -346,3 +347,19 @@ def test_survey_with_failed_discs_exits_non_zero_after_writing_its_table(failed,
     out, err = capsys.readouterr()
     assert "| A | ok |" in out and str(table) in out  # the table is printed and listed either way
     assert ("Damaged" in err) == bool(failed)
+
+
+def test_the_tests_line_names_test_3_as_the_verdict_decided_it():
+    from spiralbayes.cli import tests_line
+    from tests.inference.detection.test_mass_range import scan_of
+
+    from spiralbayes.inference.detection import detect
+
+    plain = detect(scan_of())
+    assert tests_line(plain).endswith("test 3 (competing asymmetry models): not run")
+    assert "test 1 (Delta BIC > 10): pass; test 2 (handedness and compactness): pass" in tests_line(plain)
+    nested = replace(plain, test3_method="nested", nested_delta_bic=12.34, nested_threshold=30.0, test3_passed=False)
+    assert tests_line(nested).endswith("(a spiral in addition to the best competing asymmetry models, nested "
+                                       "Delta BIC 12.3 > 30): fail")
+    single = replace(plain, test3_method="best model", test3_passed=True, alternative_threshold=10.0)
+    assert tests_line(single).endswith("(the spiral beats the best competing asymmetry model by > 10): pass")

@@ -89,6 +89,15 @@ def test_the_verdict_reports_the_range_in_its_sentence_and_json():
     assert d["mass_range"]["mth"] == [0.1, 1.0] and len(d["mass_range"]["members"]) == 3
 
 
+def test_a_band_holding_one_template_names_it_alone():
+    v = detect(scan_of(), mstar=0.8, mass_band=0.0)
+    text = v.summary()
+    assert v.mass_range["mth"] == [1.0, 1.0] and len(v.mass_range["members"]) == 1
+    assert "Planet mass 1 M_th" in text and "the only template of that hand within Delta BIC 0" in text
+    assert "morphology compromise; H/r 0.07, its own M_th)." in text
+    assert "range of the 1 templates" not in text and "not a single template's label" not in text
+
+
 def test_no_mass_is_quoted_without_a_significant_spiral():
     weak = [(v, m, h, hand, 0.5 * SIX_LN_N, where) for v, m, h, hand, _, where in TEMPLATES]
     v = detect(scan_of(weak))

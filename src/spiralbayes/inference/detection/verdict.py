@@ -359,9 +359,12 @@ class Verdict(ResultMixin):
         mth = _span(m["mth"], "M_th")
         mjup = "" if m["mjup"] is None else f" ({_span(m['mjup'], 'M_Jup', '.2g')} for M_* = {m['mstar']:g} M_sun)"
         h = "/".join(f"{h:g}" for h in m["h_ps"])
-        return (f" Planet mass {mth}{mjup}: the range of the {len(m['members'])} templates of that hand within "
-                f"Delta BIC {m['band']:g} of the best near its position (morphologies {', '.join(m['variants'])}; "
-                f"H/r {h}, each its own M_th), not a single template's label.")
+        near = f"of that hand within Delta BIC {m['band']:g} of the best near its position"
+        if len(m["members"]) == 1:
+            return (f" Planet mass {mth}{mjup}: the only template {near} (morphology {m['variants'][0]}; "
+                    f"H/r {h}, its own M_th).")
+        return (f" Planet mass {mth}{mjup}: the range of the {len(m['members'])} templates {near} (morphologies "
+                f"{', '.join(m['variants'])}; H/r {h}, each its own M_th), not a single template's label.")
 
     def _test3_sentence(self) -> str:
         if self.test3_passed is None:
