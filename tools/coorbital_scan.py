@@ -17,10 +17,12 @@ planet position,
 For the best instance with the block it prints tests 1 and 2 of
 :func:`spiralbayes.inference.detection.detect` on the scores with the block, the handedness ratio and
 localisation recomputed on ``A`` (the mirror template with its own block, whose band half a turn
-on is the same band), and where ``A`` itself peaks. Usage (``PYTHONPATH=src:.``)::
+on is the same band), and where ``A`` itself peaks; with ``--nested``, test 3 with the block
+(:func:`nested_with_block`). Usage (``PYTHONPATH=src:.``)::
 
     python tools/coorbital_scan.py                      # the library's dust runs, τ0 0.3 and 3
     python tools/coorbital_scan.py fargo3dlib:h0.07_mu1@0.3 --width 1.0
+    python tools/coorbital_scan.py fargo3dlib:h0.07_mu1_st0.03@0.3 --nested   # and test 3 with the block
     python tools/coorbital_scan.py --false-alarms planet_free,lopsided,eccentric_ring,arc 15
 
 One JSON line per case, then a Markdown table.
@@ -80,7 +82,7 @@ def block_scores(vis, axisym, geometry, result, templates, width: float = 1.0):
     return block, band, amplitude, view(block), view(block - band)
 
 
-def measure(label: str, tau0: float, width: float = 1.0) -> dict:
+def measure(label: str, tau0: float, width: float = 1.0, nested: bool = False) -> dict:
     case = next(c for c in rd.detection_cases() if c.label == label)
     vis, axisym, geometry, own, bank, templates = rd.plant_and_scan(case, tau0)
     block, band, amplitude, with_block, arms = block_scores(vis, axisym, geometry, bank, templates, width)
@@ -107,7 +109,31 @@ def measure(label: str, tau0: float, width: float = 1.0) -> dict:
         "arms_peak": {"template": templates[top[0]].name, "offset": _offsets(bank, top[1], top[2]),
                       "arms": round(float(a[top]), 1)},
     }
+    if nested:
+        out["nested_with_block"] = nested_with_block(vis, axisym, geometry, with_block, templates, k,
+                                                     float(amplitude[k, i, j]), width)
     return out
+
+
+def nested_with_block(vis, axisym, geometry, with_block, templates, k: int, c: float, width: float) -> list[dict]:
+    """Test 3 (the nested test of :mod:`spiralbayes.inference.detection.nested`) with the spiral
+    ``T + c D``: the best template with its block at the scanned amplitude ``c`` (held fixed in the
+    joint fits), scored with one more parameter than the nested test counts for ``T``."""
+    from spiralbayes.inference.detection import fit_alternatives
+    from spiralbayes.inference.detection.nested import nested_test
+
+    t = templates[k]
+    d = coorbital_template(t.mass, t.tau0, t.beta, t.hand, h_p=t.h_p, width=width)
+    joined = list(templates)
+    joined[k] = replace(t, delta=t.delta + c * d.delta, name=f"{t.name}+{c:.3g}D")
+    alternatives = fit_alternatives(vis, axisym, geometry, progress=False)
+    fits = nested_test(with_block, vis, axisym, joined, alternatives, geometry, template=k,
+                       n_alternatives=SETTINGS.nested_alternatives)
+    ln_n = float(np.log(with_block.n_data))
+    return [{"versus": f.alternative, "delta_bic": round(f.delta_bic - ln_n, 1),
+             "joint": round(f.delta_bic_joint - ln_n, 1), "spiral_alone": round(f.delta_bic_spiral_alone - ln_n, 1),
+             "hypothesis": f.hypothesis, "dphi_deg": round(f.phi_p_deg - rd.PHI_P_DEG, 1),
+             "passes": f.delta_bic - ln_n > SETTINGS.nested_threshold} for f in fits]
 
 
 def false_alarm_probe(kinds, n: int, width: float = 1.0) -> list[dict]:
@@ -171,6 +197,8 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("cases", nargs="*", help="label@tau0 (default: the library's dust runs at τ0 0.3 and 3)")
     parser.add_argument("--width", type=float, default=1.0, help="the band's Gaussian width [H_p] (default 1)")
+    parser.add_argument("--nested", action="store_true",
+                        help="also test 3 (nested, the best two alternatives) with the block at its scanned amplitude")
     parser.add_argument("--false-alarms", nargs=2, metavar=("KINDS", "N"),
                         help="instead: the false-alarm set's data, N datasets of each of KINDS (comma-separated, "
                              "e.g. planet_free,lopsided,eccentric_ring,arc)")
@@ -183,7 +211,7 @@ def main(argv=None) -> None:
     rows = []
     for item in items:
         label, tau0 = item.split("@")
-        rows.append(measure(label, float(tau0), args.width))
+        rows.append(measure(label, float(tau0), args.width, args.nested))
         print(json.dumps(rows[-1]), flush=True)
     print(format_table(rows))
 
