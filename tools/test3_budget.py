@@ -1,9 +1,9 @@
 """What test 3 asks of a template where a real planet loses it (a measurement, not a feature).
 
 For each case, planted and judged as the reference-detection table does
-(:func:`tests.inference.detection.reference_detection.evaluate`, the true disc as the axisymmetric
-model), it takes the alternative that binds the nested test (the smallest statistic) and splits
-test 3's statistic into Δχ² against the axisymmetric model:
+(:func:`tests.inference.detection.reference_detection.evaluate`: the map in a disc holding its run's
+gap, that disc as the axisymmetric model), it takes the alternative that binds the nested test (the
+smallest statistic) and splits test 3's statistic into Δχ² against the axisymmetric model:
 
 * ``A``: the alternative alone (``k_alt`` parameters);
 * ``S_bank``: the verdict's spiral alone at its nested position and hypothesis;
@@ -26,7 +26,7 @@ template the squared correlation). A case written ``label@tau0@witness`` adds an
 map, ``witness``, scored as a template the same way (e.g. the 200-orbit run for the 500-orbit
 planet: a hydrodynamic template of another run). Usage (``PYTHONPATH=src:.``)::
 
-    python tools/test3_budget.py                           # the four arm cases lost to an arc at τ0 0.3
+    python tools/test3_budget.py                           # the three planets lost at test 3 alone
     python tools/test3_budget.py wakeflow:h0.05_mu1@0.3
     python tools/test3_budget.py --span                    # and the blocks' span at the truth
     python tools/test3_budget.py --span fargo3dlib:h0.07_mu1_orbits500@0.3@fargo3dlib:h0.07_mu1_orbits200
@@ -47,8 +47,8 @@ from spiralbayes.inference.scan.statistics import N_SPIRAL_PARAMETERS
 from tests.inference.detection import reference_detection as rd
 from tests.templates.fidelity import PHYSICS_FILE
 
-ARM_CASES = ("wakeflow:h0.05_mu1@0.3", "fargo3dlib:h0.07_mu1_orbits200@0.3", "fargo3dlib:h0.07_mu1_orbits500@0.3",
-             "fargo3dlib:h0.07_mu1_nu1e-04@0.3")
+TEST3_CASES = ("wakeflow:h0.05_mu1@0.3", "fargo3dlib:h0.07_mu1_nu1e-04@0.3", "fargo3dlib:h0.05_mu3@0.3")
+"""The planets of the reference-detection table placed right and lost at test 3 alone."""
 
 
 def _case(label: str):
@@ -166,14 +166,14 @@ def format_table(rows) -> str:
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("cases", nargs="*", help="label@tau0, or label@tau0@witness with --span (default: the four "
-                                                 "arm cases lost to an arc at τ0 0.3)")
+    parser.add_argument("cases", nargs="*", help="label@tau0, or label@tau0@witness with --span (default: the three "
+                                                 "cases lost at test 3 alone)")
     parser.add_argument("--span", action="store_true",
                         help="instead: the variants' blocks at the truth with free coefficients (module docstring)")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
     rows = []
-    for item in args.cases or ARM_CASES:
+    for item in args.cases or TEST3_CASES:
         label, tau0, *witness = item.split("@")
         if witness and not args.span:
             parser.error(f"{item}: a witness map (label@tau0@witness) needs --span")
