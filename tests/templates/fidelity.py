@@ -27,6 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from spiralbayes.simulate import DiscModel
+from spiralbayes.simulate.discs import planck
+
 VERSION1 = dict(profile_amp=0.5, profile_width=0.8, lobe_offset=-2.5, lobe_width=1.5, alpha=1e-3,
                 secondary=True, near_planet=0.0)
 """Generator options that reproduce GENERATOR_VERSION 1 (before the issue-9 calibration), but
@@ -233,8 +236,50 @@ def _coverage():
     return get_preset("fiducial").coverage()
 
 
+def run_gap(case: Case) -> tuple[np.ndarray, np.ndarray]:
+    """The run's azimuthally averaged surface density over its initial one, ``(x, ⟨Σ⟩_φ / Σ_init)``
+    (the planet's gap and its edges; 1 where the reference file marks the map invalid). FARGO3D:
+    ``sigma_axisym`` (normalised at r_p) times ``x^p_sigma``; wakeflow: ``1 + mean_offset``."""
+    import h5py
+
+    with h5py.File(REF_DIR / case.file, "r") as f:
+        g = f[case.group]
+        x = f["x"][()]
+        valid = g["valid"][()].astype(bool) if "valid" in g else np.ones(x.size, bool)
+        if "sigma_axisym" in g:
+            ratio = g["sigma_axisym"][()] * x ** float(g.attrs.get("p_sigma", 1.0))
+        elif "mean_offset" in g:
+            ratio = 1.0 + g["mean_offset"][()]
+        else:
+            ratio = np.ones(x.size)
+    return x, np.where(valid, ratio, 1.0)
+
+
+@dataclass(frozen=True)
+class GappedDisc(DiscModel):
+    """The planting's power-law disc with a planet's gap: the optical depth times ``⟨Σ⟩_φ / Σ_init``
+    at ``r / r_p`` (:func:`run_gap`), through the same isothermal transfer, so that the planted
+    perturbation ``I (1 + δ)`` multiplies the run's own azimuthal mean, as δ = I/⟨I⟩_φ − 1 is defined."""
+
+    gap_x: tuple = ()
+    gap_ratio: tuple = ()
+
+    def _unscaled(self, r, wavelength):
+        r_au = np.asarray(r, dtype=float) * self.distance
+        inside = (r_au >= self.r_in) & (r_au <= self.r_out)
+        x = np.where(inside, r_au, self.r_ref) / self.r_ref
+        tau = self.tau_ref * x**-self.sigma_index * np.interp(x, self.gap_x, self.gap_ratio, left=1.0, right=1.0)
+        return np.where(inside, planck(self.T_ref * x**-self.temperature_index, wavelength) * -np.expm1(-tau), 0.0)
+
+
+def gapped_disc(case: Case, tau0: float) -> GappedDisc:
+    """The fiducial power-law disc (τ0 at the planet's 50 au) holding ``case``'s gap."""
+    x, ratio = run_gap(case)
+    return GappedDisc(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0, gap_x=tuple(x), gap_ratio=tuple(ratio))
+
+
 def observe_and_scan(ref, templates, tau0: float, inc: float, phi_p_deg: float, seed: int = 1, n_rp: int = 5,
-                     noise: bool = False, frank: bool = False):
+                     noise: bool = False, frank: bool = False, disc=None):
     """Inject ``ref`` at (50 au, ``phi_p_deg``) into the fiducial observation and scan
     ``[ref] + templates`` over ``n_rp`` radii centred on the truth (paper step) and 90 azimuths.
 
@@ -242,19 +287,21 @@ def observe_and_scan(ref, templates, tau0: float, inc: float, phi_p_deg: float, 
     set-up's) and the scan uses the true axisymmetric disc: the Δχ² are then their expectation
     values and measure the template alone, not one noise draw nor frank's residuals (at the
     fiducial sensitivity a 0.1 M_th reference gives Δχ² ≈ 2, where either would dominate).
-    ``noise=True`` adds the preset's noise (``seed``); ``frank=True`` fits frank instead.
+    ``noise=True`` adds the preset's noise (``seed``); ``frank=True`` fits frank instead. ``disc``:
+    the disc planted and modelled (default: the power-law disc with τ0 at the planet; a
+    :class:`GappedDisc` holds the reference run's own gap).
 
     Returns ``(result, i_rp, i_phi)``: the :class:`ScanResult` and the truth's grid indices.
     """
     from spiralbayes import DiscGeometry
     from spiralbayes.axisymmetric import fit_axisymmetric
     from spiralbayes.inference.scan.run import scan
-    from spiralbayes.simulate import DiscModel, simulate_observation
+    from spiralbayes.simulate import simulate_observation
 
     geometry = DiscGeometry(inc, 60.0)
     r_true = R_P_AU / DISTANCE
     phi_true = np.radians(phi_p_deg)
-    disc = DiscModel(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0)
+    disc = DiscModel(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0) if disc is None else disc
     cov = _coverage()
     vis = simulate_observation("fiducial", disc, geometry, ref, r_p=r_true, phi_p=phi_true, seed=seed,
                                coverage=cov, add_noise=noise)

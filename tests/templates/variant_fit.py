@@ -23,9 +23,10 @@ INC, PHI_P_DEG = 30.0, 40.0
 Z95 = 1.6448536269514722
 
 
-def truth_products(planted, templates, tau0: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(cross, power)`` of ``templates`` at the truth with ``planted`` in the data (noise-free)."""
-    result, i, j = F.observe_and_scan(planted, list(templates), tau0, INC, PHI_P_DEG, n_rp=1)
+def truth_products(planted, templates, tau0: float, disc=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(cross, power)`` of ``templates`` at the truth with ``planted`` in the data (noise-free;
+    ``disc``: :func:`tests.templates.fidelity.observe_and_scan`'s)."""
+    result, i, j = F.observe_and_scan(planted, list(templates), tau0, INC, PHI_P_DEG, n_rp=1, disc=disc)
     return np.asarray(result.cross[:, i, j], float), np.asarray(result.power[:, i, j], float)
 
 
@@ -43,34 +44,39 @@ synthetic observation, 50 au, beam 0.061″) and ``c4`` (docs/limits.md §4c: AL
 differently — a variant fitted on one only need not cover a reference on the other."""
 
 
-def _disk_key(case: F.Case, tau0: float, setup: str = "fiducial") -> str:
+def _disk_key(case: F.Case, tau0: float, setup: str = "fiducial", gap: bool = False) -> str:
     from spiralbayes.templates.wake import GENERATOR_VERSION, WakeSettings
 
     st = (F.REF_DIR / case.file).stat()
     key = (f"{case.file}:{case.group}|{tau0:g}|{st.st_size}-{st.st_mtime_ns}|v{GENERATOR_VERSION}"
            f"|{WakeSettings().key()}"
            f"|blocks{GRAM_VERSION}|W{BROAD_WIDTH:g}")
-    return key if setup == "fiducial" else f"{key}|{setup}"
+    key = key if setup == "fiducial" else f"{key}|{setup}"
+    return f"{key}|gap" if gap else key
 
 
-def case_gram(case: F.Case, tau0: float, setup: str = "fiducial") -> dict:
+def case_gram(case: F.Case, tau0: float, setup: str = "fiducial", gap: bool = False) -> dict:
     """:func:`compute_case_gram`, kept on disk (the user cache dir, ``reference_grams.json``; the key
-    holds the reference file's size and time and the generator's version and settings)."""
+    holds the reference file's size and time and the generator's version and settings). ``gap``
+    (fiducial set-up only): the map planted in a disc holding its run's gap
+    (:class:`tests.templates.fidelity.GappedDisc`), as the detection table plants it."""
+    if gap and setup != "fiducial":
+        raise ValueError("gap=True is measured in the fiducial set-up only")
     import hashlib
     import json
     import os
 
     from spiralbayes.templates.bank import default_cache_dir
 
-    key = hashlib.sha256(_disk_key(case, tau0, setup).encode()).hexdigest()[:24]
+    key = hashlib.sha256(_disk_key(case, tau0, setup, gap).encode()).hexdigest()[:24]
     path = default_cache_dir() / "reference_grams.json"
     try:
         store = json.loads(path.read_text())
     except (OSError, ValueError):
         store = {}
     if key not in store:
-        compute = compute_case_gram if setup == "fiducial" else compute_c4_gram
-        store[key] = {k: float(v) for k, v in compute(case, tau0).items()}
+        gram = compute_case_gram(case, tau0, gap) if setup == "fiducial" else compute_c4_gram(case, tau0)
+        store[key] = {k: float(v) for k, v in gram.items()}
         with contextlib.suppress(OSError, ValueError):  # re-read: another process may have added entries meanwhile
             store = {**json.loads(path.read_text()), key: store[key]}
         try:
@@ -84,10 +90,11 @@ def case_gram(case: F.Case, tau0: float, setup: str = "fiducial") -> dict:
 
 
 @cache
-def compute_case_gram(case: F.Case, tau0: float) -> dict:
+def compute_case_gram(case: F.Case, tau0: float, gap: bool = False) -> dict:
     """Inner products of the reference S with the variant blocks (T: the compromise template of the
     case's mass, h_p and β — the β = 10 generator for the β = 10 runs; B: the near-planet blob; W:
-    the broad wake), and among them: keys ``SS, ST, SB, SW, TT, BB, WW, TB, TW, BW``."""
+    the broad wake), and among them: keys ``SS, ST, SB, SW, TT, BB, WW, TB, TW, BW``. ``gap``: in a
+    disc holding the run's gap (:class:`tests.templates.fidelity.GappedDisc`)."""
     from spiralbayes.templates.variants import blob_template, broad_template, variant_template
 
     beta = case.beta
@@ -95,9 +102,10 @@ def compute_case_gram(case: F.Case, tau0: float) -> dict:
     t = variant_template(case.mu, tau0, beta, "R", "compromise", h_p=case.h_p)
     b = blob_template(case.mu, tau0, beta, "R", h_p=case.h_p)
     w = broad_template(case.mu, tau0, beta, "R", h_p=case.h_p, width=BROAD_WIDTH)
-    cross, power = truth_products(ref, [t, b, w], tau0)
-    tx, _ = truth_products(t, [b, w], tau0)
-    bw, _ = truth_products(b, [w], tau0)
+    disc = F.gapped_disc(case, tau0) if gap else None
+    cross, power = truth_products(ref, [t, b, w], tau0, disc)
+    tx, _ = truth_products(t, [b, w], tau0, disc)
+    bw, _ = truth_products(b, [w], tau0, disc)
     return {"SS": power[0], "ST": cross[1], "SB": cross[2], "SW": cross[3], "TT": power[1], "BB": power[2],
             "WW": power[3], "TB": tx[1], "TW": tx[2], "BW": bw[1]}
 

@@ -6,8 +6,8 @@ Shared by ``test_reference_detection.py`` (slow) and ``python -m tests.inference
 Set-up: each reference map of ``tests/data/references`` (:func:`detection_cases`) at τ0 0.3 and 3 is
 planted in the fiducial observation (preset ``fiducial``, 140 pc, planet at 50 au, inc 30°, PA 60°,
 φ_p 40°, noise seed :data:`SEED`) as ``I (1 + δ)``, ``I`` the power-law disc with the run's own gap
-(:class:`GappedDisc`: a map is the brightness relative to its run's azimuthal mean, so the sky holds
-that mean times ``1 + δ``); the axisymmetric model is that disc
+(:class:`~tests.templates.fidelity.GappedDisc`: a map is the brightness relative to its run's
+azimuthal mean, so the sky holds that mean times ``1 + δ``); the axisymmetric model is that disc
 (:class:`~spiralbayes.simulate.asymmetric.ExactAxisymmetric`, what a perfect frank fit gives; the
 reference maps carry no azimuthal mean) or, with ``frank=True``, frank fitted at the true geometry
 (45 s of CPU per case, more than the shared machine had for 40 cases), and the scan covers the
@@ -29,16 +29,15 @@ import json
 import logging
 import sys
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-from tests.templates.fidelity import REF_DIR, Case, reference_cases, reference_template
+from tests.templates.fidelity import REF_DIR, Case, gapped_disc, reference_cases, reference_template
 from spiralbayes._provenance import atomic_path
 from spiralbayes.simulate import DiscModel
-from spiralbayes.simulate.discs import planck
 
 log = logging.getLogger(__name__)
 
@@ -90,55 +89,16 @@ def _coverage():
     return get_preset("fiducial").coverage()
 
 
-def run_gap(case: Case) -> tuple[np.ndarray, np.ndarray]:
-    """The run's azimuthally averaged surface density over its initial one, ``(x, ⟨Σ⟩_φ / Σ_init)``
-    (the planet's gap and its edges; 1 where the reference file marks the map invalid). FARGO3D:
-    ``sigma_axisym`` (normalised at r_p) times ``x^p_sigma``; wakeflow: ``1 + mean_offset``."""
-    import h5py
-
-    with h5py.File(REF_DIR / case.file, "r") as f:
-        g = f[case.group]
-        x = f["x"][()]
-        valid = g["valid"][()].astype(bool) if "valid" in g else np.ones(x.size, bool)
-        if "sigma_axisym" in g:
-            ratio = g["sigma_axisym"][()] * x ** float(g.attrs.get("p_sigma", 1.0))
-        elif "mean_offset" in g:
-            ratio = 1.0 + g["mean_offset"][()]
-        else:
-            ratio = np.ones(x.size)
-    return x, np.where(valid, ratio, 1.0)
-
-
-@dataclass(frozen=True)
-class GappedDisc(DiscModel):
-    """The planting's power-law disc with a planet's gap: the optical depth times ``⟨Σ⟩_φ / Σ_init``
-    at ``r / r_p`` (:func:`run_gap`), through the same isothermal transfer, so that the planted
-    perturbation ``I (1 + δ)`` multiplies the run's own azimuthal mean, as δ = I/⟨I⟩_φ − 1 is defined."""
-
-    gap_x: tuple = ()
-    gap_ratio: tuple = ()
-
-    def _unscaled(self, r, wavelength):
-        r_au = np.asarray(r, dtype=float) * self.distance
-        inside = (r_au >= self.r_in) & (r_au <= self.r_out)
-        x = np.where(inside, r_au, self.r_ref) / self.r_ref
-        tau = self.tau_ref * x**-self.sigma_index * np.interp(x, self.gap_x, self.gap_ratio, left=1.0, right=1.0)
-        return np.where(inside, planck(self.T_ref * x**-self.temperature_index, wavelength) * -np.expm1(-tau), 0.0)
-
-
 def planting_disc(case: Case, tau0: float, gap: bool = True):
     """The fiducial disc of the planting (τ0 at the planet's 50 au), with the run's gap if ``gap``."""
-    if not gap:
-        return DiscModel(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0)
-    x, ratio = run_gap(case)
-    return GappedDisc(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0, gap_x=tuple(x), gap_ratio=tuple(ratio))
+    return gapped_disc(case, tau0) if gap else DiscModel(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0)
 
 
 def plant_and_scan(case: Case, tau0: float, seed: int = SEED, n_rp: int = N_RP, frank: bool = False,
                    gap: bool = True):
     """Simulate, model the disc, scan ``[own] + bank``; returns ``(vis, axisym, geometry, own_result,
-    bank_result, templates)``. ``gap``: the disc holds the run's own gap (:class:`GappedDisc`);
-    ``False`` plants the map in the unperturbed power-law disc."""
+    bank_result, templates)``. ``gap``: the disc holds the run's own gap
+    (:class:`~tests.templates.fidelity.GappedDisc`); ``False`` plants the map in the unperturbed disc."""
     from spiralbayes import DiscGeometry
     from spiralbayes.axisymmetric import fit_axisymmetric
     from spiralbayes.inference.scan.run import scan

@@ -15,7 +15,7 @@ import pytest
 
 from spiralbayes.inference.detection import DetectionSettings
 from tests.inference.detection import planet_free, reference_detection as rd
-from tests.templates.fidelity import PHYSICS_FILE, REF_DIR
+from tests.templates.fidelity import PHYSICS_FILE, REF_DIR, run_gap
 
 log = logging.getLogger(__name__)
 
@@ -70,14 +70,14 @@ def test_the_planting_disc_holds_the_runs_own_gap():
     from spiralbayes.simulate.discs import planck
 
     hydro, wake = _case("fargo3dlib:h0.07_mu1_orbits200"), _case("wakeflow:h0.07_mu1")
-    x, ratio = rd.run_gap(hydro)
+    x, ratio = run_gap(hydro)
     with h5py.File(REF_DIR / hydro.file, "r") as f:  # independent: the file's own columns
         g = f[hydro.group]
         want = np.where(g["valid"][()], g["sigma_axisym"][()] * f["x"][()] ** g.attrs["p_sigma"], 1.0)
     np.testing.assert_allclose(ratio, want, rtol=1e-12)
     assert 0.6 < ratio.min() < 0.7 and x[np.argmin(ratio)] == pytest.approx(1.06, abs=0.03)  # the gap at r_p
     with h5py.File(REF_DIR / wake.file, "r") as f:
-        np.testing.assert_allclose(rd.run_gap(wake)[1], 1.0 + f[wake.group]["mean_offset"][()], rtol=1e-12)
+        np.testing.assert_allclose(run_gap(wake)[1], 1.0 + f[wake.group]["mean_offset"][()], rtol=1e-12)
 
     wavelength, tau0 = 1.3e-3, 0.3
     flat, gapped = rd.planting_disc(hydro, tau0, gap=False), rd.planting_disc(hydro, tau0)

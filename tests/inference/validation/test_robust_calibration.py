@@ -62,6 +62,31 @@ def test_leave_one_source_out_calibration(source):
     assert not bad, bad
 
 
+GAPPED_FAILURES = {
+    "library_long": "the 200-orbit 3 M_th map in its gapped disc (0.22 of the initial density at r_p): the best "
+                    "variant's A_hat 0.87 at tau0 3 (1.22 without the gap), robust 16 % and 50 % wrongly excluded "
+                    "(bank power 100, 400); 5.5 % and 6.8 % at tau0 0.3",
+    "dust2": "the 200-orbit St 0.1 map in its disc with a dust ring 12x the initial density at 1.3 r_p: the "
+             "templates' power doubles on the ring while the map's falls 45x, A_hat -0.3 to -0.1; 100 % wrongly "
+             "excluded at tau0 0.3",
+}
+"""Sources whose maps, planted in discs holding their runs' gaps, the shipped variants (fitted to maps
+planted in the unperturbed disc) wrongly exclude, as measured (docs/limits.md §4d)."""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("source", [pytest.param(s, marks=[pytest.mark.xfail(reason=GAPPED_FAILURES[s], strict=True)])
+                                    if s in GAPPED_FAILURES else s for s in VF.SOURCES + VF.HELD_OUT_SOURCES])
+def test_leave_one_source_out_calibration_in_gapped_discs(source):
+    """As :func:`test_leave_one_source_out_calibration`, with every map planted in a disc holding its
+    run's gap (:class:`tests.templates.fidelity.GappedDisc`, the detection table's planting)."""
+    rows = RC.loso_table(n=1000, sources=(source,), gap=True)
+    assert rows
+    assert all(r["control_robust"] <= RC.allowed_wrong(r["n"]) for r in rows)
+    bad = [(r["case"], r["tau0"], r["power"], r["robust"]) for r in rows if r["robust"] > RC.allowed_wrong(r["n"])]
+    assert not bad, bad
+
+
 MACHINERY_CASES = [("fargo3d:h0.07_mu1", 0.3), ("fargo3dlib:h0.07_mu1_beta10", 0.3),
                    ("fargo3dlib:h0.07_mu1_st0.03", 0.3), ("wakeflow:h0.07_mu1", 3.0),
                    ("fargo3dlib:h0.07_mu1_nu1e-04", 0.3)]
