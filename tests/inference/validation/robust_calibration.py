@@ -187,7 +187,7 @@ def inner_template(template, half_width: float):
 
 def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int, seed: int = 50,
                        control: bool = False, hand: str = "R", h_ps: tuple | None = None, planted=None,
-                       inner: float | None = None):
+                       inner: float | None = None, gap: bool = False):
     """:func:`calibrate` in the fiducial set-up (``variant_fit``'s observation: 36k visibilities,
     beam 0.061″, planet at 50 au = 0.357″ = 5.9 beams, φ_p = 40° on the 90-azimuth grid) — resolved,
     unlike §4c's C-4 set-up, whose r_p = 0.3″ lies inside its 0.34″ beam (``compute_limits`` flags
@@ -196,12 +196,13 @@ def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int
     the limit's families (default the case's own; the bank's neighbours for a run between them).
     ``planted``: a template planted instead of the case's map (the case then gives mass, H/r and β).
     ``inner``: each variant's family also truncated to that half-width [r_p] (:func:`inner_template`),
-    a morphology of its own in the robust set."""
+    a morphology of its own in the robust set. ``gap``: the disc holds the case's run's gap
+    (:class:`tests.templates.fidelity.GappedDisc`)."""
     from spiralbayes import DiscGeometry
     from spiralbayes.simulate import simulate_observation
 
     geometry = DiscGeometry(F_INC, 60.0)
-    disc = DiscModel(distance=F.DISTANCE, r_ref=F.R_P_AU, tau_ref=tau0)
+    disc = F.gapped_disc(case, tau0) if gap else DiscModel(distance=F.DISTANCE, r_ref=F.R_P_AU, tau_ref=tau0)
     cov = F._coverage()
     vis0 = simulate_observation("fiducial", disc, geometry, coverage=cov, add_noise=False)
     axisym = (disc.profile(cov.wavelength), vis0.V)
