@@ -32,6 +32,8 @@ def truth_products(planted, templates, tau0: float, disc=None) -> tuple[np.ndarr
 
 GRAM_VERSION = 2
 """Bumped when the blocks of :func:`compute_case_gram` change (2: the broad wake W added)."""
+GAP_VERSION = 1
+"""Bumped when the gapped planting (:class:`tests.templates.fidelity.GappedDisc`) changes."""
 BROAD_WIDTH = 3.0
 """Width of the broad wake W the variants are fitted with (``Variant.broad_width``)."""
 BLOCKS = ("T", "B", "W")
@@ -52,7 +54,7 @@ def _disk_key(case: F.Case, tau0: float, setup: str = "fiducial", gap: bool = Fa
            f"|{WakeSettings().key()}"
            f"|blocks{GRAM_VERSION}|W{BROAD_WIDTH:g}")
     key = key if setup == "fiducial" else f"{key}|{setup}"
-    return f"{key}|gap" if gap else key
+    return f"{key}|gap{GAP_VERSION}" if gap else key
 
 
 def case_gram(case: F.Case, tau0: float, setup: str = "fiducial", gap: bool = False) -> dict:
