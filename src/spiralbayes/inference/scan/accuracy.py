@@ -22,9 +22,10 @@ import numpy as np
 
 from ..._threads import blas_threads
 from ...exceptions import AccuracyWarning
-from .engine import ScanContext, _terms_at
+from .engine import CHECK_SAFETY, ScanContext, _terms_at
 
-__all__ = ["CHECK_AZIMUTHS", "EXACT_EPSILON", "TOLERANCE", "check_terms", "exact_terms", "warn_if_inaccurate"]
+__all__ = ["CHECK_AZIMUTHS", "EXACT_EPSILON", "TOLERANCE", "check_terms", "exact_terms", "power_path_share",
+           "warn_if_inaccurate"]
 
 log = logging.getLogger(__name__)
 
@@ -79,16 +80,37 @@ def check_terms(context: ScanContext, template) -> dict:
     return out
 
 
+def power_path_share(result, where) -> float:
+    """The part of the Δχ² error estimate at the instance ``where`` (an index into ``result.cross``)
+    that the power path's measured discrepancy (``provenance["power_check"]``, times
+    ``CHECK_SAFETY``) makes; the rest is the quadrature's bound."""
+    check = (result.provenance or {}).get("power_check") or {}
+    power = max(float(result.power[where]), 0.0)
+    part = CHECK_SAFETY * (2 * check.get("cross", 0.0) * np.sqrt(result.chi2_AO * power)
+                           + check.get("power", 0.0) * power)
+    total = float(result.delta_chi2_error()[where])
+    return part / total if total > 0 else 0.0
+
+
 def warn_if_inaccurate(result, tolerance=TOLERANCE, stacklevel: int = 3) -> None:
-    """Log and warn (:class:`AccuracyWarning`) where ``result``'s Δχ² error estimate exceeds the tolerance."""
+    """Log and warn (:class:`AccuracyWarning`) where ``result``'s Δχ² error estimate exceeds the
+    tolerance, naming what dominates the largest estimate: the quadrature's bound (which kinks and
+    jumps of the profile inside the disc inflate) or the power path's measured discrepancy."""
     bad = result.accuracy_violations(tolerance)
     if not bad.any():
         return
     t = np.flatnonzero(bad.any(axis=(1, 2)))
     names = ", ".join(result.templates[i]["name"] for i in t[:3]) + (" ..." if t.size > 3 else "")
+    err = np.where(bad, np.nan_to_num(result.delta_chi2_error(), nan=0.0), -np.inf)
+    where = np.unravel_index(int(np.argmax(err)), err.shape)
+    if power_path_share(result, where) >= 0.5:
+        why = "mostly the power path's measured discrepancy: power_path='direct' can help"
+    else:
+        why = ("mostly the quadrature's bound, which kinks and jumps of the axisymmetric profile inside the disc "
+               "(edges, a tabulated gap) inflate; it bounds the error from above, so compare with "
+               "quadrature='midpoint' or pass a smoother profile")
     msg = (f"the Δχ² error estimate exceeds {tolerance[0]} + {tolerance[1]} |Δχ²| at {int(bad.sum())} of "
            f"{bad.size} instances (largest {np.nanmax(result.delta_chi2_error()):.3g}; templates {names}): see "
-           "result.delta_chi2_error(); a profile with jumps inside the disc (pass a smooth one) or "
-           "power_path='direct' can help")
+           f"result.delta_chi2_error(); the estimate is {why}")
     log.warning(msg)
     warnings.warn(msg, AccuracyWarning, stacklevel=stacklevel)
