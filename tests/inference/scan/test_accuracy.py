@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from spiralbayes.exceptions import AccuracyWarning
-from spiralbayes.inference.scan.accuracy import power_path_share, warn_if_inaccurate
+from spiralbayes.inference.scan.accuracy import _power_path_share, warn_if_inaccurate
 from spiralbayes.inference.scan.engine import CHECK_SAFETY
 from spiralbayes.inference.scan.run import ScanResult
 from tests._support.helpers import DISTANCE, GEOMETRY
@@ -36,8 +36,8 @@ def message(res) -> str:
 def test_the_power_paths_share_is_its_measured_discrepancy_times_the_safety_factor():
     check = {"cross": 1e-5, "power": 1e-4}
     by_hand = CHECK_SAFETY * (2 * 1e-5 * np.sqrt(CHI2_AO * POWER) + 1e-4 * POWER)  # 3 (0.02 + 0.01) = 0.09
-    assert power_path_share(result(check, 2 * by_hand), (0, 1, 2)) == pytest.approx(0.5, rel=1e-12)
-    assert power_path_share(result({}, 3.0), (0, 1, 2)) == 0.0
+    assert _power_path_share(result(check, 2 * by_hand), (0, 1, 2)) == pytest.approx(0.5, rel=1e-12)
+    assert _power_path_share(result({}, 3.0), (0, 1, 2)) == 0.0
 
 
 def test_a_bound_the_quadrature_dominates_does_not_send_the_user_to_the_direct_power_path():

@@ -24,8 +24,7 @@ from ..._threads import blas_threads
 from ...exceptions import AccuracyWarning
 from .engine import CHECK_SAFETY, ScanContext, _terms_at
 
-__all__ = ["CHECK_AZIMUTHS", "EXACT_EPSILON", "TOLERANCE", "check_terms", "exact_terms", "power_path_share",
-           "warn_if_inaccurate"]
+__all__ = ["CHECK_AZIMUTHS", "EXACT_EPSILON", "TOLERANCE", "check_terms", "exact_terms", "warn_if_inaccurate"]
 
 log = logging.getLogger(__name__)
 
@@ -80,7 +79,7 @@ def check_terms(context: ScanContext, template) -> dict:
     return out
 
 
-def power_path_share(result, where) -> float:
+def _power_path_share(result, where) -> float:
     """The part of the Δχ² error estimate at the instance ``where`` (an index into ``result.cross``)
     that the power path's measured discrepancy (``provenance["power_check"]``, times
     ``CHECK_SAFETY``) makes; the rest is the quadrature's bound."""
@@ -103,7 +102,7 @@ def warn_if_inaccurate(result, tolerance=TOLERANCE, stacklevel: int = 3) -> None
     names = ", ".join(result.templates[i]["name"] for i in t[:3]) + (" ..." if t.size > 3 else "")
     err = np.where(bad, np.nan_to_num(result.delta_chi2_error(), nan=0.0), -np.inf)
     where = np.unravel_index(int(np.argmax(err)), err.shape)
-    if power_path_share(result, where) >= 0.5:
+    if _power_path_share(result, where) >= 0.5:
         why = "mostly the power path's measured discrepancy: power_path='direct' can help"
     else:
         why = ("mostly the quadrature's bound, which kinks and jumps of the axisymmetric profile inside the disc "
