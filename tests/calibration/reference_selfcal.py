@@ -35,7 +35,7 @@ def evaluate(case, tau0: float, seed: int = rd.SEED, min_snr: float = 1.0) -> di
     from spiralbayes.inference.scan.run import scan
     from spiralbayes.pipeline.calibrate import candidate_spiral
 
-    # docs/calibration.md's table: the maps in the unperturbed disc (what a solve takes does not hinge on the gap)
+    # docs/calibration.md's table was measured with the maps in the unperturbed disc
     vis, axisym, geometry, own, bank, templates = rd.plant_and_scan(case, tau0, seed, gap=False)
     vis = vis.standardised()
     dv, about = candidate_spiral(bank, vis, axisym, templates)
