@@ -28,7 +28,6 @@ from pathlib import Path
 import numpy as np
 
 from spiralbayes.simulate import DiscModel
-from spiralbayes.simulate.discs import planck
 
 VERSION1 = dict(profile_amp=0.5, profile_width=0.8, lobe_offset=-2.5, lobe_width=1.5, alpha=1e-3,
                 secondary=True, near_planet=0.0)
@@ -264,16 +263,14 @@ class GappedDisc(DiscModel):
     gap_x: tuple = ()
     gap_ratio: tuple = ()
 
-    def _unscaled(self, r, wavelength):
-        r_au = np.asarray(r, dtype=float) * self.distance
-        inside = (r_au >= self.r_in) & (r_au <= self.r_out)
-        x = np.where(inside, r_au, self.r_ref) / self.r_ref
-        tau = self.tau_ref * x**-self.sigma_index * np.interp(x, self.gap_x, self.gap_ratio, left=1.0, right=1.0)
-        return np.where(inside, planck(self.T_ref * x**-self.temperature_index, wavelength) * -np.expm1(-tau), 0.0)
+    def optical_depth(self, x) -> np.ndarray:
+        return super().optical_depth(x) * np.interp(x, self.gap_x, self.gap_ratio, left=1.0, right=1.0)
 
 
-def gapped_disc(case: Case, tau0: float) -> GappedDisc:
-    """The fiducial power-law disc (τ0 at the planet's 50 au) holding ``case``'s gap."""
+def planting_disc(case: Case, tau0: float, gap: bool = True) -> DiscModel:
+    """The fiducial power-law disc (τ0 at the planet's 50 au), holding ``case``'s gap if ``gap``."""
+    if not gap:
+        return DiscModel(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0)
     x, ratio = run_gap(case)
     return GappedDisc(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0, gap_x=tuple(x), gap_ratio=tuple(ratio))
 

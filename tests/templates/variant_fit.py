@@ -104,7 +104,7 @@ def compute_case_gram(case: F.Case, tau0: float, gap: bool = False) -> dict:
     t = variant_template(case.mu, tau0, beta, "R", "compromise", h_p=case.h_p)
     b = blob_template(case.mu, tau0, beta, "R", h_p=case.h_p)
     w = broad_template(case.mu, tau0, beta, "R", h_p=case.h_p, width=BROAD_WIDTH)
-    disc = F.gapped_disc(case, tau0) if gap else None
+    disc = F.planting_disc(case, tau0, gap)
     cross, power = truth_products(ref, [t, b, w], tau0, disc)
     tx, _ = truth_products(t, [b, w], tau0, disc)
     bw, _ = truth_products(b, [w], tau0, disc)

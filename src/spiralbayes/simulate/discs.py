@@ -85,13 +85,16 @@ class DiscModel:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def optical_depth(self, x) -> np.ndarray:
+        """Optical depth at ``x = r / r_ref`` (a subclass may reshape the surface density here)."""
+        return self.tau_ref * np.asarray(x, dtype=float) ** -self.sigma_index
+
     def _unscaled(self, r, wavelength):
         r_au = np.asarray(r, dtype=float) * self.distance
         inside = (r_au >= self.r_in) & (r_au <= self.r_out)
         x = np.where(inside, r_au, self.r_ref) / self.r_ref
         temp = self.T_ref * x**-self.temperature_index
-        tau = self.tau_ref * x**-self.sigma_index
-        return np.where(inside, planck(temp, wavelength) * -np.expm1(-tau), 0.0)
+        return np.where(inside, planck(temp, wavelength) * -np.expm1(-self.optical_depth(x)), 0.0)
 
     def face_on_flux(self, wavelength: float) -> float:
         """``2 pi int I r dr`` [Jy] of the profile at ``wavelength`` [m]."""

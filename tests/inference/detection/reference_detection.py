@@ -35,9 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.templates.fidelity import REF_DIR, Case, gapped_disc, reference_cases, reference_template
+from tests.templates.fidelity import REF_DIR, Case, planting_disc, reference_cases, reference_template
 from spiralbayes._provenance import atomic_path
-from spiralbayes.simulate import DiscModel
 
 log = logging.getLogger(__name__)
 
@@ -87,11 +86,6 @@ def _coverage():
     from spiralbayes.simulate.presets import get_preset
 
     return get_preset("fiducial").coverage()
-
-
-def planting_disc(case: Case, tau0: float, gap: bool = True):
-    """The fiducial disc of the planting (τ0 at the planet's 50 au), with the run's gap if ``gap``."""
-    return gapped_disc(case, tau0) if gap else DiscModel(distance=DISTANCE, r_ref=R_P_AU, tau_ref=tau0)
 
 
 def plant_and_scan(case: Case, tau0: float, seed: int = SEED, n_rp: int = N_RP, frank: bool = False,

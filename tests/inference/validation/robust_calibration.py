@@ -202,7 +202,7 @@ def calibrate_fiducial(case: F.Case, tau0: float, power: float, variants, n: int
     from spiralbayes.simulate import simulate_observation
 
     geometry = DiscGeometry(F_INC, 60.0)
-    disc = F.gapped_disc(case, tau0) if gap else DiscModel(distance=F.DISTANCE, r_ref=F.R_P_AU, tau_ref=tau0)
+    disc = F.planting_disc(case, tau0, gap)
     cov = F._coverage()
     vis0 = simulate_observation("fiducial", disc, geometry, coverage=cov, add_noise=False)
     axisym = (disc.profile(cov.wavelength), vis0.V)
