@@ -121,6 +121,9 @@ def test_bad_inputs(planet_observation, small_bank):
         scan(vis, axisym, [], GEOMETRY, r_p=[0.2])
     with pytest.raises(ValueError, match="r_p must be positive"):
         scan(vis, axisym, small_bank, GEOMETRY, r_p=[-0.1, 0.2])
+    first = small_bank[0]
+    with pytest.raises(ValueError, match=f"'{first.name}'.*give each template its own"):
+        scan(vis, axisym, [first, *small_bank], GEOMETRY, r_p=[0.2])
 
 
 def test_without_dask_a_parallel_request_falls_back_to_serial(monkeypatch, caplog, planet_observation, small_bank):
