@@ -182,3 +182,85 @@ def test_templates_reaching_beyond_the_default_grid_are_fitted(pair):
     assert stats[0] > 30 and verdict.detected
     assert stats[1] == pytest.approx(stats[0], rel=1e-3)
     assert margins[1] == pytest.approx(margins[0], rel=1e-3)
+
+
+# --- which templates test 3 tries -----------------------------------------------------------------
+def _kind_scan(peaks):
+    """A scan whose template k has Δχ² ``value`` at (i_rp, i_phi) and 0 elsewhere; ``peaks`` lists
+    ``(name, provenance, i_rp, i_phi, value)``; returns the ScanResult and stand-in templates."""
+    from types import SimpleNamespace
+
+    from spiralbayes.inference.scan.run import ScanResult
+
+    n_r, n_phi = 5, 12
+    cross = np.zeros((len(peaks), n_r, n_phi))
+    for k, (_, _, i, j, value) in enumerate(peaks):
+        cross[k, i, j] = value / 2  # power 0: Δχ² = 2 cross
+    result = ScanResult([{"name": p[0]} for p in peaks], np.linspace(0.1, 0.5, n_r),
+                        2 * np.pi * np.arange(n_phi) / n_phi, cross, np.zeros_like(cross), 1e5, 36_000,
+                        DiscGeometry(30.0, 60.0))
+    return result, [SimpleNamespace(name=p[0], provenance=p[1]) for p in peaks]
+
+
+GEN, SIM = {"generator": "spiralbayes.templates.generator"}, {"reader": "spiralbayes.templates.fargo3d"}
+
+
+def test_template_kind_tells_the_generator_from_simulated_maps():
+    from spiralbayes.inference.detection.nested import template_kind
+    from spiralbayes.templates import make_template
+
+    assert template_kind(make_template(1.0, 0.3, 0.0, "R")) == "generator"
+    _, (sim,) = _kind_scan([("run", SIM, 0, 0, 1.0)])
+    assert template_kind(sim) == "simulation"
+
+
+@pytest.mark.parametrize("where, tried", [
+    ((2, 5), ["gen_a", "sim_b"]),      # the same place
+    ((3, 6), ["gen_a", "sim_b"]),      # one step in r_p and in φ_p
+    ((2, 7), ["gen_a"]),               # two azimuth steps away: another position, not tried
+    ((4, 5), ["gen_a"]),               # two radius steps away
+])
+def test_nested_candidates_add_the_best_of_the_other_kind_near_the_peak(where, tried):
+    from spiralbayes.inference.detection.nested import nested_candidates
+
+    result, templates = _kind_scan([("gen_a", GEN, 2, 5, 100.0), ("gen_b", GEN, 2, 5, 90.0),
+                                    ("sim_a", SIM, 0, 0, 40.0), ("sim_b", SIM, *where, 80.0)])
+    assert nested_candidates(result, templates, "gen_a") == tried
+
+
+def test_nested_candidates_wrap_in_azimuth_and_need_two_kinds():
+    from spiralbayes.inference.detection.nested import nested_candidates
+
+    result, templates = _kind_scan([("sim", SIM, 1, 11, 100.0), ("gen", GEN, 1, 0, 50.0)])
+    assert nested_candidates(result, templates, "sim") == ["sim", "gen"]  # 11 and 0 are neighbours of 12
+    result, templates = _kind_scan([("gen_a", GEN, 1, 3, 100.0), ("gen_b", GEN, 1, 3, 90.0)])
+    assert nested_candidates(result, templates, "gen_a") == ["gen_a"]  # one kind: the verdict's template alone
+
+
+def test_test3_takes_the_candidate_with_the_larger_statistic(monkeypatch):
+    from types import SimpleNamespace
+
+    from spiralbayes.inference.detection import DetectionSettings, nested
+    from spiralbayes.inference.detection.verdict import Verdict
+
+    result, templates = _kind_scan([("gen", GEN, 2, 5, 100.0), ("sim", SIM, 2, 5, 120.0)])
+    scores = {"sim": (5.0, -3.0), "gen": (44.0, 51.0)}  # per candidate, against the two alternatives
+
+    def fake_nested_test(result, vis, axisym, templates, alternatives, geometry, *, template, n_alternatives):
+        return [SimpleNamespace(delta_bic=d, alternative=a, alternative_delta_bic=0.0,
+                                alternative_delta_bic_given_spiral=0.0, label=a,
+                                to_dict=lambda d=d, a=a: {"delta_bic": d, "alternative": a, "label": a})
+                for d, a in zip(scores[template], ("eccentric_ring", "arc"))]
+
+    monkeypatch.setattr(nested, "nested_test", fake_nested_test)
+    verdict = Verdict(detected=False, delta_bic=50.0, test1_passed=True, handedness_ratio=0.1, localisation=0.01,
+                      test2_passed=True, template="sim", r_p=0.3, phi_p_deg=150.0, delta_chi2=100.0,
+                      threshold_6lnN=50.0, distance=140.0)
+    alternatives = SimpleNamespace(fits={"eccentric_ring": None, "arc": None})
+    out = nested.apply_nested(verdict, result, None, None, templates, None, alternatives, DetectionSettings())
+    # "sim" alone: min(5, -3) = -3, fails; "gen" at the same place: min(44, 51) = 44 > 30
+    assert out.nested_template == "gen" and out.nested_delta_bic == 44.0
+    assert out.test3_passed and out.detected and out.template == "sim"
+    scores["gen"] = (12.0, 51.0)
+    out = nested.apply_nested(verdict, result, None, None, templates, None, alternatives, DetectionSettings())
+    assert out.nested_template == "gen" and out.nested_delta_bic == 12.0 and not out.test3_passed

@@ -61,7 +61,8 @@ from ..scan.statistics import N_SPIRAL_PARAMETERS, chi2
 from .alternatives import PARAM_SCALES, _objective, _setup
 from .planet_peak import _peak_visibilities
 
-__all__ = ["HYPOTHESES", "NestedFit", "also_present_phrase", "apply_nested", "nested_fit", "nested_test"]
+__all__ = ["HYPOTHESES", "NestedFit", "also_present_phrase", "apply_nested", "nested_candidates", "nested_fit",
+           "nested_test", "template_kind"]
 
 log = logging.getLogger(__name__)
 
@@ -401,13 +402,49 @@ def nested_test(result, vis, axisymmetric, templates, alternatives, geometry=Non
 
 
 # --- the verdict's test 3 ---------------------------------------------------------------------
+def template_kind(template) -> str:
+    """``"generator"`` for a template of the package's semi-analytic generator (any morphology variant),
+    ``"simulation"`` for a map read from a simulation (FARGO3D, a FITS file, a reference library)."""
+    return "generator" if "generator" in (getattr(template, "provenance", None) or {}) else "simulation"
+
+
+def nested_candidates(result, templates, template, d_rp: int = 1, d_phi: int = 1) -> list[str]:
+    """The templates test 3 tries: ``template`` (the verdict's), then the best template of every other
+    :func:`template_kind` in the scan whose own peak lies within ``d_rp`` radius and ``d_phi`` azimuth
+    steps of ``template``'s.
+
+    A bank that mixes kinds can rank first a simulated map whose extra structure (a gap edge, dust at
+    the orbit) an alternative also fits, while a generator template at the same place is a spiral the
+    alternative cannot absorb, or the reverse; both stand for the same planet at the same position.
+    """
+    templates = list(templates)
+    kinds = [template_kind(t) for t in templates]
+    first = result.peak(template)
+    out = [first.template]
+    for kind in sorted(set(kinds) - {kinds[first.template_index]}):
+        peaks = [result.peak(i) for i, k in enumerate(kinds) if k == kind and result.completed[i]]
+        if not peaks:
+            continue
+        p = max(peaks, key=lambda x: x.delta_chi2)
+        n_phi = result.phi_p.size
+        d_j = abs(p.i_phi - first.i_phi) % n_phi
+        if abs(p.i_rp - first.i_rp) <= d_rp and min(d_j, n_phi - d_j) <= d_phi:
+            out.append(p.template)
+    return out
+
+
 def apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s):
-    """``verdict`` with test 3 decided by the nested test (run when test 1 passes: else nothing to claim)."""
+    """``verdict`` with test 3 decided by the nested test (run when test 1 passes: else nothing to claim).
+    With templates of more than one :func:`template_kind`, each of :func:`nested_candidates` gets the
+    test and the largest statistic decides (``nested_template``)."""
     if not verdict.test1_passed or not alternatives.fits:
         return verdict
-    fits = nested_test(result, vis, axisymmetric, templates, alternatives, geometry, template=verdict.template,
-                       n_alternatives=s.nested_alternatives)
-    stat = min(f.delta_bic for f in fits)
+    tried = []
+    for name in nested_candidates(result, templates, verdict.template):
+        fits = nested_test(result, vis, axisymmetric, templates, alternatives, geometry, template=name,
+                           n_alternatives=s.nested_alternatives)
+        tried.append((min(f.delta_bic for f in fits), name, fits))
+    stat, nested_template, fits = max(tried, key=lambda x: x[0])
     passed = bool(stat > s.nested_threshold)
     rows = []
     for f in fits:
@@ -421,6 +458,7 @@ def apply_nested(verdict, result, vis, axisymmetric, templates, geometry, altern
         passed = False
     return dataclasses.replace(verdict, test3_passed=passed, test3_method="nested", nested_delta_bic=float(stat),
                                nested_threshold=float(s.nested_threshold), nested=rows, also_present=also,
+                               nested_template=nested_template,
                                detected=bool(verdict.test1_passed and verdict.test2_passed and passed))
 
 

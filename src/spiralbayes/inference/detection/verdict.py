@@ -225,7 +225,10 @@ class Verdict(ResultMixin):
     With the scanned data, test 3 is the nested test (:mod:`.nested`): ``test3_method`` is
     "nested" (else "best model"), ``nested_delta_bic`` the smallest ``BIC(alt) − BIC(alt + spiral)``
     over the alternatives tried, ``nested`` each joint fit (:class:`~.nested.NestedFit` as dicts),
-    ``also_present`` the phrase naming an alternative that is significant and survives the joint fit;
+    ``nested_template`` the template it was scored with (the best template, or with maps from simulations
+    and generator templates in one bank the best of the other kind at the same place when that scores
+    higher: :func:`~.nested.nested_candidates`), ``also_present`` the phrase naming an alternative that is
+    significant and survives the joint fit;
     ``best_alternative`` and ``delta_bic_vs_alternative`` are then information ("which single model
     is best"). ``calibration`` holds the calibration diagnostic's numbers when one was given, and
     ``explanation`` what the verdict names as the cause of the residual structure ("spiral",
@@ -270,7 +273,7 @@ class Verdict(ResultMixin):
         the compact-peak score of test 3; the masses [M_th] within a ΔBIC band of the best.
     test3_spiral_model : str or None
         Which spiral hypothesis test 3 scored.
-    test3_method, nested_delta_bic, nested_threshold, nested, also_present, calibration, explanation
+    test3_method, nested_delta_bic, nested_threshold, nested, nested_template, also_present, calibration, explanation
         The nested test 3 and the explanation (above).
     gains_solved : str or None
         What was done to the data's calibration before the scan (set by the pipeline, e.g.
@@ -304,6 +307,7 @@ class Verdict(ResultMixin):
     nested_delta_bic: float | None = None
     nested_threshold: float | None = None
     nested: list | None = None
+    nested_template: str | None = None
     also_present: str | None = None
     calibration: dict | None = None
     explanation: str | None = None
