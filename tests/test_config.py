@@ -10,7 +10,7 @@ from spiralbayes.config import (
     load_config,
     merge_config,
 )
-from spiralbayes.exceptions import InputError
+from spiralbayes.exceptions import ConfigError, InputError
 
 
 def test_described_defaults_read_back_as_defaults(tmp_path):
@@ -150,6 +150,40 @@ def test_aspect_ratios_the_built_in_bank_lacks_make_it_at_them(tmp_path, monkeyp
     section = dict(config["templates"], bank=str(tmp_path / "bank.h5"))
     with pytest.raises(InputError, match="h_p=\\[0.0625, 0.075\\]"):
         inputs.load_templates(section)
+
+
+def test_maps_files_are_scanned_beside_the_bank(tmp_path, monkeypatch):
+    """``[templates] maps``: TemplateBank files of simulated maps, resolved against the configuration's
+    folder, selected by mass, τ0, β and hand (not H/r: a simulation has its own), appended to the bank;
+    a name already in the scan is refused with the file and the fix."""
+    import dataclasses
+
+    from spiralbayes.config import load_config
+    from spiralbayes.pipeline import inputs
+    from spiralbayes.templates import TemplateBank, make_template
+
+    def sim(mass, tau0, h_p, name):  # a stand-in for read_fargo3d's maps: no generator in the provenance
+        t = make_template(mass, tau0, 0.0, "R", h_p=h_p, n_x=60, n_phi=90)
+        return dataclasses.replace(t, name=name, provenance={"reader": "test"})
+
+    TemplateBank([sim(1.0, 0.3, 0.06, "runA_R"), sim(1.0, 3.0, 0.06, "runA_tau3_R"),
+                  sim(3.0, 0.3, 0.06, "runB_R")]).save(tmp_path / "maps" / "runs.h5")
+    path = tmp_path / "c.toml"
+    path.write_text('[data]\npath = "d.txt"\n[geometry]\ninc = 30\nPA = 60\n[templates]\nmass = [1.0]\n'
+                    'tau0 = [0.3]\nh_p = [0.07]\nmaps = ["maps/runs.h5"]\n')
+    config = load_config(path)
+    assert config["templates"]["maps"] == [str(tmp_path / "maps" / "runs.h5")]
+    bank = TemplateBank([make_template(m, 0.3, 0.0, h, h_p=0.07, n_x=60, n_phi=90) for m in (1.0, 3.0) for h in "RL"])
+    monkeypatch.setitem(inputs.BANKS, "default", lambda: bank)
+    chosen = [t.name for t in inputs.load_templates(config["templates"])]
+    assert chosen == ["wake_m1_tau0.3_b0_h0.07_R", "wake_m1_tau0.3_b0_h0.07_L", "runA_R"]
+    TemplateBank([sim(1.0, 0.3, 0.06, "wake_m1_tau0.3_b0_h0.07_R")]).save(tmp_path / "clash.h5")
+    section = dict(config["templates"], maps=[str(tmp_path / "clash.h5")])
+    with pytest.raises(InputError, match="clash.h5.*already in the scan.*rename"):
+        inputs.load_templates(section)
+    with pytest.raises(ConfigError, match="maps"):
+        path.write_text('[data]\npath = "d.txt"\n[geometry]\ninc = 30\nPA = 60\n[templates]\nmaps = [3]\n')
+        load_config(path)
 
 
 def test_templates_without_options_use_the_robust_default_bank():

@@ -77,6 +77,10 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
                             "'compromise' (the same grid in the compromise morphology alone, 192 templates: the "
                             "paper's comparison, limits not robust to the spiral's shape; docs/limits.md) or the path "
                             "of a TemplateBank HDF5 file"),
+        "maps": ([], "TemplateBank HDF5 files of maps from your own simulations (read_fargo3d, "
+                     "read_fits_template, then TemplateBank(...).save) scanned beside the bank, filtered by mass, "
+                     "tau0, beta and hand; test 3 then also tries the best template of the other kind at the "
+                     "detection's position (docs/verdict.md)"),
         "mass": ([], "planet masses M_p/M_th to keep (empty: all)"),
         "tau0": ([], "initial optical depths at r_p to keep (empty: all)"),
         "beta": ([], "cooling times t_c Omega to keep (empty: all)"),
@@ -151,6 +155,8 @@ BUILT_IN_BANKS = ("default", "variants", "compromise")
 PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("sample", "scan"), ("output", "dir"))
 """Every path option; relative ones are resolved against the configuration file's folder (``~`` is
 expanded). ``templates.bank = "default"`` names the built-in bank, not a file."""
+PATH_LIST_KEYS = (("templates", "maps"),)
+"""Options holding a list of paths, resolved as :data:`PATH_KEYS`."""
 
 
 # --- value checks: each returns an error text (what the option accepts) or None ---------------------
@@ -226,7 +232,8 @@ CHECKS: dict[str, dict[str, Callable[[Any], str | None]]] = {
     "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _distance},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),
-                  "h_p": _each(_number(_positive))},
+                  "h_p": _each(_number(_positive)),
+                  "maps": _each(_string(lambda v: None if v.strip() else "must name a file"))},
     "grid": {key: _scan_check(key) for key in GRID_FIELDS},
     "scan": {key: _scan_check(key) for key in ScanSettings.field_names() if key not in GRID_FIELDS},
     "compare": {"residuals": _choice("visibilities", "difference"),
@@ -404,9 +411,17 @@ def resolve_paths(config: _ConfigT, root) -> _ConfigT:
         value = config.get(section, {}).get(key)
         if not value or (section, key) == ("templates", "bank") and value in BUILT_IN_BANKS:
             continue
-        resolved = Path(value).expanduser()
-        config[section][key] = str(resolved if resolved.is_absolute() else (Path(root) / resolved).resolve())
+        config[section][key] = _resolve(value, root)
+    for section, key in PATH_LIST_KEYS:
+        values = config.get(section, {}).get(key)
+        if values:
+            config[section][key] = [_resolve(v, root) for v in values]
     return config
+
+
+def _resolve(value: str, root) -> str:
+    resolved = Path(value).expanduser()
+    return str(resolved if resolved.is_absolute() else (Path(root) / resolved).resolve())
 
 
 class LoadedConfig(dict):

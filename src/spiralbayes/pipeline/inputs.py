@@ -15,7 +15,7 @@ from ..templates import TemplateBank, compromise_bank, default_bank
 from ..templates.bank import DEFAULT_H_PS
 from ..visibilities import estimate_weights
 
-__all__ = ["load_axisymmetric", "load_data", "load_templates", "select_templates"]
+__all__ = ["load_axisymmetric", "load_data", "load_maps", "load_templates", "select_templates"]
 
 log = logging.getLogger(__name__)
 
@@ -74,16 +74,42 @@ BANKS: dict[str, Callable[..., TemplateBank]] = {"default": default_bank, "varia
 def load_templates(templates: dict) -> list:
     """The templates chosen by the ``[templates]`` section of a configuration: a built-in bank by
     name (:data:`BANKS`; the default is robust to the spiral's morphology, docs/limits.md §4d) or
-    a TemplateBank file, then the section's selection. ``h_p`` values a built-in bank does not hold
-    (it has :data:`~spiralbayes.templates.bank.DEFAULT_H_PS`) make that bank at those aspect ratios."""
+    a TemplateBank file, then the section's selection, then the ``maps`` files' templates
+    (:func:`load_maps`). ``h_p`` values a built-in bank does not hold (it has
+    :data:`~spiralbayes.templates.bank.DEFAULT_H_PS`) make that bank at those aspect ratios."""
     name = templates["bank"]
     h_ps = sorted({float(h) for h in templates.get("h_p", ())})
     if name in BANKS and h_ps and not set(h_ps) <= set(DEFAULT_H_PS):
         # aspect ratios the cached bank lacks: the same built-in bank made at them (generator templates, cached)
-        return select_templates(BANKS[name](h_ps=tuple(h_ps)), templates["mass"], templates["tau0"],
-                                templates["beta"], templates["hand"])
-    bank = BANKS[name]() if name in BANKS else TemplateBank.load(name)
-    return select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"], h_ps)
+        chosen = select_templates(BANKS[name](h_ps=tuple(h_ps)), templates["mass"], templates["tau0"],
+                                  templates["beta"], templates["hand"])
+    else:
+        bank = BANKS[name]() if name in BANKS else TemplateBank.load(name)
+        chosen = select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"],
+                                  h_ps)
+    return chosen + load_maps(templates, {t.name for t in chosen})
+
+
+def load_maps(templates: dict, taken=frozenset()) -> list:
+    """The templates of the ``[templates] maps`` files (TemplateBank HDF5: maps from the user's own
+    simulations) that match the section's ``mass``, ``tau0``, ``beta`` and ``hand``; a simulation has
+    its own H/r, so ``h_p`` does not select among them. ``taken``: names already in the scan."""
+    out: list = []
+    taken = set(taken)
+    for path in templates.get("maps", ()):
+        maps = TemplateBank.load(path)
+        try:
+            chosen = select_templates(maps, templates["mass"], templates["tau0"], templates["beta"], templates["hand"])
+        except InputError as err:
+            raise InputError(f"[templates] maps {path}: {err}") from None
+        clash = sorted(taken & {t.name for t in chosen})
+        if clash:
+            raise InputError(f"[templates] maps {path}: template names {clash[:5]} are already in the scan "
+                             "(the bank or another maps file); rename them before saving, "
+                             "e.g. dataclasses.replace(template, name='run42_R')")
+        taken |= {t.name for t in chosen}
+        out += chosen
+    return out
 
 
 def _geometry(config: dict) -> DiscGeometry:
