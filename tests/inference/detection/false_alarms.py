@@ -101,19 +101,31 @@ def dataset(kind: str, seed: int):
     return vis, ExactAxisymmetric(disc, WAVELENGTH, geometry, delta), geometry, p
 
 
-def evaluate(kind: str, seed: int) -> dict:
-    """The nested test's and the verdict's numbers for one dataset."""
+def map_templates() -> tuple:
+    """Every reference map the detection table's map bank draws from, at τ0 3 and β 0, both hands
+    (:func:`~tests.inference.detection.reference_detection.map_bank` with no source held out)."""
+    from tests.inference.detection.reference_detection import _map_bank
+
+    return _map_bank("", 3.0, 0.0)
+
+
+def evaluate(kind: str, seed: int, maps: bool = False) -> dict:
+    """The nested test's and the verdict's numbers for one dataset; ``maps``: the bank also holds
+    :func:`map_templates`."""
     from spiralbayes.calibration import diagnose_calibration
     from spiralbayes.inference.detection import detect_with_planet_peak, fit_alternatives
-    from spiralbayes.inference.detection.nested import nested_test
+    from spiralbayes.inference.detection.nested import nested_candidates, nested_test
     from spiralbayes.inference.scan.run import scan
 
     vis, axisym, geometry, params = dataset(kind, seed)
-    templates = planet_free.bank_templates()
+    templates = planet_free.bank_templates() + (map_templates() if maps else ())
     result = scan(vis, axisym, list(templates), geometry, r_p=planet_free.R_GRID, distance=planet_free.DISTANCE,
                   progress=False)
     alts = fit_alternatives(vis, axisym, geometry, progress=False)
-    fits = nested_test(result, vis, axisym, templates, alts, geometry, n_alternatives=2)
+    # the verdict's statistic: the best of the nested candidates (one template unless the bank mixes kinds)
+    fits = max((nested_test(result, vis, axisym, templates, alts, geometry, template=name, n_alternatives=2)
+                for name in nested_candidates(result, templates, result.best.template)),
+               key=lambda fs: min(f.delta_bic for f in fs))
     calibration = diagnose_calibration(vis, axisym)
     verdict = detect_with_planet_peak(result, vis, axisym, templates, geometry, alternatives=alts,
                                       calibration=calibration)
@@ -126,7 +138,8 @@ def evaluate(kind: str, seed: int) -> dict:
             "nested_each": {f.alternative: {"delta_bic": f.delta_bic, "joint": f.delta_bic_joint,
                                             "spiral_alone": f.delta_bic_spiral_alone} for f in fits},
             "phase_rms_deg": calibration.phase_rms_deg, "calibration_warns": calibration.warning is not None,
-            "detected": verdict.detected, "explanation": verdict.explanation}
+            "detected": verdict.detected, "explanation": verdict.explanation, "maps": maps,
+            "nested_template": verdict.nested_template}
 
 
 def diagnose(kind: str, seed: int) -> dict:
@@ -160,18 +173,23 @@ def seeds(kind: str, n: int = N_PER_KIND) -> list[int]:
     return [SEED0 + 1000 * KINDS.index(kind) + i for i in range(n)]
 
 
-def main(out: str = "false_alarms.json", n: str = str(N_PER_KIND), start: str = "0") -> None:
-    """Round-robin over the kinds, ``n`` datasets each from index ``start``; rows appended to ``out``."""
+def main(out: str = "false_alarms.json", n: str = str(N_PER_KIND), start: str = "0", bank: str = "variants",
+         step: str = "1") -> None:
+    """Round-robin over the kinds, ``n`` datasets each from index ``start`` (every ``step``-th: two processes
+    share a set with ``start`` 0 and 1, ``step`` 2, and different ``out``); rows appended to ``out``;
+    ``bank``: ``maps`` adds :func:`map_templates` to the scan."""
+    if bank not in ("variants", "maps"):
+        raise SystemExit(f"the fourth argument is 'variants' or 'maps', not {bank!r}")
     logging.basicConfig(level=logging.INFO)
     path = Path(out)
     rows = json.loads(path.read_text()) if path.exists() else []
     done = {(r["kind"], r["seed"]) for r in rows}
-    for i in range(int(start), int(n)):
+    for i in range(int(start), int(n), int(step)):
         for kind in KINDS:
             seed = seeds(kind, int(n))[i]
             if (kind, seed) in done:
                 continue
-            rows.append(evaluate(kind, seed))
+            rows.append(evaluate(kind, seed, maps=bank == "maps"))
             log.info("%s", {k: v for k, v in rows[-1].items() if k != "params"})
             with atomic_path(path) as tmp:  # a run stopped mid-write keeps the rows it had
                 tmp.write_text(json.dumps(rows, indent=1, default=float))

@@ -81,6 +81,31 @@ def bank_templates(tau0: float, beta: float) -> tuple:
     return tuple(variant_grid(DEFAULT_VARIANTS, masses=BANK_MASSES, taus=(tau0,), betas=(beta,), h_ps=DEFAULT_H_PS))
 
 
+def map_bank(case: Case, tau0: float, beta: float) -> tuple:
+    """The reference maps of every *other* calibration source at (τ0, β), both hands: simulated
+    templates beside the variant bank, held out from the planted map's source as the variants are
+    (:func:`tests.templates.variant_fit.calibration_source`; the ringed St 0.1 map of
+    ``FIT_EXCLUDED`` is left out, as from the variants' fit)."""
+    from tests.templates.variant_fit import calibration_source
+
+    return _map_bank(calibration_source(case), float(tau0), float(beta))
+
+
+@lru_cache(maxsize=8)
+def _map_bank(source: str, tau0: float, beta: float) -> tuple:
+    from tests.templates.fidelity import PHYSICS_FILE
+    from tests.templates.variant_fit import FIT_EXCLUDED, calibration_source
+
+    out = []
+    for c in detection_cases() + detection_cases([PHYSICS_FILE]):
+        if (calibration_source(c) == source or c.label in FIT_EXCLUDED or not np.isclose(c.beta, beta)
+                or not any(np.isclose(t, tau0) for t in c.taus)):
+            continue
+        t = reference_template(c, tau0)
+        out += [t, t.mirror()]
+    return tuple(out)
+
+
 @lru_cache(maxsize=1)
 def _coverage():
     from spiralbayes.simulate.presets import get_preset
@@ -89,10 +114,11 @@ def _coverage():
 
 
 def plant_and_scan(case: Case, tau0: float, seed: int = SEED, n_rp: int = N_RP, frank: bool = False,
-                   gap: bool = True):
+                   gap: bool = True, maps: bool = False):
     """Simulate, model the disc, scan ``[own] + bank``; returns ``(vis, axisym, geometry, own_result,
     bank_result, templates)``. ``gap``: the disc holds the run's own gap
-    (:class:`~tests.templates.fidelity.GappedDisc`); ``False`` plants the map in the unperturbed disc."""
+    (:class:`~tests.templates.fidelity.GappedDisc`); ``False`` plants the map in the unperturbed disc.
+    ``maps``: the bank also holds the other sources' reference maps (:func:`map_bank`)."""
     from spiralbayes import DiscGeometry
     from spiralbayes.axisymmetric import fit_axisymmetric
     from spiralbayes.inference.scan.run import scan
@@ -100,7 +126,7 @@ def plant_and_scan(case: Case, tau0: float, seed: int = SEED, n_rp: int = N_RP, 
 
     geometry = DiscGeometry(INC, PA)
     ref = reference_template(case, tau0)
-    templates = list(bank_templates(tau0, case.beta))
+    templates = list(bank_templates(tau0, case.beta)) + list(map_bank(case, tau0, case.beta) if maps else ())
     disc = planting_disc(case, tau0, gap)
     r_true = R_P_AU / DISTANCE
     vis = simulate_observation("fiducial", disc, geometry, ref, r_p=r_true, phi_p=np.radians(PHI_P_DEG), seed=seed,
@@ -126,13 +152,13 @@ def _rows(result, rows: slice):
 
 
 def evaluate(case: Case, tau0: float, seed: int = SEED, keep: dict | None = None, frank: bool = False,
-             gap: bool = True) -> dict:
+             gap: bool = True, maps: bool = False) -> dict:
     """One row of the detection table (see :func:`format_table` for the columns); ``keep`` receives
-    the scans, alternatives and verdict."""
+    the scans, alternatives and verdict; ``maps``: see :func:`plant_and_scan`."""
     from spiralbayes.inference.detection import DetectionSettings, detect, detect_with_planet_peak, fit_alternatives
     from spiralbayes.inference.detection.nested import nested_test
 
-    vis, axisym, geometry, own, bank, templates = plant_and_scan(case, tau0, seed, frank=frank, gap=gap)
+    vis, axisym, geometry, own, bank, templates = plant_and_scan(case, tau0, seed, frank=frank, gap=gap, maps=maps)
     first = detect(bank)
     own_shows = own.best.delta_bic > OWN_THRESHOLD
     alts = fit_alternatives(vis, axisym, geometry, progress=False) if first.test1_passed or own_shows else None
@@ -159,7 +185,8 @@ def row(case: Case, tau0: float, own, bank, verdict) -> dict:
     return {
         "case": case.label, "mu": case.mu, "h_p": case.h_p, "beta": case.beta, "tau0": tau0,
         "own_delta_bic": o["delta_bic"], "delta_bic": verdict.delta_bic, "template": verdict.template,
-        "variant": best.get("variant", "compromise"), "best_mass": float(best["mass"]), "best_h_p": float(best["h_p"]),
+        "variant": best.get("variant", "map" if best["name"].startswith("ref_") else "compromise"),
+        "best_mass": float(best["mass"]), "best_h_p": float(best["h_p"]),
         "mass_steps": _bank_steps(float(best["mass"])) - _bank_steps(case.mu),
         "dr_steps": (verdict.r_p - r_true) / RP_STEP,
         "dphi_deg": float(np.degrees(np.angle(np.exp(1j * (np.radians(verdict.phi_p_deg) - phi_true))))),
@@ -168,6 +195,7 @@ def row(case: Case, tau0: float, own, bank, verdict) -> dict:
         "test3_spiral_model": verdict.test3_spiral_model, "detected": verdict.detected,
         "test3_method": verdict.test3_method, "nested_delta_bic": verdict.nested_delta_bic,
         "nested_vs": None if not verdict.nested else min(verdict.nested, key=lambda f: f["delta_bic"])["alternative"],
+        "nested_template": verdict.nested_template,
         "also_present": verdict.also_present,
         "mass_range_mth": None if verdict.mass_range is None else verdict.mass_range["mth"],
         "mass_range_mjup": None if verdict.mass_range is None else verdict.mass_range["mjup"],
@@ -222,13 +250,16 @@ def format_table(rows) -> str:
 
 
 def main(out: str = "reference_detection.json", only: str = "", frank: str = "", files: str = "",
-         gap: str = "gap") -> None:
+         gap: str = "gap", bank: str = "variants") -> None:
     """Evaluate every detection case (or those whose label contains ``only``) and print the table;
     ``files``: comma-separated reduced reference files to take the cases from instead of the
     committed ones (e.g. runs reduced with ``tools/fargo3d_library_reduce.py --out``); ``gap``:
-    ``nogap`` plants the maps in the unperturbed disc (:func:`plant_and_scan`)."""
+    ``nogap`` plants the maps in the unperturbed disc (:func:`plant_and_scan`); ``bank``: ``maps`` adds
+    the other sources' reference maps to the variant bank (:func:`map_bank`)."""
     if gap not in ("gap", "nogap"):
         raise SystemExit(f"the fifth argument is 'gap' or 'nogap', not {gap!r}")
+    if bank not in ("variants", "maps"):
+        raise SystemExit(f"the sixth argument is 'variants' or 'maps', not {bank!r}")
     import pickle
 
     logging.basicConfig(level=logging.INFO)
@@ -239,7 +270,7 @@ def main(out: str = "reference_detection.json", only: str = "", frank: str = "",
             if only and only not in f"{case.label}_tau{tau0:g}":
                 continue
             keep: dict = {}
-            rows.append(evaluate(case, tau0, keep=keep, frank=bool(frank), gap=gap == "gap"))
+            rows.append(evaluate(case, tau0, keep=keep, frank=bool(frank), gap=gap == "gap", maps=bank == "maps"))
             with open(f"{out}.{case.source}_{case.group}_tau{tau0:g}.pkl", "wb") as f:
                 pickle.dump(keep, f)
             log.info("%s", {k: v for k, v in rows[-1].items() if k != "verdict"})
