@@ -59,7 +59,8 @@ class Case:
         0.10, added so that the 3 M_th morphology has references at more than one H/r; ``dust2``:
         dust at Stokes numbers 0.01 and 0.1 beside the library's 0.03; ``physics``: the disc physics
         the other runs share — surface-density slope, viscosity, masses and H/r between the bank's,
-        and a run to 500 orbits).
+        and a run to 500 orbits; ``long2``: planets after 200 orbits at other masses and H/r than the
+        ``orbits200`` pair's).
     sigma_slope : float
         ``p`` of the initial ``Σ ∝ r^-p`` (FARGO3D SigmaSlope).
     nu : float
@@ -159,6 +160,13 @@ CASES: list[Case] = [  # run order: the most distinct cases per CPU hour first (
     _case("lib_mu0.5_h006", 0.5, 0.06, batch="physics"),
     _case("lib_mu2_h008", 2.0, 0.08, batch="physics"),
     _case("lib_mu1_h007_orbits500", 1.0, 0.07, orbits=500.0, role="orbits500", batch="physics"),
+    # a fifth run set (long2): planets evolved for 200 orbits beside the H/r 0.07 1 and 3 M_th pair, so
+    # that leaving one set out still leaves a deep, evolved gap: 1 and 3 M_th at H/r 0.10 (the 3 M_th
+    # one vortex-dominated, as at 20 orbits), then 2 M_th at 0.07 and 3 M_th at 0.05
+    _case("lib_mu3_h010_long", 3.0, 0.10, orbits=200.0, role="orbits200", batch="long2"),
+    _case("lib_mu1_h010_long", 1.0, 0.10, orbits=200.0, role="orbits200", batch="long2"),
+    _case("lib_mu2_h007_long", 2.0, 0.07, orbits=200.0, role="orbits200", batch="long2"),
+    _case("lib_mu3_h005_long", 3.0, 0.05, orbits=200.0, role="orbits200", batch="long2"),
 ]
 BY_NAME = {c.name: c for c in CASES}
 
