@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from spiralbayes.templates import read_fargo3d
+from spiralbayes.templates import TemplateBank, read_fargo3d
 from spiralbayes.templates.fargo3d import read_field, read_planet, read_variables
 
 NX, NY, NGH = 96, 30, 3
@@ -88,6 +88,12 @@ def test_merged_output_planet_at_phi_zero(tmp_path):
     assert abs(np.log(x_pk / BUMP_R)) <= np.log(r_all[1] / r_all[0])
     assert t.mass == pytest.approx(3.0)
     assert t.h_p == pytest.approx(H0) and t.hand == "R"
+    # the run's folder and τ0 in the name: two runs' maps at two depths fit in one bank
+    other = read_fargo3d(write_run(tmp_path / "other"), 5, tau0=3.0)
+    names = [m.name for m in (t, t.mirror(), other, other.mirror())]
+    assert names == ["fargo3d_merged_dust1_5_tau0.3_R", "fargo3d_merged_dust1_5_tau0.3_L",
+                     "fargo3d_other_dust1_5_tau3_R", "fargo3d_other_dust1_5_tau3_L"]
+    assert len(TemplateBank([t, t.mirror(), other, other.mirror()])) == 4
     assert t.provenance["sigma_ref"] == pytest.approx(0.01, rel=1e-3)  # from output 0 at r_p
     # far from the bump the map is flat
     far = np.abs(np.log(t.x / BUMP_R)) > 0.5
@@ -115,7 +121,7 @@ def test_field_reader_and_planet(tmp_path):
 def test_fork_dust_names_and_left_hand(tmp_path):
     run = write_run(tmp_path / "fork", fork_names=True)
     t = read_fargo3d(run, 5, tau0=0.3, hand="L")
-    assert t.hand == "L"
+    assert t.hand == "L" and t.name == "fargo3d_fork_dust1_5_tau0.3_L"
     assert abs(_peak(t)[1] + BUMP_DPHI) <= 2 * np.pi / NX  # mirrored to φ < 0
 
 

@@ -261,7 +261,8 @@ def read_fargo3d(
     beta : float
         Cooling time recorded in the metadata (FARGO3D has no standard parameter for it).
     name : str, optional
-        Template name (default ``fargo3d_<fluid>_<output>``).
+        Template name (default ``fargo3d_<run folder>_<fluid>_<output>_tau<tau0>_<hand>``, so that
+        the maps of several runs and optical depths can share a :class:`TemplateBank`).
 
     Returns
     -------
@@ -347,7 +348,8 @@ def read_fargo3d(
         x, phi, sigma_rot / mean[:, None] - 1.0, tau0, temperature_factor=tfac,
         sigma_axisym=mean / sigma_ref, hand="R", mass=mass, beta=beta, h_p=h_p, flaring=flaring,
         wavelength=wavelength, mstar=mstar, r_p_au=r_p_au, mu=mu,
-        name=name or f"fargo3d_{fluid}_{output}",
+        # the run's folder and tau0 in the name: maps of several runs or depths then fit in one bank
+        name=name or f"fargo3d_{directory.resolve().name}_{fluid}_{output}_tau{tau0:g}_R",
         provenance={"reader": "spiralbayes.templates.fargo3d", "directory": str(directory.resolve()),
                     "output": int(output), "fluid": fluid, "planet": planet, "sigma_ref": sigma_ref,
                     "tau0": tau0},
