@@ -262,7 +262,8 @@ def read_fargo3d(
         Cooling time recorded in the metadata (FARGO3D has no standard parameter for it).
     name : str, optional
         Template name (default ``fargo3d_<run folder>_<fluid>_<output>_tau<tau0>_<hand>``, so that
-        the maps of several runs and optical depths can share a :class:`TemplateBank`).
+        the maps of several runs and optical depths can share a
+        :class:`~spiralbayes.templates.bank.TemplateBank`).
 
     Returns
     -------
