@@ -35,7 +35,7 @@ from .._hdf5 import open_file, write_file
 from .._provenance import FORMAT_VERSION, provenance_record, to_json
 from ..exceptions import DataFileError, InputError
 from .generator import paper_grid
-from .template import SpiralTemplate, validate_hand
+from .template import SpiralTemplate, repeated_names, validate_hand
 from .wake import WakeSettings
 
 __all__ = ["DEFAULT_H_PS", "TemplateBank", "compromise_bank", "default_cache_dir"]
@@ -66,7 +66,7 @@ class TemplateBank(Sequence):
             if not isinstance(t, SpiralTemplate):
                 raise TypeError(f"TemplateBank holds SpiralTemplate objects, got {type(t).__name__}")
         names = [t.name for t in self._templates]
-        dupes = sorted({n for n in names if names.count(n) > 1})
+        dupes = repeated_names(self._templates)
         if dupes:
             raise InputError(f"template names must be unique in a bank; duplicated: {dupes}")
         self._index = {n: i for i, n in enumerate(names)}

@@ -31,7 +31,7 @@ from ..exceptions import InputError
 from ..units import TWO_PI
 
 __all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "template_metadata", "check_mass_beta", "check_tau0",
-           "template_name", "validate_hand"]
+           "repeated_names", "template_name", "validate_hand"]
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +80,13 @@ def check_tau0(tau0) -> None:
     """Raise :class:`InputError` unless tau0 is positive and finite."""
     if not np.isfinite(tau0) or tau0 <= 0:
         raise InputError(f"tau0 (initial optical depth at r_p) must be positive, got {tau0!r}")
+
+
+def repeated_names(templates) -> list[str]:
+    """The names that occur more than once among ``templates``, sorted (banks, scan results and test 3
+    find a template by its name)."""
+    names = [getattr(t, "name", None) for t in templates]
+    return sorted({n for n in names if n is not None and names.count(n) > 1})
 
 
 def template_name(mass: float, tau0: float, beta: float, hand: str, prefix: str = "wake",

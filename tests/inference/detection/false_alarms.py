@@ -114,7 +114,7 @@ def evaluate(kind: str, seed: int, maps: bool = False) -> dict:
     :func:`map_templates`."""
     from spiralbayes.calibration import diagnose_calibration
     from spiralbayes.inference.detection import detect_with_planet_peak, fit_alternatives
-    from spiralbayes.inference.detection.nested import nested_candidates, nested_test
+    from spiralbayes.inference.detection.nested import best_nested_test
     from spiralbayes.inference.scan.run import scan
 
     vis, axisym, geometry, params = dataset(kind, seed)
@@ -123,9 +123,7 @@ def evaluate(kind: str, seed: int, maps: bool = False) -> dict:
                   progress=False)
     alts = fit_alternatives(vis, axisym, geometry, progress=False)
     # the verdict's statistic: the best of the nested candidates (one template unless the bank mixes kinds)
-    fits = max((nested_test(result, vis, axisym, templates, alts, geometry, template=name, n_alternatives=2)
-                for name in nested_candidates(result, templates, result.best.template)),
-               key=lambda fs: min(f.delta_bic for f in fs))
+    fits = best_nested_test(result, vis, axisym, templates, alts, geometry, result.best.template, 2)[2]
     calibration = diagnose_calibration(vis, axisym)
     verdict = detect_with_planet_peak(result, vis, axisym, templates, geometry, alternatives=alts,
                                       calibration=calibration)

@@ -24,8 +24,8 @@ from .verdict import (
     one_sidedness,
 )
 from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, NESTED_THRESHOLD, AlternativesSettings, DetectionSettings
-from .nested import (HYPOTHESES, NestedFit, also_present_phrase, apply_nested, nested_candidates, nested_fit,
-                     nested_test, template_kind)
+from .nested import (HYPOTHESES, NestedFit, also_present_phrase, apply_nested, best_nested_test, nested_candidates,
+                     nested_fit, nested_test, template_kind)
 from .explanation import (calibration_explains, calibration_sentence, explain, nested_sentence, phase_warns, rediagnose,
                           rediagnose_with_spiral, withhold)
 from .starts import candidate_starts, linear_amplitudes
@@ -51,6 +51,7 @@ __all__ = [
     "NestedFit",
     "also_present_phrase",
     "apply_nested",
+    "best_nested_test",
     "nested_candidates",
     "nested_fit",
     "nested_test",

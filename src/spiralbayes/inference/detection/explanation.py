@@ -46,7 +46,7 @@ def nested_sentence(verdict) -> str:
     f = min(fits, key=lambda x: x["delta_bic"])
     names = " and ".join(x["label"] for x in fits)
     stat, thr = verdict.nested_delta_bic, verdict.nested_threshold
-    other = getattr(verdict, "nested_template", None)
+    other = verdict.nested_template
     other = f", template {other}" if other and other != verdict.template else ""
     spiral = f"the spiral ({f['hypothesis']}, {f['n_spiral_params']} parameters{other})"
     text = f" Test 3 (nested, against the {names} model{'s' if len(fits) > 1 else ''}): "

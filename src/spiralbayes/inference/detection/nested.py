@@ -61,8 +61,8 @@ from ..scan.statistics import N_SPIRAL_PARAMETERS, chi2
 from .alternatives import PARAM_SCALES, _objective, _setup
 from .planet_peak import _peak_visibilities
 
-__all__ = ["HYPOTHESES", "NestedFit", "also_present_phrase", "apply_nested", "nested_candidates", "nested_fit",
-           "nested_test", "template_kind"]
+__all__ = ["HYPOTHESES", "NestedFit", "also_present_phrase", "apply_nested", "best_nested_test", "nested_candidates",
+           "nested_fit", "nested_test", "template_kind"]
 
 log = logging.getLogger(__name__)
 
@@ -417,34 +417,46 @@ def nested_candidates(result, templates, template, d_rp: int = 1, d_phi: int = 1
     the orbit) an alternative also fits, while a generator template at the same place is a spiral the
     alternative cannot absorb, or the reverse; both stand for the same planet at the same position.
     """
-    templates = list(templates)
-    kinds = [template_kind(t) for t in templates]
+    kinds = np.array([template_kind(t) for t in templates])
     first = result.peak(template)
     out = [first.template]
+    if len(set(kinds)) < 2:
+        return out
+    dchi2 = np.nan_to_num(result.delta_chi2(), nan=-np.inf)  # templates not scanned never win
+    best = dchi2.reshape(len(dchi2), -1).max(axis=1)
+    n_phi = result.phi_p.size
     for kind in sorted(set(kinds) - {kinds[first.template_index]}):
-        peaks = [result.peak(i) for i, k in enumerate(kinds) if k == kind and result.completed[i]]
-        if not peaks:
+        values = np.where(kinds == kind, best, -np.inf)
+        if not np.isfinite(values.max()):
             continue
-        p = max(peaks, key=lambda x: x.delta_chi2)
-        n_phi = result.phi_p.size
+        p = result.peak(int(np.argmax(values)))
         d_j = abs(p.i_phi - first.i_phi) % n_phi
         if abs(p.i_rp - first.i_rp) <= d_rp and min(d_j, n_phi - d_j) <= d_phi:
             out.append(p.template)
     return out
 
 
+def best_nested_test(result, vis, axisymmetric, templates, alternatives, geometry, template,
+                     n_alternatives: int) -> tuple[float, str, list[NestedFit]]:
+    """:func:`nested_test` for each of :func:`nested_candidates` of ``template``: ``(statistic,
+    template name, fits)`` of the candidate with the largest statistic (the smallest ΔBIC over its
+    alternatives)."""
+    tried = []
+    for name in nested_candidates(result, templates, template):
+        fits = nested_test(result, vis, axisymmetric, templates, alternatives, geometry, template=name,
+                           n_alternatives=n_alternatives)
+        tried.append((min(f.delta_bic for f in fits), name, fits))
+    return max(tried, key=lambda x: x[0])
+
+
 def apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s):
     """``verdict`` with test 3 decided by the nested test (run when test 1 passes: else nothing to claim).
     With templates of more than one :func:`template_kind`, each of :func:`nested_candidates` gets the
-    test and the largest statistic decides (``nested_template``)."""
+    test and the largest statistic decides (``nested_template``; :func:`best_nested_test`)."""
     if not verdict.test1_passed or not alternatives.fits:
         return verdict
-    tried = []
-    for name in nested_candidates(result, templates, verdict.template):
-        fits = nested_test(result, vis, axisymmetric, templates, alternatives, geometry, template=name,
-                           n_alternatives=s.nested_alternatives)
-        tried.append((min(f.delta_bic for f in fits), name, fits))
-    stat, nested_template, fits = max(tried, key=lambda x: x[0])
+    stat, nested_template, fits = best_nested_test(result, vis, axisymmetric, templates, alternatives, geometry,
+                                                   verdict.template, s.nested_alternatives)
     passed = bool(stat > s.nested_threshold)
     rows = []
     for f in fits:

@@ -50,7 +50,7 @@ from ...axisymmetric.provenance import check_fitted_to
 from ...geometry import DiscGeometry
 from ...io.argument_checks import check_scan_arguments
 from ...io.data_checks import check_search_data
-from ...templates.template import template_metadata
+from ...templates.template import repeated_names, template_metadata
 from .accuracy import TOLERANCE, check_terms, warn_if_inaccurate
 from .building_blocks import check_pairs, describe_blocks, scan_group, unit_rows, building_block_groups, work_units
 from ...settings import with_overrides
@@ -355,7 +355,11 @@ def scan(vis, axisymmetric, templates, geometry: DiscGeometry | None = None, *, 
     templates = list(templates)
     if not templates:
         raise InputError("no templates to scan: pass a TemplateBank or a list of SpiralTemplate")
-    _check_unique_names(templates)
+    dup = repeated_names(templates)
+    if dup:  # results, checkpoints and test 3 find a template by its name
+        raise InputError(f"{len(dup)} template name(s) occur more than once ({', '.join(map(repr, dup[:5]))}): "
+                         "the scan's results are looked up by name, so give each template its own, e.g. "
+                         "dataclasses.replace(template, name='run42_R')")
     check_search_data(vis, distance=distance)
     if not allow_other_data:
         check_fitted_to(axisymmetric, vis)
@@ -410,20 +414,6 @@ def empty_result(context: ScanContext, templates, vis, distance) -> ScanResult:
                       2 * np.pi * np.arange(context.n_phi_p) / context.n_phi_p,
                       np.full(shape, np.nan), np.full(shape, np.nan), context.chi2_AO, int(vis.n),
                       context.geometry, distance, prov)
-
-
-def _check_unique_names(templates) -> None:
-    # results, checkpoints and test 3 find a template by its name
-    names = [getattr(t, "name", None) for t in templates]
-    seen, dup = set(), []
-    for n in names:
-        if n in seen and n not in dup:
-            dup.append(n)
-        seen.add(n)
-    if dup:
-        raise InputError(f"{len(dup)} template name(s) occur more than once ({', '.join(map(repr, dup[:5]))}): "
-                         "the scan's results are looked up by name, so give each template its own, e.g. "
-                         "dataclasses.replace(template, name='run42_R')")
 
 
 def _check_rp(r_p) -> np.ndarray:
