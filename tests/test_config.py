@@ -181,6 +181,11 @@ def test_maps_files_are_scanned_beside_the_bank(tmp_path, monkeypatch):
     section = dict(config["templates"], maps=[str(tmp_path / "clash.h5")])
     with pytest.raises(InputError, match="clash.h5.*already in the scan.*rename"):
         inputs.load_templates(section)
+    # a second run of the same mass, tau0, beta and H/r (another viscosity, say): one place in one family
+    TemplateBank([sim(1.0, 0.3, 0.06, "runC_R")]).save(tmp_path / "twin.h5")
+    section = dict(config["templates"], maps=[str(tmp_path / "maps" / "runs.h5"), str(tmp_path / "twin.h5")])
+    with pytest.raises(InputError, match=r"\[templates\] maps: templates 'runA_R' and 'runC_R'.*variant"):
+        inputs.load_templates(section)
     with pytest.raises(ConfigError, match="maps"):
         path.write_text('[data]\npath = "d.txt"\n[geometry]\ninc = 30\nPA = 60\n[templates]\nmaps = [3]\n')
         load_config(path)

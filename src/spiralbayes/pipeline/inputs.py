@@ -10,9 +10,11 @@ from ..axisymmetric.provenance import check_fitted_to
 from ..config import geometry_given
 from ..exceptions import ConfigError, InputError
 from ..geometry import DiscGeometry
+from ..inference.limits.families import template_families
 from ..io import load_visibilities
 from ..templates import TemplateBank, compromise_bank, default_bank
 from ..templates.bank import DEFAULT_H_PS
+from ..templates.template import template_metadata
 from ..visibilities import estimate_weights
 
 __all__ = ["load_axisymmetric", "load_data", "load_maps", "load_templates", "select_templates"]
@@ -87,7 +89,13 @@ def load_templates(templates: dict) -> list:
         bank = BANKS[name]() if name in BANKS else TemplateBank.load(name)
         chosen = select_templates(bank, templates["mass"], templates["tau0"], templates["beta"], templates["hand"],
                                   h_ps)
-    return chosen + load_maps(templates, {t.name for t in chosen})
+    maps = load_maps(templates, {t.name for t in chosen})
+    if maps:
+        try:  # two maps for one mass of one family would stop the limits after the scan: say so now
+            template_families([template_metadata(t) for t in chosen + maps])
+        except InputError as err:
+            raise InputError(f"[templates] maps: {err}") from None
+    return chosen + maps
 
 
 def load_maps(templates: dict, taken=frozenset()) -> list:

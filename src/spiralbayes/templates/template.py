@@ -31,7 +31,7 @@ from ..exceptions import InputError
 from ..units import TWO_PI
 
 __all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "template_metadata", "check_mass_beta", "check_tau0",
-           "repeated_names", "template_name", "validate_hand"]
+           "repeated_names", "template_kind", "template_name", "validate_hand"]
 
 log = logging.getLogger(__name__)
 
@@ -87,6 +87,12 @@ def repeated_names(templates) -> list[str]:
     find a template by its name)."""
     names = [getattr(t, "name", None) for t in templates]
     return sorted({n for n in names if n is not None and names.count(n) > 1})
+
+
+def template_kind(template) -> str:
+    """``"generator"`` for a template of the package's semi-analytic generator (any morphology variant),
+    ``"simulation"`` for a map read from a simulation (FARGO3D, a FITS file, a reference library)."""
+    return "generator" if "generator" in (getattr(template, "provenance", None) or {}) else "simulation"
 
 
 def template_name(mass: float, tau0: float, beta: float, hand: str, prefix: str = "wake",
@@ -367,7 +373,9 @@ def template_metadata(template) -> dict:
     """JSON-able description of a template (name and physical parameters).
 
     Unknown values (NaN, e.g. the cooling time of a FARGO3D run) become ``None``, so the
-    metadata is strict JSON and compares equal to itself after a save and load.
+    metadata is strict JSON and compares equal to itself after a save and load. A map read from a
+    simulation carries ``"kind": "simulation"`` (:func:`template_kind`), so that the limits keep it
+    out of the generator's families; the generator's templates carry no ``kind``.
     """
     keys = ("name", "mass", "tau0", "beta", "hand", "h_p", "flaring", "wavelength")
     meta = {k: getattr(template, k) for k in keys if getattr(template, k, None) is not None}
@@ -375,4 +383,6 @@ def template_metadata(template) -> dict:
     variant = (getattr(template, "provenance", None) or {}).get("variant")
     if variant is not None:  # the morphology variant (templates.variants)
         meta["variant"] = str(variant)
+    if template_kind(template) == "simulation":
+        meta["kind"] = "simulation"
     return json_safe(meta)

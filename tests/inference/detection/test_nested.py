@@ -206,7 +206,7 @@ GEN, SIM = {"generator": "spiralbayes.templates.generator"}, {"reader": "spiralb
 
 
 def test_template_kind_tells_the_generator_from_simulated_maps():
-    from spiralbayes.inference.detection.nested import template_kind
+    from spiralbayes.templates.template import template_kind
     from spiralbayes.templates import make_template
 
     assert template_kind(make_template(1.0, 0.3, 0.0, "R")) == "generator"

@@ -25,7 +25,7 @@ from .verdict import (
 )
 from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, NESTED_THRESHOLD, AlternativesSettings, DetectionSettings
 from .nested import (HYPOTHESES, NestedFit, also_present_phrase, apply_nested, best_nested_test, nested_candidates,
-                     nested_fit, nested_test, template_kind)
+                     nested_fit, nested_test)
 from .explanation import (calibration_explains, calibration_sentence, explain, nested_sentence, phase_warns, rediagnose,
                           rediagnose_with_spiral, withhold)
 from .starts import candidate_starts, linear_amplitudes
@@ -55,7 +55,6 @@ __all__ = [
     "nested_candidates",
     "nested_fit",
     "nested_test",
-    "template_kind",
     "calibration_explains",
     "calibration_sentence",
     "explain",

@@ -57,12 +57,13 @@ import numpy as np
 from ..._threads import blas_threads
 from ...exceptions import InputError
 from ...alternatives import FIELD_MODELS, HankelTable, geometry_visibilities, offset_geometry
+from ...templates.template import template_kind
 from ..scan.statistics import N_SPIRAL_PARAMETERS, chi2
 from .alternatives import PARAM_SCALES, _objective, _setup
 from .planet_peak import _peak_visibilities
 
 __all__ = ["HYPOTHESES", "NestedFit", "also_present_phrase", "apply_nested", "best_nested_test", "nested_candidates",
-           "nested_fit", "nested_test", "template_kind"]
+           "nested_fit", "nested_test"]
 
 log = logging.getLogger(__name__)
 
@@ -402,16 +403,10 @@ def nested_test(result, vis, axisymmetric, templates, alternatives, geometry=Non
 
 
 # --- the verdict's test 3 ---------------------------------------------------------------------
-def template_kind(template) -> str:
-    """``"generator"`` for a template of the package's semi-analytic generator (any morphology variant),
-    ``"simulation"`` for a map read from a simulation (FARGO3D, a FITS file, a reference library)."""
-    return "generator" if "generator" in (getattr(template, "provenance", None) or {}) else "simulation"
-
-
 def nested_candidates(result, templates, template, d_rp: int = 1, d_phi: int = 1) -> list[str]:
     """The templates test 3 tries: ``template`` (the verdict's), then the best template of every other
-    :func:`template_kind` in the scan whose own peak lies within ``d_rp`` radius and ``d_phi`` azimuth
-    steps of ``template``'s.
+    :func:`~spiralbayes.templates.template.template_kind` in the scan whose own peak lies within ``d_rp``
+    radius and ``d_phi`` azimuth steps of ``template``'s.
 
     A bank that mixes kinds can rank first a simulated map whose extra structure (a gap edge, dust at
     the orbit) an alternative also fits, while a generator template at the same place is a spiral the
@@ -451,8 +446,9 @@ def best_nested_test(result, vis, axisymmetric, templates, alternatives, geometr
 
 def apply_nested(verdict, result, vis, axisymmetric, templates, geometry, alternatives, s):
     """``verdict`` with test 3 decided by the nested test (run when test 1 passes: else nothing to claim).
-    With templates of more than one :func:`template_kind`, each of :func:`nested_candidates` gets the
-    test and the largest statistic decides (``nested_template``; :func:`best_nested_test`)."""
+    With templates of more than one :func:`~spiralbayes.templates.template.template_kind`, each of
+    :func:`nested_candidates` gets the test and the largest statistic decides (``nested_template``;
+    :func:`best_nested_test`)."""
     if not verdict.test1_passed or not alternatives.fits:
         return verdict
     stat, nested_template, fits = best_nested_test(result, vis, axisymmetric, templates, alternatives, geometry,

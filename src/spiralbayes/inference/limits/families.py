@@ -6,7 +6,10 @@ metadata give it; banks without ``h_p`` form families by ``tau0`` and ``beta`` a
 hands. A family's masses are sorted; each hand's templates are listed in that order (missing
 ones as None). Templates of a bank with morphology variants (:mod:`spiralbayes.templates.variants`)
 carry a ``variant`` name, which is part of the family key (``None`` without one), so each variant is
-its own family; :mod:`.robust` combines them.
+its own family; :mod:`.robust` combines them. Maps read from simulations (metadata ``kind``
+``"simulation"``) never join a generator family: without a ``variant`` of their own they form the
+variant ``"simulation"``. One mass and hand of a family is one template; two that would fill the
+same place are an error, since either choice would change the limit silently.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from ...exceptions import InputError
 __all__ = ["Family", "select_family", "template_families"]
 
 FAMILY_KEYS = ("tau0", "beta", "h_p", "variant")
+SIMULATION_VARIANT = "simulation"
+"""The variant of simulated maps that carry no variant name of their own."""
 
 
 def _value(meta: dict, key: str):
@@ -82,6 +87,12 @@ def template_families(templates: list) -> list[Family]:
 
     Templates without a mass, tau0 or beta (e.g. reference spirals without labels) belong to no
     family and are left out.
+
+    Raises
+    ------
+    InputError
+        Two templates of one family with the same mass and hand (e.g. maps of two simulations that
+        differ in a parameter the metadata do not hold, such as the viscosity).
     """
     groups: dict = {}
     for index, meta in enumerate(templates):
@@ -89,6 +100,8 @@ def template_families(templates: list) -> list[Family]:
         if mass is None or tau0 is None or beta is None or mass <= 0:
             continue
         variant = meta.get("variant")
+        if variant is None and meta.get("kind") == SIMULATION_VARIANT:
+            variant = SIMULATION_VARIANT
         key = (tau0, beta, _value(meta, "h_p"), None if variant is None else str(variant))
         groups.setdefault(key, []).append((mass, str(meta.get("hand", "R")), index))
     families = []
@@ -96,12 +109,26 @@ def template_families(templates: list) -> list[Family]:
         masses = sorted({m for m, _, _ in rows})
         members: dict = {}
         for mass, hand, index in rows:
-            members.setdefault(hand, [None] * len(masses))[masses.index(mass)] = index
+            slot = members.setdefault(hand, [None] * len(masses))
+            k = masses.index(mass)
+            if slot[k] is not None:
+                raise InputError(_clash_message(templates, slot[k], index, mass, hand))
+            slot[k] = index
         family_key = {"tau0": tau0, "beta": beta, "h_p": h_p}
         if variant is not None:
             family_key["variant"] = variant
         families.append(Family(family_key, masses, members))
     return families
+
+
+def _clash_message(templates: list, first: int, second: int, mass: float, hand: str) -> str:
+    names = [str(templates[i].get("name", f"template {i}")) for i in (first, second)]
+    fields = {k: templates[first].get(k) for k in ("tau0", "beta", "h_p", "variant", "kind")}
+    described = ", ".join(f"{k}={v}" for k, v in fields.items() if v is not None)
+    return (f"templates {names[0]!r} and {names[1]!r} are both the {mass:g} M_th, hand {hand} member of one "
+            f"mass family ({described}), so a mass limit cannot tell them apart: give each simulation "
+            "set its own variant name, e.g. dataclasses.replace(t, provenance={**t.provenance, "
+            "'variant': 'nu1e-4'}), or leave beta unknown (NaN) so the maps stay out of the limits")
 
 
 def _sort_key(item) -> tuple:
