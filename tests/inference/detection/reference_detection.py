@@ -81,14 +81,19 @@ def bank_templates(tau0: float, beta: float) -> tuple:
     return tuple(variant_grid(DEFAULT_VARIANTS, masses=BANK_MASSES, taus=(tau0,), betas=(beta,), h_ps=DEFAULT_H_PS))
 
 
-def map_bank(case: Case, tau0: float, beta: float) -> tuple:
+def map_bank(case: Case, tau0: float, beta: float, every_source: bool = False) -> tuple:
     """The reference maps of every *other* calibration source at (τ0, β), both hands: simulated
     templates beside the variant bank, held out from the planted map's source as the variants are
     (:func:`tests.templates.variant_fit.calibration_source`; the ringed St 0.1 map of
-    ``FIT_EXCLUDED`` is left out, as from the variants' fit)."""
+    ``FIT_EXCLUDED`` is left out, as from the variants' fit). ``every_source``: the maps of the
+    planted map's own source too (its siblings at other masses, Stokes numbers or run lengths), all
+    but the planted map itself: what the widest pool could give."""
     from tests.templates.variant_fit import calibration_source
 
-    return _map_bank(calibration_source(case), float(tau0), float(beta))
+    if not every_source:
+        return _map_bank(calibration_source(case), float(tau0), float(beta))
+    own = reference_template(case, tau0).name
+    return tuple(t for t in _map_bank("", float(tau0), float(beta)) if t.name not in (own, f"{own}_mirror"))
 
 
 @lru_cache(maxsize=8)
@@ -114,11 +119,12 @@ def _coverage():
 
 
 def plant_and_scan(case: Case, tau0: float, seed: int = SEED, n_rp: int = N_RP, frank: bool = False,
-                   gap: bool = True, maps: bool = False):
+                   gap: bool = True, maps: bool = False, every_source: bool = False):
     """Simulate, model the disc, scan ``[own] + bank``; returns ``(vis, axisym, geometry, own_result,
     bank_result, templates)``. ``gap``: the disc holds the run's own gap
     (:class:`~tests.templates.fidelity.GappedDisc`); ``False`` plants the map in the unperturbed disc.
-    ``maps``: the bank also holds the other sources' reference maps (:func:`map_bank`)."""
+    ``maps``: the bank also holds the other sources' reference maps (:func:`map_bank`, with
+    ``every_source``)."""
     from spiralbayes import DiscGeometry
     from spiralbayes.axisymmetric import fit_axisymmetric
     from spiralbayes.inference.scan.run import scan
@@ -126,7 +132,8 @@ def plant_and_scan(case: Case, tau0: float, seed: int = SEED, n_rp: int = N_RP, 
 
     geometry = DiscGeometry(INC, PA)
     ref = reference_template(case, tau0)
-    templates = list(bank_templates(tau0, case.beta)) + list(map_bank(case, tau0, case.beta) if maps else ())
+    templates = list(bank_templates(tau0, case.beta)) + list(map_bank(case, tau0, case.beta, every_source)
+                                                            if maps else ())
     disc = planting_disc(case, tau0, gap)
     r_true = R_P_AU / DISTANCE
     vis = simulate_observation("fiducial", disc, geometry, ref, r_p=r_true, phi_p=np.radians(PHI_P_DEG), seed=seed,
@@ -152,13 +159,14 @@ def _rows(result, rows: slice):
 
 
 def evaluate(case: Case, tau0: float, seed: int = SEED, keep: dict | None = None, frank: bool = False,
-             gap: bool = True, maps: bool = False) -> dict:
+             gap: bool = True, maps: bool = False, every_source: bool = False) -> dict:
     """One row of the detection table (see :func:`format_table` for the columns); ``keep`` receives
-    the scans, alternatives and verdict; ``maps``: see :func:`plant_and_scan`."""
+    the scans, alternatives and verdict; ``maps``, ``every_source``: see :func:`plant_and_scan`."""
     from spiralbayes.inference.detection import DetectionSettings, detect, detect_with_planet_peak, fit_alternatives
     from spiralbayes.inference.detection.nested import nested_test
 
-    vis, axisym, geometry, own, bank, templates = plant_and_scan(case, tau0, seed, frank=frank, gap=gap, maps=maps)
+    vis, axisym, geometry, own, bank, templates = plant_and_scan(case, tau0, seed, frank=frank, gap=gap, maps=maps,
+                                                                 every_source=every_source)
     first = detect(bank)
     own_shows = own.best.delta_bic > OWN_THRESHOLD
     alts = fit_alternatives(vis, axisym, geometry, progress=False) if first.test1_passed or own_shows else None
