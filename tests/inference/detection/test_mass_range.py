@@ -160,3 +160,12 @@ def test_tests_1_and_2_take_the_best_variant_and_its_own_mirror():
     # the mass range lists the other variants' right hands within the band (350 is 50 below: out)
     assert [x["template"] for x in v.mass_range["members"]] == [metas[2]["name"]]
     assert mass_range(result, band=60.0)["variants"] == ["hydro", "wakeflow"]  # compromise R is 100 below
+
+
+def test_a_simulated_map_in_the_range_is_named_a_simulation_not_the_compromise():
+    result = scan_of()
+    result.templates[1] = {"name": "fargo3d_run_gas_40_tau3_R", "mass": 0.3, "tau0": 3.0, "beta": None, "hand": "R",
+                           "h_p": 0.05, "kind": "simulation"}
+    m = mass_range(result)
+    assert "fargo3d_run_gas_40_tau3_R" in {x["template"] for x in m["members"]}
+    assert m["variants"] == ["compromise", "simulation"]

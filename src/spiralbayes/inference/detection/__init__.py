@@ -9,6 +9,8 @@
 * :mod:`.planet_peak` — the spiral hypothesis as spiral + compact source at the planet, scored in test 3.
 * :mod:`.nested` — test 3 as a nested question: the best alternatives fitted jointly with the spiral;
 * :mod:`.explanation` — what the verdict names as the residual structure's cause (calibration included);
+* :mod:`~spiralbayes.inference.detection.kinds` — where the generator's templates and simulated maps
+  each put the planet;
 * :mod:`~spiralbayes.inference.detection.mass` — the planet's mass range.
 """
 
@@ -28,6 +30,7 @@ from .nested import (HYPOTHESES, NestedFit, also_present_phrase, apply_nested, b
                      nested_fit, nested_test)
 from .explanation import (calibration_explains, calibration_sentence, explain, nested_sentence, phase_warns, rediagnose,
                           rediagnose_with_spiral, withhold)
+from .kinds import best_by_kind, kind_position_sentence
 from .starts import candidate_starts, linear_amplitudes
 from .alternatives import (
     ALTERNATIVES_KIND,
@@ -55,6 +58,8 @@ __all__ = [
     "nested_candidates",
     "nested_fit",
     "nested_test",
+    "best_by_kind",
+    "kind_position_sentence",
     "calibration_explains",
     "calibration_sentence",
     "explain",

@@ -73,6 +73,7 @@ from .settings import DELTA_BIC_THRESHOLD, AlternativesSettings, DetectionSettin
 from .planet_peak import rescore_with_planet_peak
 from .explanation import (calibration_sentence, explain, nested_sentence, phase_warns, rediagnose,
                           rediagnose_with_spiral, withhold)
+from .kinds import best_by_kind, kind_position_sentence
 from .nested import apply_nested
 from .mass import mass_range
 
@@ -278,6 +279,11 @@ class Verdict(ResultMixin):
     gains_solved : str or None
         What was done to the data's calibration before the scan (set by the pipeline, e.g.
         ``antenna gains solved (phase, 60 s intervals, 9.8 deg rms)``).
+    best_by_kind : dict or None
+        With the generator's templates and simulated maps in one scan, the best of each kind, where it
+        peaks and how many grid steps from the verdict's position
+        (:func:`~spiralbayes.inference.detection.kinds.best_by_kind`); the summary says so when the two
+        kinds place a significant spiral in different places.
     """
 
     detected: bool
@@ -312,6 +318,7 @@ class Verdict(ResultMixin):
     calibration: dict | None = None
     explanation: str | None = None
     gains_solved: str | None = None
+    best_by_kind: dict | None = None
 
     KIND = "spiralbayes.Verdict"
     WHAT = "verdict"
@@ -348,7 +355,7 @@ class Verdict(ResultMixin):
             text += (f" The peak is compact and handed ({hand})." if self.test2_passed else
                      f" However {hand}, so the improvement is not attributed to a planet-driven spiral "
                      "(e.g. an arc or a geometry error).")
-        text += self._mass_sentence() if self.test1_passed else ""
+        text += self._mass_sentence() + kind_position_sentence(self) if self.test1_passed else ""
         text += nested_sentence(self) if self.test3_method == "nested" else self._test3_sentence()
         text += calibration_sentence(self)
         if self.candidate is not None:
@@ -496,7 +503,8 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
     # a mass is worth reporting only for a significant spiral
     extra: dict[str, Any] = {
         "alternative_threshold": float(alternative_threshold),
-        "mass_range": mass_range(result, amplitude, band=mass_band, mstar=mstar) if test1 else None}
+        "mass_range": mass_range(result, amplitude, band=mass_band, mstar=mstar) if test1 else None,
+        "best_by_kind": best_by_kind(result, amplitude, bic_threshold_value)}
     if alternatives is not None:
         _check_same_data(result, alternatives)
         alt = alternatives.best
