@@ -187,6 +187,8 @@ def evaluate(case: Case, tau0: float, seed: int = SEED, keep: dict | None = None
 
 def row(case: Case, tau0: float, own, bank, verdict) -> dict:
     """The table's numbers from the scans and the verdict."""
+    from spiralbayes.inference.detection.kinds import kind_position_sentence
+
     o = own.best.to_dict()
     best = bank.templates[bank.template_index(verdict.template)]
     r_true, phi_true = R_P_AU / DISTANCE, np.radians(PHI_P_DEG)
@@ -205,6 +207,8 @@ def row(case: Case, tau0: float, own, bank, verdict) -> dict:
         "nested_vs": None if not verdict.nested else min(verdict.nested, key=lambda f: f["delta_bic"])["alternative"],
         "nested_template": verdict.nested_template,
         "also_present": verdict.also_present,
+        "best_by_kind": verdict.best_by_kind,
+        "position_note": bool(kind_position_sentence(verdict)),
         "mass_range_mth": None if verdict.mass_range is None else verdict.mass_range["mth"],
         "mass_range_mjup": None if verdict.mass_range is None else verdict.mass_range["mjup"],
         "verdict": verdict.to_dict(),

@@ -48,6 +48,7 @@ def test_each_kind_reports_its_best_and_its_distance_from_the_verdicts_place():
 @pytest.mark.parametrize("where, value", [
     ((4, 8), 300.0),     # one azimuth step: the same place on this grid
     ((2, 5), 70.0),      # elsewhere, but Delta BIC below test 1's 10
+    ((2, 5), 220.0),     # elsewhere and significant, but under half the verdict's Delta BIC (157 < 168)
 ])
 def test_no_sentence_when_the_other_kind_agrees_or_is_not_significant(where, value):
     result = _scan([("gen_a", "generator", *where, value), ("map_a", "simulation", 4, 7, 400.0)])
