@@ -161,9 +161,9 @@ VARIANTS: dict[str, Variant] = {
         broad_width=3.0, mass_factors=((0.1, 0.7339), (0.3, 0.8000), (1.0, 0.7004), (3.0, 0.4288)),
         fitted_to=("fargo3d_isothermal.h5:h0.07_mu0.3", "fargo3d_isothermal.h5:h0.07_mu1",
                    *(f"fargo3d_library.h5:{g}" for g in (
-                       "h0.05_mu0.3", "h0.05_mu1", "h0.05_mu3", "h0.05_mu3_orbits200", "h0.07_mu0.1", "h0.07_mu0.3", "h0.07_mu0.3_beta10",
-                       "h0.07_mu1", "h0.07_mu1_beta10", "h0.07_mu1_orbits200", "h0.07_mu1_st0.03", "h0.07_mu3",
-                       "h0.07_mu3_orbits200", "h0.10_mu0.3", "h0.10_mu1"))),
+                       "h0.05_mu0.3", "h0.05_mu1", "h0.05_mu3", "h0.05_mu3_orbits200", "h0.07_mu0.1", "h0.07_mu0.3",
+                       "h0.07_mu0.3_beta10", "h0.07_mu1", "h0.07_mu1_beta10", "h0.07_mu1_orbits200", "h0.07_mu1_st0.03",
+                       "h0.07_mu3", "h0.07_mu3_orbits200", "h0.10_mu0.3", "h0.10_mu1"))),
         note="least squares of (T, B, W) to the 17 quasi-steady FARGO3D reference runs at every reduced tau0 "
              "(2 x 2 + 15 x 4 maps; beta = 10 runs against the beta = 10 generator; powers of M_p chosen on a "
              "grid): mu^-0.1 (0.9529 T - 0.1020 W) + 0.1223 B, then one shrink per reference mass so that every "
