@@ -61,7 +61,7 @@ KNOWN_FAILURES_WITH_MAPS = {
                                                    "100 deg off; test 3 fails (nested -22, arc); with every map, "
                                                    "its own 20-orbit run (108) two steps out, nested -72",
     ("fargo3dlib:h0.10_mu1", 3.0): "misplaced: the r^-1.5 map (H/r 0.07) peaks two r_p steps out and 12 deg off "
-                                   "(Delta BIC 391; the variants' 354 at the truth); every H/r 0.07 1 M_th map "
+                                   "(Delta BIC 391; the variants' 351 at the truth); every H/r 0.07 1 M_th map "
                                    "in the top ten (296-391) peaks there; the summary names the H/r 0.10 "
                                    "template at the truth (Verdict.best_by_kind)",
     ("wakeflow:h0.05_mu1", 0.3): "test 3 Delta BIC 5 against an arc at the planet, below 30 (bank 25, own map's "
