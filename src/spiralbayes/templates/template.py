@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -31,7 +32,7 @@ from ..exceptions import InputError
 from ..units import TWO_PI
 
 __all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "template_metadata", "check_mass_beta", "check_tau0",
-           "repeated_names", "template_kind", "template_name", "validate_hand"]
+           "SIMULATION", "metadata_variant", "repeated_names", "template_kind", "template_name", "validate_hand"]
 
 log = logging.getLogger(__name__)
 
@@ -89,10 +90,31 @@ def repeated_names(templates) -> list[str]:
     return sorted({n for n in names if n is not None and names.count(n) > 1})
 
 
+SIMULATION = "simulation"
+"""The kind of a map read from a simulation (:func:`template_kind`), and the morphology of one that
+names no variant (:func:`metadata_variant`)."""
+
+
 def template_kind(template) -> str:
     """``"generator"`` for a template of the package's semi-analytic generator (any morphology variant),
-    ``"simulation"`` for a map read from a simulation (FARGO3D, a FITS file, a reference library)."""
-    return "generator" if "generator" in (getattr(template, "provenance", None) or {}) else "simulation"
+    ``"simulation"`` for a map read from a simulation (FARGO3D, a FITS file, a reference library).
+
+    ``template`` may also be its :func:`template_metadata` (a scan result's ``templates``), whose
+    ``kind`` marks the maps; metadata without it (older results) are the generator's.
+    """
+    if isinstance(template, Mapping):
+        return SIMULATION if template.get("kind") == SIMULATION else "generator"
+    return "generator" if "generator" in (getattr(template, "provenance", None) or {}) else SIMULATION
+
+
+def metadata_variant(meta: Mapping) -> str | None:
+    """The morphology a template's metadata stand for: its variant name, ``"simulation"`` for a map
+    that names none, None for the generator's compromise (the limits' families and the verdict's mass
+    range keep a map apart from the generator's templates by it)."""
+    variant = meta.get("variant")
+    if variant is not None:
+        return str(variant)
+    return SIMULATION if template_kind(meta) == SIMULATION else None
 
 
 def template_name(mass: float, tau0: float, beta: float, hand: str, prefix: str = "wake",
@@ -383,6 +405,6 @@ def template_metadata(template) -> dict:
     variant = (getattr(template, "provenance", None) or {}).get("variant")
     if variant is not None:  # the morphology variant (templates.variants)
         meta["variant"] = str(variant)
-    if template_kind(template) == "simulation":
-        meta["kind"] = "simulation"
+    if template_kind(template) == SIMULATION:
+        meta["kind"] = SIMULATION
     return json_safe(meta)

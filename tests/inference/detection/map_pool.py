@@ -33,18 +33,12 @@ def ranked(result) -> list[tuple]:
     return sorted(rows, reverse=True)
 
 
-def find_case(label: str):
-    from tests.templates.fidelity import PHYSICS_FILE
-
-    for case in rd.detection_cases() + rd.detection_cases([PHYSICS_FILE]):
-        if case.label == label:
-            return case
-    raise SystemExit(f"no detection case {label!r}")
-
-
 def main(label: str, tau0: str, *name_parts: str) -> None:
     logging.basicConfig(level=logging.WARNING)
-    case = find_case(label)
+    try:
+        case = rd.find_case(label)
+    except KeyError as err:
+        raise SystemExit(str(err)) from None
     _, _, _, own, bank, templates = rd.plant_and_scan(case, float(tau0), maps=True, every_source=True)
     rows = ranked(bank)
     print(f"{label} tau0 {tau0}: own map Delta BIC {own.best.delta_bic:.1f}; {len(templates)} templates")

@@ -72,6 +72,16 @@ def detection_cases(files=None) -> list[Case]:
     return out
 
 
+def find_case(label: str) -> Case:
+    """The detection case (library or physics set) labelled ``label``, e.g. ``fargo3dlib:h0.10_mu1``."""
+    from tests.templates.fidelity import PHYSICS_FILE
+
+    for case in detection_cases() + detection_cases([PHYSICS_FILE]):
+        if case.label == label:
+            return case
+    raise KeyError(f"no detection case {label!r}")
+
+
 @lru_cache(maxsize=4)
 def bank_templates(tau0: float, beta: float) -> tuple:
     """The variant bank at one (τ0, β): every variant × H/r × mass × hand."""

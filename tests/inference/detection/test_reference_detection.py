@@ -81,16 +81,12 @@ def _cases(known=KNOWN_FAILURES):
     return out
 
 
-def _case(label):
-    return next(c for c in rd.detection_cases() + rd.detection_cases([PHYSICS_FILE]) if c.label == label)
-
-
 def test_the_planting_disc_holds_the_runs_own_gap():
     import h5py
 
     from spiralbayes.simulate.discs import planck
 
-    hydro, wake = _case("fargo3dlib:h0.07_mu1_orbits200"), _case("wakeflow:h0.07_mu1")
+    hydro, wake = rd.find_case("fargo3dlib:h0.07_mu1_orbits200"), rd.find_case("wakeflow:h0.07_mu1")
     x, ratio = run_gap(hydro)
     with h5py.File(REF_DIR / hydro.file, "r") as f:  # independent: the file's own columns
         g = f[hydro.group]
@@ -119,7 +115,7 @@ def test_the_map_bank_never_holds_the_planted_maps_source():
     every = rd.detection_cases() + rd.detection_cases([PHYSICS_FILE])
     by_reference = {f"tests/data/references/{c.file}:{c.group}": c for c in every}  # fidelity.reference_template's
     for label in ("fargo3dlib:h0.07_mu1_orbits200", "fargo3dlib:h0.07_mu1_st0.1", "wakeflow:h0.07_mu1"):
-        case = _case(label)
+        case = rd.find_case(label)
         bank = rd.map_bank(case, 0.3, 0.0)
         sources = [calibration_source(by_reference[t.provenance["reference"]]) for t in bank[::2]]
         others = {calibration_source(c) for c in every if c.beta == 0} - {calibration_source(case)}
@@ -136,7 +132,7 @@ def test_the_widest_map_pool_holds_every_map_but_the_planted_one():
     from tests.templates.variant_fit import FIT_EXCLUDED
 
     for label in ("fargo3dlib:h0.07_mu1_st0.1", "fargo3d:h0.07_mu1"):
-        case = _case(label)
+        case = rd.find_case(label)
         own = rd.reference_template(case, 0.3).name
         others = rd.map_bank(case, 0.3, 0.0)
         widest = rd.map_bank(case, 0.3, 0.0, every_source=True)

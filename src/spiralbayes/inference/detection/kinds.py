@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...templates.template import template_kind
 from ..scan.statistics import bic_threshold
 from .settings import DELTA_BIC_THRESHOLD
 
@@ -18,15 +19,10 @@ __all__ = ["best_by_kind", "kind_position_sentence"]
 
 COMPARABLE_FRACTION = 0.5
 """The other kind's best must reach this fraction of the verdict's ΔBIC to be named: measured on the
-76 plantings of docs/verdict.md with the maps, it reached 0.65–0.91 where both kinds stood for the
-planet at different places, and 0.09–0.32 where the other kind's templates simply did not fit."""
-KIND_WORDS = {"generator": "generator template (its bank spans H/r)",
-              "simulation": "simulated map (one H/r, its run's)"}
-
-
-def _kind(meta: dict) -> str:
-    # template_metadata marks maps from simulations; older results without the mark are the generator's
-    return "simulation" if meta.get("kind") == "simulation" else "generator"
+library plantings of docs/verdict.md with the maps, it reached 0.65–0.91 where both kinds stood for
+the planet at different places, and 0.09–0.32 where the other kind's templates simply did not fit."""
+KIND_NOUNS = {"generator": "generator template", "simulation": "simulated map"}
+KIND_H_P = {"generator": "its bank spans H/r", "simulation": "one H/r, its run's"}
 
 
 def best_by_kind(result, amplitude=None, threshold: float = DELTA_BIC_THRESHOLD) -> dict | None:
@@ -34,7 +30,7 @@ def best_by_kind(result, amplitude=None, threshold: float = DELTA_BIC_THRESHOLD)
     scan, ``kind -> {template, r_p [arcsec], phi_p_deg, delta_bic, test1, steps_from_best}``:
     ``test1`` whether its ΔBIC exceeds ``threshold``, ``steps_from_best`` the radius and (cyclic)
     azimuth grid steps from the scan's best instance. None when the scan holds one kind only."""
-    kinds = np.array([_kind(meta) for meta in result.templates])
+    kinds = np.array([template_kind(meta) for meta in result.templates])
     if len(set(kinds)) < 2:
         return None
     # ΔBIC at every instance: Δχ² less the scan's k ln N; templates not scanned never win
@@ -50,9 +46,9 @@ def best_by_kind(result, amplitude=None, threshold: float = DELTA_BIC_THRESHOLD)
         t, i, j = np.unravel_index(int(np.argmax(masked)), masked.shape)
         d_phi = abs(int(j) - int(best[2])) % n_phi
         out[str(kind)] = {"template": result.templates[t]["name"], "r_p": float(result.r_p[i]),
-                     "phi_p_deg": float(np.degrees(result.phi_p[j])), "delta_bic": float(masked[t, i, j]),
-                     "test1": bool(masked[t, i, j] > threshold),
-                     "steps_from_best": [abs(int(i) - int(best[1])), min(d_phi, n_phi - d_phi)]}
+                          "phi_p_deg": float(np.degrees(result.phi_p[j])), "delta_bic": float(masked[t, i, j]),
+                          "test1": bool(masked[t, i, j] > threshold),
+                          "steps_from_best": [abs(int(i) - int(best[1])), min(d_phi, n_phi - d_phi)]}
     return out if len(out) > 1 else None
 
 
@@ -70,8 +66,8 @@ def kind_position_sentence(verdict) -> str:
             continue
         d_rp, d_phi = other["steps_from_best"]
         where = verdict._where(other["r_p"], other["phi_p_deg"])
-        return (f" The best {KIND_WORDS[kind]}, {other['template']}, peaks elsewhere: at {where} (Delta BIC = "
-                f"{other['delta_bic']:.1f}), {d_rp} radius and {d_phi} azimuth steps from the best "
-                f"{KIND_WORDS[mine].split(' (')[0]}. A map's fixed aspect ratio moves its peak when the disc's "
+        return (f" The best {KIND_NOUNS[kind]} ({KIND_H_P[kind]}), {other['template']}, peaks elsewhere: at {where} "
+                f"(Delta BIC = {other['delta_bic']:.1f}), {d_rp} radius and {d_phi} azimuth steps from the best "
+                f"{KIND_NOUNS[mine]}. A map's fixed aspect ratio moves its peak when the disc's "
                 "differs, so the planet's position is uncertain between the two.")
     return ""

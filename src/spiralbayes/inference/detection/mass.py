@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...exceptions import InputError
+from ...templates.template import metadata_variant
 from ...units import M_JUP, M_SUN
 from .settings import MASS_BAND, DetectionSettings
 
@@ -64,9 +65,8 @@ def mass_range(result, amplitude=None, *, band: float = MASS_BAND, window: tuple
             h_p = m.get("h_p")
             mjup = (float(m["mass"]) * float(h_p) ** 3 * mstar * M_SUN / M_JUP
                     if h_p is not None and np.isfinite(h_p) else None)
-            # a simulated map's morphology is its run's, not the generator's compromise
-            variant = m.get("variant") or ("simulation" if m.get("kind") == "simulation" else None)
-            members.append({"template": m["name"], "mass": float(m["mass"]), "h_p": h_p, "variant": variant,
+            members.append({"template": m["name"], "mass": float(m["mass"]), "h_p": h_p,
+                            "variant": metadata_variant(m),
                             "mjup": mjup, "below_best": float(best.delta_chi2 - local)})
     masses = [x["mass"] for x in members]
     mjups = [x["mjup"] for x in members if x["mjup"] is not None]

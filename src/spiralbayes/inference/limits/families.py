@@ -19,11 +19,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...exceptions import InputError
+from ...templates.template import SIMULATION, metadata_variant
 
 __all__ = ["Family", "select_family", "template_families"]
 
 FAMILY_KEYS = ("tau0", "beta", "h_p", "variant")
-SIMULATION_VARIANT = "simulation"
+SIMULATION_VARIANT = SIMULATION
 """The variant of simulated maps that carry no variant name of their own."""
 
 
@@ -99,10 +100,7 @@ def template_families(templates: list) -> list[Family]:
         mass, tau0, beta = _value(meta, "mass"), _value(meta, "tau0"), _value(meta, "beta")
         if mass is None or tau0 is None or beta is None or mass <= 0:
             continue
-        variant = meta.get("variant")
-        if variant is None and meta.get("kind") == SIMULATION_VARIANT:
-            variant = SIMULATION_VARIANT
-        key = (tau0, beta, _value(meta, "h_p"), None if variant is None else str(variant))
+        key = (tau0, beta, _value(meta, "h_p"), metadata_variant(meta))
         groups.setdefault(key, []).append((mass, str(meta.get("hand", "R")), index))
     families = []
     for (tau0, beta, h_p, variant), rows in sorted(groups.items(), key=_sort_key):
