@@ -6,7 +6,7 @@ import its own layer and the ones below it, never one above:
 
 0. base: ``exceptions``, ``units``, ``settings``, ``_compat``, ``_version``, ``_provenance``, ``_hdf5``, ``results``,
    ``_casa``, ``_threads``
-1. data: ``geometry``, ``layout``, ``visibilities``, ``fourier``, ``io``
+1. data: ``geometry``, ``layout``, ``visibilities``, ``averaging``, ``fourier``, ``io``
 2. models: ``axisymmetric``, ``templates``, ``quadrature``, ``model``
 3. synthetic data: ``simulate``
 4. inference: ``inference``
@@ -31,7 +31,7 @@ PACKAGE = Path(spiralbayes.__file__).parent
 LAYERS = {
     "exceptions": 0, "units": 0, "_version": 0, "_provenance": 0, "_hdf5": 0, "results": 0, "_casa": 0,
     "_threads": 0, "settings": 0, "_compat": 0, "cluster": 0,
-    "geometry": 1, "layout": 1, "visibilities": 1, "fourier": 1, "io": 1,
+    "geometry": 1, "layout": 1, "visibilities": 1, "averaging": 1, "fourier": 1, "io": 1,
     "axisymmetric": 2, "templates": 2, "model": 2, "alternatives": 2, "quadrature": 2, "calibration": 2,
     "simulate": 3,
     "inference": 4,

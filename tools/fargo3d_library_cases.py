@@ -60,11 +60,15 @@ class Case:
         dust at Stokes numbers 0.01 and 0.1 beside the library's 0.03; ``physics``: the disc physics
         the other runs share — surface-density slope, viscosity, masses and H/r between the bank's,
         and a run to 500 orbits; ``long2``: planets after 200 orbits at other masses and H/r than the
-        ``orbits200`` pair's).
+        ``orbits200`` pair's); ``continuum``: the space-filling design of :func:`continuum_cases` in
+        (M_p, H/r, surface-density slope, α) for the template model continuous in disc physics.
     sigma_slope : float
         ``p`` of the initial ``Σ ∝ r^-p`` (FARGO3D SigmaSlope).
     nu : float
         Kinematic viscosity in code units (``α = ν / h_p²`` at the planet).
+    continues : str
+        Name of the case whose outputs this one restarts from (the same set-up run for longer); the
+        driver copies that run's directory when this one has no outputs yet.
     """
 
     name: str
@@ -80,6 +84,7 @@ class Case:
     batch: str = "issue21"
     sigma_slope: float = SIGMA_SLOPE
     nu: float = NU
+    continues: str = ""
 
     @property
     def setup(self) -> str:
@@ -168,6 +173,71 @@ CASES: list[Case] = [  # run order: the most distinct cases per CPU hour first (
     _case("lib_mu2_h007_long", 2.0, 0.07, orbits=200.0, role="orbits200", batch="long2"),
     _case("lib_mu3_h005_long", 3.0, 0.05, orbits=200.0, role="orbits200", batch="long2"),
 ]
+
+
+# The continuum design's box: what the physics-continuous template model is to span.
+CONTINUUM_BOX = {"mu": (0.1, 3.0), "h_p": (0.04, 0.12), "sigma_slope": (0.5, 1.5), "alpha": (1e-4, 1e-2)}
+CONTINUUM_SEED = 53     # fixes the scrambled Sobol sequence, so every session extends the same design
+CONTINUUM_AGES = (200.0, 1000.0)
+
+
+def continuum_point(u) -> dict:
+    """Map a point ``u`` of the unit 4-cube to rounded disc physics in :data:`CONTINUUM_BOX`.
+
+    ln M_p, H/r, the slope p and log10 α are uniform in their ranges; the values are rounded (M_p to
+    two significant figures, H/r to 0.01, p to 0.05, log10 α to 0.1) so that names stay short and
+    the FARGO3D parameter files reproduce them exactly.
+    """
+    lo, hi = (math.log(v) for v in CONTINUUM_BOX["mu"])
+    mu = float(f"{math.exp(lo + u[0] * (hi - lo)):.2g}")
+    h0, h1 = CONTINUUM_BOX["h_p"]
+    h_p = round(h0 + u[1] * (h1 - h0), 2)
+    p0, p1 = CONTINUUM_BOX["sigma_slope"]
+    slope = round((p0 + u[2] * (p1 - p0)) * 20.0) / 20.0
+    a0, a1 = (math.log10(v) for v in CONTINUUM_BOX["alpha"])
+    alpha = 10.0 ** round(a0 + u[3] * (a1 - a0), 1)
+    return {"mu": mu, "h_p": h_p, "sigma_slope": slope, "alpha": alpha}
+
+
+def continuum_cases(n: int = 32, n_aged: int = 4) -> list[Case]:
+    """The ``continuum`` run set: the first ``n`` points of a scrambled Sobol sequence, then ages.
+
+    A Sobol sequence's every prefix of 2^k points is balanced in every parameter, so running the
+    cases in table order gives the widest coverage for the CPU hours spent so far; a later session
+    that raises ``n`` extends the same design (fixed seed) instead of starting another. The first
+    ``n_aged`` points with H/r ≥ 0.07 (the cheap ones: cost per orbit ∝ (H/r)^-2) are then continued
+    to each age of :data:`CONTINUUM_AGES` (orbits), each from the previous age's run.
+
+    Viscosity is set by α at the planet (ν = α h_p²), so that a point's gap depth depends on α
+    and M_p rather than on how ν compares with the local sound speed.
+    """
+    from scipy.stats import qmc   # the tools' environment has scipy; the module stays importable without
+
+    u = qmc.Sobol(d=4, scramble=True, seed=CONTINUUM_SEED).random(n)
+    cases: list[Case] = []
+    for k, uk in enumerate(u):
+        pt = continuum_point(uk)
+        nu = pt["alpha"] * pt["h_p"] ** 2
+        role = f"slope{pt['sigma_slope']:g}_alpha{pt['alpha']:.1e}"
+        cases.append(_case(f"cont{k:02d}_mu{pt['mu']:g}_h{pt['h_p']:.2f}_{role}", pt["mu"], pt["h_p"],
+                           sigma_slope=pt["sigma_slope"], nu=nu, role=role, batch="continuum"))
+    aged = [c for c in cases if c.h_p >= 0.07][:n_aged]
+    previous = {c.name: c.name for c in aged}
+    for orbits in CONTINUUM_AGES:
+        for c in aged:
+            name = f"{c.name}_orbits{orbits:g}"
+            cases.append(_case(name, c.mu, c.h_p, sigma_slope=c.sigma_slope, nu=c.nu, orbits=orbits,
+                               role=f"{c.role}_orbits{orbits:g}", batch="continuum",
+                               continues=previous[c.name]))
+            previous[c.name] = name
+    return cases
+
+
+try:
+    CONTINUUM = continuum_cases()
+except ImportError:   # pragma: no cover - scipy missing: the earlier run sets still work
+    CONTINUUM = []
+CASES += CONTINUUM
 BY_NAME = {c.name: c for c in CASES}
 
 

@@ -102,6 +102,13 @@ def run_case(case: lib.Case, exe: Path, runs_dir: Path, nice: int) -> None:
 def _run_unlocked(case: lib.Case, exe: Path, runs_dir: Path, nice: int) -> None:
     logs = runs_dir / "logs"
     out = runs_dir / case.name
+    if case.continues and not outputs(out):
+        base = runs_dir / case.continues
+        if not (logs / f"{case.continues}.end").exists():
+            raise RuntimeError(f"{case.name} continues {case.continues}, which has not finished; run it first")
+        shutil.rmtree(out, ignore_errors=True)   # an empty directory of an aborted start
+        shutil.copytree(base, out)
+        log.info("%s: continues %s from its output %d", case.name, case.continues, outputs(out)[-1])
     out.mkdir(exist_ok=True)
     cfg = logs / f"{case.name}.cfg"
     cfg.write_text(lib.planet_text(case))
@@ -136,7 +143,8 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--run", action="store_true", help="build and run the cases (in table order)")
     ap.add_argument("--reduce", action="store_true", help="reduce the runs into the reference file")
-    ap.add_argument("--cases", nargs="*", default=[c.name for c in lib.CASES])
+    ap.add_argument("--cases", nargs="*", default=None, help="case names (default: every case, or --batch's)")
+    ap.add_argument("--batch", default=None, help="only the cases of this run set, e.g. continuum")
     ap.add_argument("--fargo-dir", type=Path, default=Path("/work/fargo3d"))
     ap.add_argument("--fargo-source", default=FARGO3D_SOURCE)
     ap.add_argument("--runs-dir", type=Path, default=Path("/work/fargo_runs"))
@@ -144,6 +152,8 @@ def main(argv=None) -> None:
     ap.add_argument("--after", type=int, default=None, help="first wait for this process id to exit")
     args, rest = ap.parse_known_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
+    if args.cases is None:
+        args.cases = [c.name for c in lib.CASES if args.batch is None or c.batch == args.batch]
     unknown = [n for n in args.cases if n not in lib.BY_NAME]
     if unknown:
         raise SystemExit(f"--cases: unknown {unknown}; known: {list(lib.BY_NAME)}")

@@ -47,6 +47,7 @@ from .templates import (
     make_template,
     variant_bank,
 )
+from .averaging import AveragingReport, average_visibilities
 from .visibilities import Visibilities, bin_deprojected, estimate_weights
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
@@ -68,7 +69,8 @@ def __getattr__(name):
 # The public names, grouped by stage (as astropy.cosmology's ``__all__``); each stage's list is also
 # importable, e.g. ``spiralbayes.POSTERIOR``.
 DATA = ["Visibilities", "DiscGeometry", "load_visibilities", "save_visibilities", "bin_deprojected",
-        "estimate_weights", "PRESETS", "DiscModel", "GainErrors", "simulate_observation", "uv_coverage",
+        "estimate_weights", "average_visibilities", "AveragingReport",
+        "PRESETS", "DiscModel", "GainErrors", "simulate_observation", "uv_coverage",
         "CalibrationDiagnostic", "diagnose_calibration", "CalibrationSettings", "GainSolution", "solve_gains",
         "selfcal"]
 """Data: visibilities, disc geometry, files, synthetic observations (with gain errors), calibration checks and

@@ -37,6 +37,7 @@ from .calibration.settings import CalibrationSettings
 from .exceptions import ConfigError, MissingFileError
 from .inference.detection.settings import AlternativesSettings
 from .inference.limits.settings import LimitSettings
+from .averaging import AVERAGING_MODES, DEFAULT_MAX_SMEARING
 from .inference.posterior.settings import PriorSettings, SamplingSettings
 from .inference.scan.settings import GRID_FIELDS, ScanSettings, field_error
 from .settings import DEFAULT_DISTANCE_PC, MAX_DISTANCE_PC, MIN_DISTANCE_PC, config_options, from_config
@@ -55,6 +56,12 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
         "conjugated": (False, "true if V is the complex conjugate of the CASA/frank convention (visread exports)"),
         "estimate_weights": (False, "rescale the weights from the scatter of the visibilities (CASA weights are often "
                                     "not statistical)"),
+        "average": ("none", "average the visibilities before fitting: 'time' (per baseline, keeps antennas and times; "
+                            "needs data that record them), 'uv' (in uv cells) or 'none'"),
+        "max_smearing": (DEFAULT_MAX_SMEARING, "largest smearing of any averaged visibility, as a fraction of the "
+                                               "model's L1 norm within [frank] Rmax (docs/performance.md)"),
+        "time_bin": (0.0, "with average = 'time': longest average [s] (0: the smearing bound alone; with [calibration] "
+                          "solve, the solution interval)"),
     },
     "geometry": {
         "inc": (0.0, "inclination [deg]"),
@@ -228,7 +235,9 @@ _UV_UNITS = ("", "lambda", "klambda", "m", "λ", "kλ", "wavelengths", "wle", "k
              "meter", "meters")
 
 CHECKS: dict[str, dict[str, Callable[[Any], str | None]]] = {
-    "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative},
+    "data": {"uv_units": _choice(*_UV_UNITS), "wavelength": _non_negative, "average": _choice(*AVERAGING_MODES),
+             "max_smearing": lambda v: None if math.isfinite(v) and 0 < v <= 0.1 else "must lie in (0, 0.1]",
+             "time_bin": _non_negative},
     "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _distance},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),

@@ -80,7 +80,7 @@ def run_compare_config(config: dict, *, progress: bool = True) -> CompareResult:
     c = config["compare"]
     out_dir = Path(config["output"]["dir"])
     timings = {}
-    vis = load_data(config["data"])
+    vis = load_data(config["data"], config=config)
     if vis.wavelength is None:  # CASA needs u, v in metres: fail before the scan, with the option to set
         raise ConfigError(f"{config['data']['path']}: compare needs the observing wavelength (CASA's Measurement "
                           "Set stores u, v in metres) and the file does not state it: set [data] wavelength = "

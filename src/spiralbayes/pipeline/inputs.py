@@ -5,7 +5,9 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
-from ..axisymmetric import AxisymmetricModel, fit_axisymmetric
+from ..averaging import DEFAULT_MAX_SMEARING, average_visibilities
+from ..axisymmetric import AxisymmetricModel, FrankSettings, fit_axisymmetric
+from ..calibration.settings import CalibrationSettings
 from ..axisymmetric.provenance import check_fitted_to
 from ..config import geometry_given
 from ..exceptions import ConfigError, InputError
@@ -43,7 +45,7 @@ def _bank_values(bank) -> str:
     return "; ".join(parts)
 
 
-def load_data(data: dict, geometry: DiscGeometry | None = None):
+def load_data(data: dict, geometry: DiscGeometry | None = None, *, config: dict | None = None):
     """A :class:`~spiralbayes.visibilities.Visibilities` from the ``[data]`` section of a configuration.
 
     With ``estimate_weights = true`` the weights are rescaled by one factor from the scatter of
@@ -53,6 +55,11 @@ def load_data(data: dict, geometry: DiscGeometry | None = None):
     set-up, where the bright disc's structure dominates the scatter within a cell); otherwise they
     are checked on load and a DataWarning gives this fix when they do not look statistical.
     ``geometry`` is kept for callers that pass it; the estimate does not use it.
+
+    With ``average = 'time'`` or ``'uv'`` the data are then averaged
+    (:func:`~spiralbayes.averaging.average_visibilities`) within ``max_smearing`` of the model's L1
+    norm inside ``config``'s ``[frank] Rmax`` (offset by its ``[geometry]`` centre); with
+    ``[calibration] solve`` set, time averages stay within one solution interval.
     """
     if not data["path"]:
         raise InputError("data.path is empty: give the visibility file in the [data] section")
@@ -64,7 +71,29 @@ def load_data(data: dict, geometry: DiscGeometry | None = None):
     if data["conjugated"]:
         kwargs["conjugated"] = True
     vis = load_visibilities(data["path"], check_weights_on_load=not data["estimate_weights"], **kwargs).standardised()
-    return estimate_weights(vis, method="neighbours") if data["estimate_weights"] else vis
+    vis = estimate_weights(vis, method="neighbours") if data["estimate_weights"] else vis
+    return average_data(vis, data, config)
+
+
+def average_data(vis, data: dict, config: dict | None):
+    """``vis`` averaged as ``[data] average`` asks (the same for every command and every survey disc)."""
+    mode = data.get("average", "none")
+    if mode == "none":
+        return vis
+    config = config or {}
+    frank = config.get("frank", {})
+    r_out = frank.get("Rmax") or FrankSettings().Rmax
+    time_bin = data.get("time_bin") or None
+    calibration = config.get("calibration", {})
+    if mode == "time" and calibration.get("solve", "none") != "none":
+        interval = calibration.get("interval_s") or CalibrationSettings().interval_s
+        time_bin = interval if time_bin is None else min(time_bin, interval)
+    try:
+        geometry = _geometry(config) if "geometry" in config else None
+        return average_visibilities(vis, mode, r_out=r_out, geometry=geometry,
+                                    max_smearing=data.get("max_smearing", DEFAULT_MAX_SMEARING), time_bin=time_bin)
+    except InputError as err:
+        raise InputError(f"[data] average = {mode!r}: {err}") from None
 
 
 BANKS: dict[str, Callable[..., TemplateBank]] = {"default": default_bank, "variants": default_bank,

@@ -136,14 +136,14 @@ def run_limits_config(config: dict, *, progress: bool = True) -> LimitsRun:
     settings = scan_settings(config)
     scan_file, model_file = out_dir / "scan.h5", out_dir / "axisymmetric.h5"
     if scan_file.exists() or model_file.exists():  # reused only when made from these inputs, else refused
-        vis, gains = reusable_gains(config, load_data(config["data"]), out_dir, required=True)
+        vis, gains = reusable_gains(config, load_data(config["data"], config=config), out_dir, required=True)
         axisym = reusable_axisymmetric(require_file(model_file, "axisymmetric model", "run 'spiralbayes scan' with "
                                                     "this configuration first"), vis, config)
         result = reusable_scan(require_file(scan_file, "scan"), vis, axisym, templates, settings.planet_radii(axisym),
                                settings.n_phi_p)
     else:
         _, result, _ = run_scan_config(config, progress=progress)
-        vis, gains = reusable_gains(config, load_data(config["data"]), out_dir, required=True)
+        vis, gains = reusable_gains(config, load_data(config["data"], config=config), out_dir, required=True)
         axisym = AxisymmetricModel.load(model_file)
     _write_text(out_dir / "config_used_limits.toml", describe_config(config))
     name = config["limits"]["name"] or Path(config["data"]["path"]).stem

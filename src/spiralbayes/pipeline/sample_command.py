@@ -49,7 +49,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
     sampling = from_config(SamplingSettings, s, run_name=run_name)
     prior_settings = from_config(PriorSettings, config["priors"])
     calibration_settings(config)
-    vis = load_data(config["data"], _geometry(config))
+    vis = load_data(config["data"], _geometry(config), config=config)
     vis, gains = reusable_gains(config, vis, out_dir)
     scanned = out_dir / "axisymmetric.h5"
     if not config["frank"]["model"] and scanned.exists():

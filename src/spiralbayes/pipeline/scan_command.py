@@ -77,7 +77,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
         ScanResult.load(checkpoint)  # a truncated or foreign file fails now, not after the frank fit
     scheduler = config["scan"]["scheduler"] or None
     check_dask_address(scheduler or "")
-    vis = load_data(config["data"], _geometry(config))
+    vis = load_data(config["data"], _geometry(config), config=config)
     check_calibration_input(config, vis)
     check_output_folder(out_dir, data_hash(vis.u, vis.v, vis.V, vis.weights), overwrite)
     axisym = load_axisymmetric(config, vis, progress=progress)

@@ -156,7 +156,7 @@ def stage_prepare(job) -> Prepared:
         from .demo import simulate_disc
 
         simulate_disc(job, path)
-    vis = load_data(job.config["data"])
+    vis = load_data(job.config["data"], config=job.config)
     key = data_hash(vis.u, vis.v, vis.V, vis.weights)
     return Prepared(vis, key, job.key(*SCAN_SECTIONS, extra=key))
 
