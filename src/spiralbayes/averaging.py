@@ -10,7 +10,7 @@ The bound
 ---------
 For a group with weights ``w_k`` at baselines ``u_k`` [lambda], weighted mean ``ū`` and weighted
 covariance ``C`` of the positions, and any brightness ``I`` that lies within an angle ``θ`` [rad] of
-the phase centre, Taylor's theorem with ``|e^{ix} - 1 - ix| <= x²/2`` gives
+the phase centre, Taylor's theorem with ``|e^{ix} - 1 - ix| <= x²/2`` gives::
 
     | Σ w_k V(u_k) / Σ w_k  -  V(ū) |  <=  ½ (2π θ)² tr(C) · ∫ |I| dΩ ,
 

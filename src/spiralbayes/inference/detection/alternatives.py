@@ -10,7 +10,8 @@ How:
 
 * ``geometry``: Levenberg–Marquardt-type least squares (``scipy.optimize.least_squares``,
   trust-region reflective) of the four offsets, with the analytic Jacobian of
-  :func:`~spiralbayes.alternatives.geometry_visibilities`, started at zero offset; the final Δχ²
+  :func:`~spiralbayes.alternatives.geometry_visibilities`, started at zero offset, its normal
+  equations accumulated over blocks of visibilities (:mod:`.geometry_fit`); the final Δχ²
   uses the model's own exact visibilities at the fitted geometry.
 * field models: L-BFGS-B over all parameters (bounded) with the exact gradient — one forward and
   one adjoint type-3 transform per evaluation, whatever the number of parameters
@@ -42,7 +43,6 @@ from ...alternatives import (
     HankelTable,
     ProfileContext,
     field_visibilities_dft,
-    geometry_visibilities,
     n_parameters,
     offset_geometry,
 )
@@ -246,28 +246,13 @@ def _setup(vis, axisymmetric, geometry, r_max, cell_factor, nthreads, grid: Disc
 
 
 def _fit_geometry(prob: _Problem, axisymmetric) -> AlternativeFit:
-    from scipy.optimize import least_squares
+    from .geometry_fit import fit_geometry_offsets
 
     t0 = time.perf_counter()
     vis, g = prob.vis, prob.geometry
     table = HankelTable(axisymmetric, float(np.max(np.hypot(vis.u, vis.v))), prob.grid.r_max)
-    sw = np.sqrt(prob.weights)
     counter = {"n": 0}
-
-    def residuals(theta):
-        counter["n"] += 1
-        V = geometry_visibilities(table, vis.u, vis.v, offset_geometry(g, theta))
-        d = sw * (vis.V - V)
-        return np.concatenate([d.real, d.imag])
-
-    def jacobian(theta):
-        _, dV = geometry_visibilities(table, vis.u, vis.v, offset_geometry(g, theta), jacobian=True)
-        J = -sw[None, :] * dV
-        return np.concatenate([J.real, J.imag], axis=1).T
-
-    bounds = ([0.01 - g.inc, -90.0, -1e3, -1e3], [89.9 - g.inc, 90.0, 1e3, 1e3])
-    sol = least_squares(residuals, np.zeros(4), jac=jacobian, bounds=bounds, x_scale=[0.5, 0.5, 5.0, 5.0],
-                        method="trf", xtol=1e-10, ftol=1e-12, max_nfev=200)
+    sol = fit_geometry_offsets(table, vis, prob.weights, g, np.zeros(4), max_nfev=200, counter=counter)
     fitted = offset_geometry(g, sol.x)
     dchi2 = prob.chi2_AO - chi2(axisymmetric.visibilities(vis.u, vis.v, fitted), vis.V, prob.weights)
     params = {"d_inc_deg": float(sol.x[0]), "d_PA_deg": float(sol.x[1]), "d_dRA_mas": float(sol.x[2]),

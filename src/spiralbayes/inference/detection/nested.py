@@ -56,7 +56,7 @@ import numpy as np
 
 from ..._threads import blas_threads
 from ...exceptions import InputError
-from ...alternatives import FIELD_MODELS, HankelTable, geometry_visibilities, offset_geometry
+from ...alternatives import FIELD_MODELS, HankelTable, offset_geometry
 from ...templates.template import template_kind
 from ..scan.statistics import N_SPIRAL_PARAMETERS, chi2
 from .alternatives import PARAM_SCALES, _objective, _setup
@@ -262,33 +262,12 @@ def _refit_field(name, prob, theta0, spiral: _Spiral, hypothesis: str, max_iter:
 
 
 def _refit_geometry(prob, table, theta0, spiral: _Spiral, hypothesis: str, max_iter: int):
-    from scipy.optimize import least_squares
+    from .geometry_fit import fit_geometry_offsets
 
-    vis, g = prob.vis, prob.geometry
-    sw = np.sqrt(prob.weights)
     fixed, cols = spiral.basis(hypothesis)
-    offset = np.zeros_like(vis.V) if fixed is None else fixed
-    Bw = np.stack([np.concatenate([(sw * c).real, (sw * c).imag]) for c in cols], axis=1) if cols else None
-    Q = np.linalg.qr(Bw)[0] if Bw is not None else None
     counter = {"n": 0}
-
-    def project(x):
-        return x if Q is None else x - Q @ (Q.T @ x)
-
-    def residuals(theta):
-        counter["n"] += 1
-        d = sw * (vis.V - offset - geometry_visibilities(table, vis.u, vis.v, offset_geometry(g, theta)))
-        return project(np.concatenate([d.real, d.imag]))
-
-    def jacobian(theta):
-        _, dV = geometry_visibilities(table, vis.u, vis.v, offset_geometry(g, theta), jacobian=True)
-        J = -sw[None, :] * dV
-        return project(np.concatenate([J.real, J.imag], axis=1).T)
-
-    bounds = ([0.01 - g.inc, -90.0, -1e3, -1e3], [89.9 - g.inc, 90.0, 1e3, 1e3])
-    x0 = np.clip(np.asarray(theta0, dtype=float), bounds[0], bounds[1])
-    sol = least_squares(residuals, x0, jac=jacobian, bounds=bounds, x_scale=[0.5, 0.5, 5.0, 5.0], method="trf",
-                        xtol=1e-10, ftol=1e-12, max_nfev=max_iter)
+    sol = fit_geometry_offsets(table, prob.vis, prob.weights, prob.geometry, theta0, offset=fixed, basis=cols,
+                               max_nfev=max_iter, counter=counter)
     return sol.x, counter["n"]
 
 
