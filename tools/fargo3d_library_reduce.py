@@ -38,7 +38,7 @@ TAU0S = (0.1, 0.3, 1.0, 3.0)
 QUANTUM = 2.0**-17   # maps are rounded to multiples of this (7.6e-6) before gzip: 3x smaller files
 # run sets stored coarser, to keep the repository's reference files small: 2^-14 (6.1e-5, rounding
 # noise 1.8e-5 RMS, < 0.1 % of any arm RMS) makes a dust case 0.45 MB instead of 0.57 MB
-QUANTUM_BY_BATCH = {"dust2": 2.0**-14}
+QUANTUM_BY_BATCH = {"dust2": 2.0**-14, "continuum": 2.0**-14}
 log = logging.getLogger("fargo3d_library")
 
 

@@ -216,14 +216,18 @@ def _spirals(result, best, vis, axisymmetric, template, geometry, d_rp: int, d_p
     h_p = template.h_p if np.isfinite(template.h_p) else 0.07
     out = []
     n_phi = len(result.phi_p)
-    for i in range(max(0, best.i_rp - d_rp), min(len(result.r_p), best.i_rp + d_rp + 1)):
-        r_p = float(result.r_p[i])
-        ctx = ScanContext.build(vis, axisymmetric, geometry, [r_p], 8, x_max=float(np.max(template.x)))
-        quad = ctx.quadrature(template, r_p)
+    radii = [float(result.r_p[i]) for i in range(max(0, best.i_rp - d_rp), min(len(result.r_p), best.i_rp + d_rp + 1))]
+    # The direct path: its quadratures are exact out to the data's longest baseline, which is all an
+    # evaluation at the data needs, and it holds no uv grids (the polar path's are ~0.4 kB per visibility).
+    ctx = ScanContext.build(vis, axisymmetric, geometry, radii, 8, x_max=float(np.max(template.x)),
+                            power_path="direct")
+    profile, quads = ctx.profile, [ctx.quadrature(template, r_p) for r_p in radii]
+    del ctx
+    for r_p, quad in zip(radii, quads):
         width = max(float(h_p) * r_p, MIN_PEAK_WIDTH)
         for dj in range(-d_phi, d_phi + 1):
             phi_p = float(result.phi_p[(best.i_phi + dj) % n_phi])
-            S = perturbation_visibilities(vis.u, vis.v, geometry, ctx.profile, template, r_p, phi_p, quad=quad,
+            S = perturbation_visibilities(vis.u, vis.v, geometry, profile, template, r_p, phi_p, quad=quad,
                                           nthreads=nthreads)
             P = _peak_visibilities(vis.u, vis.v, geometry, r_p, phi_p, width)
             out.append(_Spiral(S, P, vis.weights, r_p, phi_p))
