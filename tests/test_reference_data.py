@@ -17,7 +17,8 @@ import pytest
 h5py = pytest.importorskip("h5py")
 
 REF_DIR = Path(__file__).parent / "data" / "references"
-FILES = sorted(REF_DIR.glob("*.h5")) + sorted((REF_DIR / "physics").glob("*.h5")) + sorted((REF_DIR / "continuum").glob("*.h5"))
+FILES = sorted(REF_DIR.glob("*.h5")) + [p for sub in ("physics", "continuum")
+                                       for p in sorted((REF_DIR / sub).glob("*.h5"))]
 
 
 def _cases(f):
