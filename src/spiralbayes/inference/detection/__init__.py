@@ -6,6 +6,7 @@
   :class:`AlternativesSettings`;
 * :mod:`.starts` — their starting points, read off the residual dirty image;
 * :mod:`.follow_up` — refit frank at the fitted geometry, scan again, decide again.
+* :mod:`.geometry_fit` — the geometry alternative's least squares in memory that does not grow with the data;
 * :mod:`.planet_peak` — the spiral hypothesis as spiral + compact source at the planet, scored in test 3.
 * :mod:`.nested` — test 3 as a nested question: the best alternatives fitted jointly with the spiral;
 * :mod:`.explanation` — what the verdict names as the residual structure's cause (calibration included);
@@ -40,6 +41,7 @@ from .alternatives import (
     fit_alternatives,
 )
 from .follow_up import GeometryFollowUp, frank_settings, rescan_at_fitted_geometry
+from .geometry_fit import BLOCK, GEOMETRY_SCALES, fit_geometry_offsets, geometry_bounds, normal_equations
 
 from .planet_peak import (
     COMPACT_ALTERNATIVES,
@@ -95,4 +97,9 @@ __all__ = [
     "mirror_index",
     "one_sidedness",
     "rescan_at_fitted_geometry",
+    "BLOCK",
+    "GEOMETRY_SCALES",
+    "fit_geometry_offsets",
+    "geometry_bounds",
+    "normal_equations",
 ]
