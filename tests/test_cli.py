@@ -356,10 +356,13 @@ def test_the_tests_line_names_test_3_as_the_verdict_decided_it():
     from spiralbayes.inference.detection import detect
 
     plain = detect(scan_of())
-    assert tests_line(plain).endswith("test 3 (competing asymmetry models): not run")
+    assert tests_line(plain).endswith("test 3 (competing asymmetry models): not run; outcome: detected")
     assert "test 1 (Delta BIC > 10): pass; test 2 (handedness and compactness): pass" in tests_line(plain)
-    nested = replace(plain, test3_method="nested", nested_delta_bic=12.34, nested_threshold=30.0, test3_passed=False)
+    nested = replace(plain, test3_method="nested", nested_delta_bic=12.34, nested_threshold=30.0, test3_passed=False,
+                     detected=False)
     assert tests_line(nested).endswith("(a spiral in addition to the best competing asymmetry models, nested "
-                                       "Delta BIC 12.3 > 30): fail")
+                                       "Delta BIC 12.3 > 30): fail; outcome: not detected")
+    assert tests_line(replace(nested, compact_source={"r": 0.36})).endswith("outcome: candidate")
     single = replace(plain, test3_method="best model", test3_passed=True, alternative_threshold=10.0)
-    assert tests_line(single).endswith("(the spiral beats the best competing asymmetry model by > 10): pass")
+    assert tests_line(single).endswith("(the spiral beats the best competing asymmetry model by > 10): pass; "
+                                       "outcome: detected")

@@ -131,8 +131,7 @@ def test_survey_equals_single_disc_runs(cluster_run, tmp_path):
         assert (job.out_dir / "table3.md").read_text() == limits.table
         row = rows[job.name]
         assert row["delta_bic"] == run.verdict.delta_bic
-        assert row["verdict"] == ("detected" if run.verdict.detected else
-                                  "candidate" if run.verdict.candidate else "not detected")
+        assert row["verdict"] == run.verdict.outcome
         d = job.config["geometry"]["distance"]
         ranges = limits.limits.excluded_ranges(None, 1.0)
         expected = "; ".join(f"{lo * d:.0f}-{hi * d:.0f} au (" for lo, hi in ranges) or "none"

@@ -92,7 +92,7 @@ def tests_line(verdict) -> str:
         test3 = f"test 3 (the spiral beats the best competing asymmetry model by > {verdict.alternative_threshold:g})"
     return (f"Delta BIC = {verdict.delta_bic:.1f}; test 1 (Delta BIC > 10): {_pass(verdict.test1_passed)}; "
             f"test 2 (handedness and compactness): {_pass(verdict.test2_passed)}; "
-            f"{test3}: {_pass(verdict.test3_passed)}")
+            f"{test3}: {_pass(verdict.test3_passed)}; outcome: {verdict.outcome}")
 
 
 def _cmd_simulate(args) -> int:
@@ -170,6 +170,7 @@ def _cmd_scan(args) -> int:
     run = run_scan(load_config(args.config), progress=not args.quiet, force_resume=args.force_resume,
                    overwrite=args.overwrite)
     print(run.verdict.summary())
+    print(tests_line(run.verdict))
     if run.follow_up is not None:
         g = run.follow_up.geometry
         print(f"\nAfter refitting the geometry (inc {g.inc:.3f} deg, PA {g.PA:.3f} deg, dRA {1e3 * g.dRA:.2f} mas, "

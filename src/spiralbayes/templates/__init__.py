@@ -15,8 +15,11 @@ planet at φ = 0, hand R = anticlockwise orbit with trailing arms).
   generator templates on fine nodes (:mod:`.family`).
 * :func:`make_template` — the built-in semi-analytic generator (:mod:`.wake`).
 * :func:`read_fargo3d`, :func:`read_fits_template` — bring your own simulations.
+* :func:`asymmetry_templates` — the competing explanations (arc/vortex, eccentric ring) as template
+  families, for the posterior odds (:mod:`.asymmetry`).
 """
 
+from .asymmetry import ASYMMETRY_KINDS, RingProfile, arc_template, asymmetry_templates, ring_template
 from .bank import TemplateBank, compromise_bank, default_cache_dir
 from .family import TemplateFamily
 from .fargo3d import read_fargo3d
@@ -28,6 +31,11 @@ from .variants import default_bank, variant_bank
 from .wake import WakeSettings, wake_shape
 
 __all__ = [
+    "ASYMMETRY_KINDS",
+    "RingProfile",
+    "arc_template",
+    "asymmetry_templates",
+    "ring_template",
     "SpiralTemplate",
     "TemplateBank",
     "TemplateFamily",

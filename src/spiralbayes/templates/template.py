@@ -405,6 +405,10 @@ def template_metadata(template) -> dict:
     variant = (getattr(template, "provenance", None) or {}).get("variant")
     if variant is not None:  # the morphology variant (templates.variants)
         meta["variant"] = str(variant)
-    if template_kind(template) == SIMULATION:
+    provenance = getattr(template, "provenance", None) or {}
+    if "asymmetry" in provenance:  # a competing explanation's template (templates.asymmetry)
+        meta["kind"] = str(provenance["asymmetry"])
+        meta.update({k: provenance[k] for k in ("sigma_r_over_r", "sigma_phi_deg") if k in provenance})
+    elif template_kind(template) == SIMULATION:
         meta["kind"] = SIMULATION
     return json_safe(meta)

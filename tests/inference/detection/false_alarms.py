@@ -137,7 +137,8 @@ def evaluate(kind: str, seed: int, maps: bool = False) -> dict:
                                             "spiral_alone": f.delta_bic_spiral_alone} for f in fits},
             "phase_rms_deg": calibration.phase_rms_deg, "calibration_warns": calibration.warning is not None,
             "detected": verdict.detected, "explanation": verdict.explanation, "maps": maps,
-            "nested_template": verdict.nested_template}
+            "nested_template": verdict.nested_template, "outcome": verdict.outcome,
+            "compact_source": verdict.compact_source, "verdict": verdict.to_dict()}
 
 
 def diagnose(kind: str, seed: int) -> dict:

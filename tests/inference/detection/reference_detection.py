@@ -51,6 +51,8 @@ TAUS = (0.3, 3.0)
 BANK_MASSES = (0.1, 0.3, 1.0, 3.0)
 OWN_THRESHOLD = 10.0
 """Cases whose own template gives ΔBIC above this must be detected (issue 22)."""
+CANDIDATE_OWN_THRESHOLD = 30.0
+"""Plantings whose own map gives ΔBIC above this are detected or a named candidate at the planet (issue 55)."""
 
 
 def detection_cases(files=None) -> list[Case]:
@@ -172,16 +174,15 @@ def evaluate(case: Case, tau0: float, seed: int = SEED, keep: dict | None = None
              gap: bool = True, maps: bool = False, every_source: bool = False) -> dict:
     """One row of the detection table (see :func:`format_table` for the columns); ``keep`` receives
     the scans, alternatives and verdict; ``maps``, ``every_source``: see :func:`plant_and_scan`."""
-    from spiralbayes.inference.detection import DetectionSettings, detect, detect_with_planet_peak, fit_alternatives
+    from spiralbayes.inference.detection import DetectionSettings, detect_with_planet_peak, fit_alternatives
     from spiralbayes.inference.detection.nested import nested_test
 
     vis, axisym, geometry, own, bank, templates = plant_and_scan(case, tau0, seed, frank=frank, gap=gap, maps=maps,
                                                                  every_source=every_source)
-    first = detect(bank)
     own_shows = own.best.delta_bic > OWN_THRESHOLD
-    alts = fit_alternatives(vis, axisym, geometry, progress=False) if first.test1_passed or own_shows else None
-    verdict = detect_with_planet_peak(bank, vis, axisym, templates, geometry,
-                                      alternatives=alts if first.test1_passed else None)
+    # fitted whatever test 1 says, as the pipeline does: a compact arc names a candidate on its own
+    alts = fit_alternatives(vis, axisym, geometry, progress=False)
+    verdict = detect_with_planet_peak(bank, vis, axisym, templates, geometry, alternatives=alts)
     # the yardstick of test 3: the true spiral (the reference map itself) at its own scanned peak
     own_fits = (nested_test(own, vis, axisym, [reference_template(case, tau0)], alts, geometry, template=0,
                             n_alternatives=DetectionSettings().nested_alternatives)
@@ -221,8 +222,27 @@ def row(case: Case, tau0: float, own, bank, verdict) -> dict:
         "position_note": bool(kind_position_sentence(verdict)),
         "mass_range_mth": None if verdict.mass_range is None else verdict.mass_range["mth"],
         "mass_range_mjup": None if verdict.mass_range is None else verdict.mass_range["mjup"],
+        "outcome": verdict.outcome, "compact_source": verdict.compact_source,
+        "source_offset_arcsec": _source_offset(verdict.compact_source, r_true, phi_true),
         "verdict": verdict.to_dict(),
     }
+
+
+def _source_offset(source: dict | None, r_true: float, phi_true: float) -> float | None:
+    """Disc-plane distance [arcsec] of a candidate compact source from the planted planet."""
+    if not source:
+        return None
+    return float(abs(source["r"] * np.exp(1j * np.radians(source["phi_deg"])) - r_true * np.exp(1j * phi_true)))
+
+
+SOURCE_TOLERANCE = 1.5 * RP_STEP
+"""A candidate compact source is at the planet when within this disc-plane distance [arcsec] of it."""
+
+
+def named_candidate(r: dict) -> bool:
+    """Not detected, and a candidate compact source named within :data:`SOURCE_TOLERANCE` of the planet."""
+    off = r.get("source_offset_arcsec")
+    return bool(not r["detected"] and off is not None and off <= SOURCE_TOLERANCE)
 
 
 def _bank_steps(mass: float) -> float:
@@ -247,8 +267,9 @@ def accepted(r: dict) -> bool:
 def format_table(rows) -> str:
     """Markdown table: one line per case × τ0."""
     head = ("| case | τ0 | own ΔBIC | best ΔBIC | best template | mass range (M_th) | Δmass (steps) | Δr_p (steps) "
-            "| Δφ_p (°) | best-model margin (vs) | nested ΔBIC (vs) | own map's nested ΔBIC (vs) | verdict |")
-    lines = [head, "| " + " | ".join(["---"] * 13) + " |"]
+            "| Δφ_p (°) | best-model margin (vs) | nested ΔBIC (vs) | own map's nested ΔBIC (vs) | verdict "
+            "| candidate |")
+    lines = [head, "| " + " | ".join(["---"] * 14) + " |"]
     for r in rows:
         margin = "-" if r["test3_margin"] is None else f"{r['test3_margin']:.0f} ({r['best_alternative']})"
         if r["test3_spiral_model"] == "spiral + compact peak at the planet":
@@ -267,8 +288,17 @@ def format_table(rows) -> str:
         lines.append(f"| {r['case']} | {r['tau0']:g} | {r['own_delta_bic']:.0f} | {r['delta_bic']:.0f} | "
                      f"{r['template']} "
                      f"| {mr} | {r['mass_steps']:+.3g} | {r['dr_steps']:+.0f} | {r['dphi_deg']:+.0f} | {margin} | "
-                     f"{nested} | {own_nested} | {verdict} |")
+                     f"{nested} | {own_nested} | {verdict} | {_candidate_cell(r)} |")
     return "\n".join(lines)
+
+
+def _candidate_cell(r: dict) -> str:
+    c = r.get("compact_source")
+    if not c:
+        return "-"
+    where = "at the planet" if named_candidate(r) else f"{r['source_offset_arcsec']:.3f}\" off"
+    flux = "" if c.get("flux_mJy") is None else f", {c['flux_mJy']:.2g} mJy"
+    return f"{c['origin']}, {where}{flux}"
 
 
 def main(out: str = "reference_detection.json", only: str = "", frank: str = "", files: str = "",
@@ -302,6 +332,11 @@ def main(out: str = "reference_detection.json", only: str = "", frank: str = "",
     req = [r for r in rows if required(r)]
     print(f"{sum(accepted(r) for r in req)}/{len(req)} required cases accepted; "
           f"{sum(r['detected'] for r in rows if not required(r))} detections among the {len(rows) - len(req)} others")
+    shows = [r for r in rows if r["own_delta_bic"] > CANDIDATE_OWN_THRESHOLD]
+    print(f"own Delta BIC > {CANDIDATE_OWN_THRESHOLD:g}: {len(shows)} plantings, {sum(accepted(r) for r in shows)} "
+          f"accepted, {sum(named_candidate(r) for r in shows)} named candidates at the planet, "
+          f"{sum(not accepted(r) and not named_candidate(r) for r in shows)} neither; candidates among the others: "
+          f"{sum(r['outcome'] == 'candidate' for r in rows if r not in shows)}")
 
 
 if __name__ == "__main__":

@@ -12,7 +12,8 @@
 * :mod:`.explanation` — what the verdict names as the residual structure's cause (calibration included);
 * :mod:`~spiralbayes.inference.detection.kinds` — where the generator's templates and simulated maps
   each put the planet;
-* :mod:`~spiralbayes.inference.detection.mass` — the planet's mass range.
+* :mod:`~spiralbayes.inference.detection.mass` — the planet's mass range;
+* :mod:`.candidate` — the compact source a verdict names when a planet and another model both explain it.
 """
 
 from .verdict import (
@@ -26,7 +27,10 @@ from .verdict import (
     mirror_index,
     one_sidedness,
 )
-from .settings import DELTA_BIC_THRESHOLD, MASS_BAND, NESTED_THRESHOLD, AlternativesSettings, DetectionSettings
+from .settings import (CANDIDATE_THRESHOLD, COMPACT_ARC_WIDTH, DELTA_BIC_THRESHOLD, MASS_BAND, NESTED_THRESHOLD,
+                       AlternativesSettings, DetectionSettings)
+from .candidate import (OUTCOMES, arc_excess_flux, compact_source, deeper_time_factor, explanation_labels,
+                        next_steps_sentence)
 from .nested import (HYPOTHESES, NestedFit, also_present_phrase, apply_nested, best_nested_test, nested_candidates,
                      nested_fit, nested_test)
 from .explanation import (calibration_explains, calibration_sentence, explain, nested_sentence, phase_warns, rediagnose,
@@ -51,6 +55,14 @@ from .planet_peak import (
 )
 
 __all__ = [
+    "CANDIDATE_THRESHOLD",
+    "COMPACT_ARC_WIDTH",
+    "OUTCOMES",
+    "arc_excess_flux",
+    "compact_source",
+    "deeper_time_factor",
+    "explanation_labels",
+    "next_steps_sentence",
     "NESTED_THRESHOLD",
     "HYPOTHESES",
     "NestedFit",

@@ -10,7 +10,8 @@ from ...alternatives import ALTERNATIVE_MODELS, DEFAULT_CELL_FACTOR
 from ...exceptions import InputError
 from ...settings import DEFAULT_MSTAR_MSUN, documented, is_finite_number, is_integer, option
 
-__all__ = ["AlternativesSettings", "DELTA_BIC_THRESHOLD", "DetectionSettings", "MASS_BAND", "NESTED_THRESHOLD"]
+__all__ = ["AlternativesSettings", "CANDIDATE_THRESHOLD", "COMPACT_ARC_WIDTH", "DELTA_BIC_THRESHOLD",
+           "DetectionSettings", "MASS_BAND", "NESTED_THRESHOLD"]
 
 DELTA_BIC_THRESHOLD = 10.0
 """Test 1: the best template's ΔBIC must exceed this ("very strong" evidence, Stevenson et al. 2024)."""
@@ -18,6 +19,10 @@ MASS_BAND = 10.0
 """Templates within this ΔBIC of the best (near its position) make the reported mass range."""
 NESTED_THRESHOLD = 30.0
 """Nested test 3: BIC(alternative) − BIC(alternative + spiral) must exceed this (docs/verdict.md: calibration)."""
+CANDIDATE_THRESHOLD = -20.0
+"""Test 3's statistic above which a spiral that fails only test 3 is a candidate (docs/verdict.md, "Candidates")."""
+COMPACT_ARC_WIDTH = 40.0
+"""Widest arc fit [deg, sigma_phi] that names a candidate compact source (docs/verdict.md, "Candidates")."""
 
 
 @documented
@@ -79,6 +84,11 @@ class DetectionSettings:
                                           "exceed the best alternative's by more than this")
     nested_threshold: float = option(NESTED_THRESHOLD, "test 3 (nested): the spiral must lower the BIC of the best "
                                      "alternative model by more than this when fitted jointly with it")
+    candidate_threshold: float = option(CANDIDATE_THRESHOLD, "a spiral that passes tests 1 and 2 but not test 3 "
+                                        "is named a candidate compact source when test 3's statistic exceeds this")
+    compact_arc_width: float = option(COMPACT_ARC_WIDTH, "an arc/vortex fit at most this wide in azimuth "
+                                      "(sigma_phi [deg]) names a candidate compact source when no spiral passes "
+                                      "tests 1 and 2")
     nested_alternatives: int = option(2, "test 3 (nested): how many alternatives, best first, each get a joint "
                                          "fit with the spiral (the spiral must pass against every one)")
     mass_band: float = option(MASS_BAND, "Delta BIC band of the templates that make the reported mass range")
@@ -95,8 +105,12 @@ class DetectionSettings:
                 raise InputError(f"{name} = {value!r} must be a positive fraction (inf: no limit)")
         if not is_integer(self.nested_alternatives) or self.nested_alternatives < 1:
             raise InputError(f"nested_alternatives = {self.nested_alternatives!r} must be an integer >= 1")
-        for name in ("bic_threshold_value", "alternative_threshold", "nested_threshold", "mass_band"):
+        for name in ("bic_threshold_value", "alternative_threshold", "nested_threshold", "mass_band",
+                     "candidate_threshold"):
             if not is_finite_number(getattr(self, name)):
                 raise InputError(f"{name} = {getattr(self, name)!r} must be a finite number (Delta BIC)")
+        if not is_finite_number(self.compact_arc_width) or not 0 < self.compact_arc_width <= 180:
+            raise InputError(f"compact_arc_width = {self.compact_arc_width!r} must be an azimuthal width in "
+                             "(0, 180] deg")
         if not is_finite_number(self.mstar) or self.mstar <= 0:
             raise InputError(f"mstar = {self.mstar!r} must be a positive stellar mass [M_sun]")

@@ -76,6 +76,7 @@ from .explanation import (calibration_sentence, explain, nested_sentence, phase_
 from .kinds import best_by_kind, kind_position_sentence
 from .nested import apply_nested
 from .mass import mass_range
+from .candidate import compact_source
 
 __all__ = ["Verdict", "best_handed_candidate", "detect", "detect_with_planet_peak", "handedness_ratio", "localisation",
            "mass_range", "mirror_index", "one_sidedness"]
@@ -284,6 +285,11 @@ class Verdict(ResultMixin):
         peaks and how many grid steps from the verdict's position
         (:func:`~spiralbayes.inference.detection.kinds.best_by_kind`); the summary says so when the two
         kinds place a significant spiral in different places.
+    compact_source : dict or None
+        Where no spiral is claimed but a compact source is in the data that a planet and another model
+        both explain (:func:`~spiralbayes.inference.detection.candidate.compact_source`): its place
+        (``r`` [arcsec], ``r_au``, ``phi_deg``), flux (``flux_mJy``), ``origin``, the models in
+        ``explained_by`` and ``next_steps``; then :attr:`outcome` is "candidate".
     """
 
     detected: bool
@@ -319,6 +325,7 @@ class Verdict(ResultMixin):
     explanation: str | None = None
     gains_solved: str | None = None
     best_by_kind: dict | None = None
+    compact_source: dict | None = None
 
     KIND = "spiralbayes.Verdict"
     WHAT = "verdict"
@@ -327,9 +334,19 @@ class Verdict(ResultMixin):
     def r_p_au(self) -> float | None:
         return None if self.distance is None else self.r_p * self.distance
 
+    @property
+    def outcome(self) -> str:
+        """"detected" (tests 1-3 pass), "candidate" (a compact source is named, :attr:`compact_source`) or
+        "not detected" (a handed compact peak other than the global one, :attr:`candidate`, has not been
+        through test 3 and does not make a candidate: the summary suggests following it up)."""
+        if self.detected:
+            return "detected"
+        return "candidate" if self.compact_source else "not detected"
+
     def to_dict(self) -> dict:
-        """The fields as strict-JSON values (NaN, e.g. no mirror template scanned, becomes None)."""
-        return fields_dict(self)
+        """The fields as strict-JSON values (NaN, e.g. no mirror template scanned, becomes None), with
+        the :attr:`outcome`."""
+        return {**fields_dict(self), "outcome": self.outcome}
 
     def __repr__(self) -> str:
         test3 = "" if self.test3_passed is None else f", test 3 {'passed' if self.test3_passed else 'failed'}"
@@ -361,6 +378,8 @@ class Verdict(ResultMixin):
         if self.candidate is not None:
             text += self._candidate_sentence(self.candidate)
         text += " A planet-driven spiral is detected." if self.detected else " No planet-driven spiral is claimed."
+        if self.compact_source:
+            text += self._compact_source_sentence(self.compact_source)
         return text + (f" The data were corrected first: {self.gains_solved}." if self.gains_solved else "")
 
     def _mass_sentence(self) -> str:
@@ -411,6 +430,20 @@ class Verdict(ResultMixin):
                 f"(Delta chi^2 = {c['delta_chi2']:.1f}, Delta BIC = {c['delta_bic']:.1f}, mirror ratio "
                 f"{c['handedness_ratio']:.2f}, {100 * c['localisation']:.1f} % of the area); follow it up with the "
                 "posterior over planet position and free geometry (sb.sample_posterior).")
+
+
+    def _compact_source_sentence(self, c: dict) -> str:
+        where = f"r = {c['r']:.3f} arcsec" + (f" ({c['r_au']:.0f} au)" if c.get("r_au") is not None else "")
+        flux = "" if c.get("flux_mJy") is None else f", {c['flux_mJy']:.3g} mJy"
+        models = ", ".join(c["explained_by"][:-1]) + f" or {c['explained_by'][-1]}"
+        if c["origin"] == "spiral":
+            why = (f"tests 1 and 2 find it, and test 3 cannot tell a spiral from the alternatives (statistic "
+                   f"{c['nested_delta_bic']:.1f} <= {self.nested_threshold:g})")
+        else:
+            why = (f"the arc/vortex model finds it (Delta BIC = {c['delta_bic']:.1f} against the axisymmetric "
+                   "disc), while no spiral template passes tests 1 and 2")
+        return (f" Candidate: a compact source at {where}, phi = {c['phi_deg']:.0f} deg{flux}, explained by "
+                f"{models}: {why}. {c['next_steps']}")
 
 
 def _span(values, unit: str, fmt: str = "g") -> str:
@@ -545,8 +578,15 @@ def detect(scan_result=None, amplitude=None, *, settings: DetectionSettings | No
                 return explain(withhold(verdict), calibration, again, "spiral", withheld=True)
         if calibration is not None and calibration.warning and not verdict.detected:
             again = rediagnose(calibration, vis, axisymmetric, geometry, alternatives)
-            return explain(verdict, calibration, again, alternatives.best.name)
-    return explain(verdict, calibration)
+            verdict = explain(verdict, calibration, again, alternatives.best.name)
+        else:
+            verdict = explain(verdict, calibration)
+        verdict.compact_source = compact_source(verdict, axisymmetric, s)
+        return verdict
+    verdict = explain(verdict, calibration)
+    if alternatives is not None:
+        verdict.compact_source = compact_source(verdict, axisymmetric, s)
+    return verdict
 
 
 def detect_with_planet_peak(result, vis, axisymmetric, templates, geometry=None, amplitude=None, *,

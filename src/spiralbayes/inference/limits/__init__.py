@@ -38,7 +38,7 @@ from .exclusion import (
     bright_extent,
     z_score,
 )
-from .guards import ASYMMETRY_THRESHOLD, asymmetry_bands, planet_radii
+from .guards import ASYMMETRY_THRESHOLD, asymmetry_bands, candidate_source, planet_radii
 from .injection import Injection, InjectionEngine, brute_force_injection, injected_cross_reference
 from .recovery import (
     CompletenessResult,
@@ -97,6 +97,7 @@ __all__ = [
     "ASYMMETRY_THRESHOLD",
     "THRESHOLDS",
     "asymmetry_bands",
+    "candidate_source",
     "planet_radii",
     "bright_extent",
     "build_table3",

@@ -492,9 +492,9 @@ def compute_limits(scan_result, *, settings: LimitSettings | None = None, vis=No
     m_lim[:, flags != ""] = np.nan
     disc = {"mstar": float(mstar), "h_ref": None if h_ref is None else float(h_ref), "r_ref": float(r_ref),
             "flaring": float(flaring), "h_ref_from_family": h_ref is None}
-    distance = scan_result.distance if distance is None else distance
-    prov = provenance_record(scan=scan_result.provenance.get("data_hash"), method=method, cl=cl, hand=hand,
-                             near_planets=near, near_asymmetries=bands)
+    distance, data = scan_result.distance if distance is None else distance, scan_result.provenance.get("data_hash")
+    prov = provenance_record(scan=data, method=method, cl=cl, hand=hand, near_planets=near, near_asymmetries=bands,
+                             candidate_source=guards.candidate_source(planets))
     return ExclusionLimits(list(scan_result.templates), r_p, np.asarray(scan_result.phi_p), float(cl), method, hand,
                            upper, fraction, flags, families, m_lim, status.astype(str), distance, disc,
                            float(resolution), float(bright_radius), float(resolution_factor), prov)

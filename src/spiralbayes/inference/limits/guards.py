@@ -4,7 +4,8 @@ The limits assume that the scan's residual holds noise and at most the spiral be
 things in the detection verdict break that near them, and radii within one beam there are flagged
 instead of excluded (:func:`~.exclusion.compute_limits`'s ``planets``):
 
-* **a detected or candidate planet** (``"near_planet"``): its own spiral, fitted by a different
+* **a detected or candidate planet** (``"near_planet"``; a candidate compact source of the verdict,
+  :mod:`~spiralbayes.inference.detection.candidate`, counts): its own spiral, fitted by a different
   template, reads as "less than the template predicts" at the neighbouring radii
   (:func:`~.robust.near_planet_mask`);
 * **a significant competing asymmetry** (``"near_asymmetry"``): each of test 3's alternatives with an
@@ -20,7 +21,7 @@ import numpy as np
 from ..detection.settings import DELTA_BIC_THRESHOLD
 from .robust import near_planet_mask
 
-__all__ = ["ASYMMETRY_THRESHOLD", "asymmetry_bands", "planet_radii"]
+__all__ = ["ASYMMETRY_THRESHOLD", "asymmetry_bands", "candidate_source", "planet_radii"]
 
 FLAG_NEAR_PLANET = "near_planet"
 FLAG_NEAR_ASYMMETRY = "near_asymmetry"
@@ -33,6 +34,7 @@ def _verdict_dict(planets) -> dict | None:
     if hasattr(planets, "test1_passed"):
         return {"test1_passed": planets.test1_passed, "r_p": planets.r_p,
                 "candidate": getattr(planets, "candidate", None),
+                "compact_source": getattr(planets, "compact_source", None),
                 "alternatives": getattr(planets, "alternatives", None)}
     if isinstance(planets, dict) and "test1_passed" in planets:
         return planets
@@ -48,8 +50,18 @@ def planet_radii(planets) -> list[float]:
         out = [float(verdict["r_p"])] if verdict["test1_passed"] else []
         if verdict.get("candidate"):
             out.append(float(verdict["candidate"]["r_p"]))
+        if verdict.get("compact_source"):
+            out.append(float(verdict["compact_source"]["r"]))
         return out
     return [float(r) for r in np.atleast_1d(np.asarray(planets, dtype=float))]
+
+
+def candidate_source(planets) -> dict | None:
+    """The verdict's candidate compact source (``Verdict.compact_source``): place and explanations, or None."""
+    source = ((_verdict_dict(planets) or {}).get("compact_source")) or None
+    if source is None:
+        return None
+    return {k: source.get(k) for k in ("r", "r_au", "phi_deg", "flux_mJy", "origin", "explained_by")}
 
 
 def asymmetry_bands(planets, threshold: float = ASYMMETRY_THRESHOLD) -> list[dict]:

@@ -127,9 +127,15 @@ def build_table3(limits, completeness=None, *, name: str = "disc", thresholds=TH
 
 def _flag_notes(limits) -> list[str]:
     flagged = sorted({f for f in limits.flags if f})
+    source = limits.provenance.get("candidate_source")
+    notes = []
+    if source:
+        where = f"{source['r']:.3g} arcsec" + (f" ({source['r_au']:.0f} au)" if source.get("r_au") else "")
+        notes.append(f"Candidate compact source at {where}, phi = {source['phi_deg']:.0f} deg, explained by "
+                     f"{' or '.join(source['explained_by'])}: radii within one beam of it are flagged, not excluded.")
     if not flagged:
-        return []
-    return ["Flagged (not excluded): " + "; ".join(
+        return notes
+    return notes + ["Flagged (not excluded): " + "; ".join(
         f"{k}: " + ", ".join(format_range(limits, lo, hi) for lo, hi in _flag_runs(limits, k)) for k in flagged)
         + f" (resolution {limits.resolution:.3f} arcsec, bright extent {limits.bright_radius:.3f} arcsec)."]
 

@@ -14,7 +14,8 @@
   the geometry and the evidence when the planet is not preferred);
 * :mod:`.results` — :class:`PosteriorResult` and its runs;
 * :mod:`~spiralbayes.inference.posterior.mass`, :mod:`.family_run` — the planet mass sampled within a template family
-  (``mass="continuous"``).
+  (``mass="continuous"``);
+* :mod:`.odds` — the posterior odds between a planet and the competing explanations (arc, eccentric ring).
 """
 
 from .likelihood import (
@@ -61,9 +62,16 @@ from .mass import (
 )
 from .family_run import family_evidence, family_metadata, family_name, sample_family
 from .scan_evidence import GRID_LN_B_ERROR, GridEvidence, family_grid_evidence, grid_run, template_grid_evidence
-from .sampler import LogPosterior, NullLogPosterior, refit_axisymmetric, sample_posterior
+from .sampler import LogPosterior, NullLogPosterior, lower_grid_runs, refit_axisymmetric, sample_posterior
+from .odds import NO_ASYMMETRY, check_alternatives, hypothesis_weights, model_probabilities, scan_alternatives
 
 __all__ = [
+    "NO_ASYMMETRY",
+    "check_alternatives",
+    "hypothesis_weights",
+    "lower_grid_runs",
+    "model_probabilities",
+    "scan_alternatives",
     "can_fork",
     "forked_map",
     "pin_threads",

@@ -42,6 +42,7 @@ from .conditional import PARAMETER_NAMES
 from .diagnostics import chain_inference_data
 from .likelihood import draw_amplitude
 from .priors import GEOMETRY_NAMES, Priors
+from ...templates.asymmetry import ASYMMETRY_KINDS as ASYMMETRY_LABELS
 
 INCONCLUSIVE_LN_B = 1.0
 """``|ln B(planet : none)|`` below this is "inconclusive" (Jeffreys scale: B < e either way)."""
@@ -286,6 +287,9 @@ class PosteriorResult(ResultMixin):
         The no-planet hypothesis (None for results made without it).
     planet_prior : float
         Prior probability that there is a planet (default 0.5).
+    alternative_runs : list of TemplateRun
+        The competing explanations' runs (``alternatives`` of :func:`~.sampler.sample_posterior`; each
+        run's ``metadata["kind"]`` names its explanation, :mod:`.odds`); empty without them.
     """
 
     runs: list
@@ -296,6 +300,7 @@ class PosteriorResult(ResultMixin):
     provenance: dict = field(default_factory=dict)
     null: NullRun | None = None
     planet_prior: float = 0.5
+    alternative_runs: list = field(default_factory=list)
 
     KIND = RESULT_KIND
     WHAT = "posterior result"
@@ -323,9 +328,37 @@ class PosteriorResult(ResultMixin):
             return float("nan")
         return float(logsumexp(self._log_weights()) - self.null.ln_evidence)
 
+    def _odds(self) -> tuple[dict, dict] | None:
+        from .odds import PLANET, hypothesis_weights, model_probabilities
+
+        if not self.alternative_runs or self.null is None:
+            return None
+        kinds = list(dict.fromkeys(r.metadata["kind"] for r in self.alternative_runs))
+        groups: dict[str, tuple] = {PLANET: (self.runs, self.template_prior)}
+        for kind in kinds:
+            groups[ASYMMETRY_LABELS[kind]] = ([r for r in self.alternative_runs if r.metadata["kind"] == kind], None)
+        return model_probabilities(groups, self.null, hypothesis_weights(kinds, self.planet_prior))
+
+    @property
+    def model_probabilities(self) -> dict | None:
+        """``P(h | data)`` of "no asymmetry", "planet" and each competing explanation ("arc/vortex",
+        "eccentric ring"), when they were sampled (:mod:`.odds`); None otherwise."""
+        odds = self._odds()
+        return None if odds is None else odds[0]
+
+    @property
+    def model_probability_errors(self) -> dict | None:
+        """Monte Carlo errors of :attr:`model_probabilities` (first-order propagation of the ``ln Z`` errors)."""
+        odds = self._odds()
+        return None if odds is None else odds[1]
+
     @property
     def p_planet(self) -> float:
-        """``P(planet | data)`` (nan without the null)."""
+        """``P(planet | data)`` (nan without the null); with competing explanations sampled, among all of
+        them (:attr:`model_probabilities`)."""
+        odds = self.model_probabilities
+        if odds is not None:
+            return float(odds["planet"])
         lnb = self.ln_bayes_factor
         if not np.isfinite(lnb):
             return float("nan") if np.isnan(lnb) else float(lnb > 0)
@@ -334,11 +367,32 @@ class PosteriorResult(ResultMixin):
 
     @property
     def hypothesis_probabilities(self) -> dict:
-        """``P(hypothesis | data)`` for "no planet" and every template (sums to 1)."""
+        """``P(hypothesis | data)`` for "no planet" (or, with competing explanations, "no asymmetry" and
+        each explanation) and every template (sums to 1)."""
         p = self.p_planet
-        out = {"no planet": 1.0 - p}
+        odds = self.model_probabilities
+        out = {"no planet": 1.0 - p} if odds is None else {k: v for k, v in odds.items() if k != "planet"}
         out.update({name: p * q for name, q in self.template_probabilities.items()})
         return out
+
+    def odds_sentence(self) -> str:
+        """The posterior odds between the planet and its competing explanations, in words ("" without them)."""
+        odds, errors = self.model_probabilities, self.model_probability_errors
+        if odds is None or errors is None:
+            return ""
+        parts = [f"P({h}) = {odds[h]:.3g} +- {errors[h]:.2g}" for h in ("planet", *[k for k in odds if k not in
+                                                                                    ("planet", "no asymmetry")],
+                                                                         "no asymmetry")]
+        best = max(odds, key=lambda h: odds[h])
+        text = "Posterior odds: " + ", ".join(parts) + f" (Monte Carlo errors); most probable: {best}"
+        if best not in ("planet", "no asymmetry"):
+            run = max((r for r in self.alternative_runs if ASYMMETRY_LABELS[r.metadata["kind"]] == best),
+                      key=lambda r: r.ln_evidence)
+            st = run.percentiles()
+            text += (f" ({run.name}: r = {st['r_p']['median']:.4f} arcsec, phi = "
+                     f"{wrap_angle(np.degrees(st['phi_p']['median']), 0.0, 360.0):.1f} deg, amplitude "
+                     f"{st['A']['median']:.2f})")
+        return text + "."
 
     @property
     def inconclusive(self) -> bool:
@@ -356,8 +410,19 @@ class PosteriorResult(ResultMixin):
 
     @property
     def verdict(self) -> str:
-        """One sentence: "no planet preferred" or the preferred planet and its position."""
-        p, lnb = self.p_planet, self.ln_bayes_factor
+        """One sentence: "no planet preferred" or the preferred planet and its position (after the posterior
+        odds when competing explanations were sampled)."""
+        odds = self.odds_sentence()
+        return self._planet_verdict() if not odds else odds + " Planet against none: " + self._planet_verdict(
+            bare=True)
+
+    def _planet_verdict(self, bare: bool = False) -> str:
+        from scipy.special import expit
+
+        lnb = self.ln_bayes_factor
+        # against the disc alone (the odds sentence gives it among the explanations)
+        p = (float(expit(lnb + np.log(self.planet_prior) - np.log1p(-self.planet_prior))) if bare
+             else self.p_planet)
         if np.isnan(p):
             return f"most probable template {self.best.name} (no no-planet hypothesis computed)"
         if self.inconclusive:
@@ -521,6 +586,9 @@ class PosteriorResult(ResultMixin):
                           "provenance": self.provenance, "planet_prior": self.planet_prior, "verdict": self.verdict,
                           "p_planet": self.p_planet, "ln_bayes_factor": self.ln_bayes_factor,
                           "template_probabilities": self.template_probabilities, "marginals": self.marginals(),
+                          "model_probabilities": self.model_probabilities,
+                          "model_probability_errors": self.model_probability_errors,
+                          "alternative_runs": [r.to_dict() for r in self.alternative_runs],
                           "mass_range": self.mass_range(), "mass_posterior": self.mass_posterior(),
                           "null": None if self.null is None else self.null.to_dict(),
                           "runs": [r.to_dict() for r in self.runs]})

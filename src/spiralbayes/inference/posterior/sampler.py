@@ -74,6 +74,7 @@ import logging
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +87,7 @@ from ...axisymmetric import DEFAULT_HYPERPARAMETERS, fit_axisymmetric
 from ...axisymmetric.gp import ProfilePrior
 from ...exceptions import InputError
 from ...geometry import DiscGeometry
+from ...templates.asymmetry import perturbation_profile
 from ...templates.template import template_metadata
 from ...units import wrap_angle
 from .chain_runner import _set_mpi_rank, _writes_files, resolve_processes, run_chain, walker_pool
@@ -103,9 +105,11 @@ from .priors import N_DIM, Priors
 from .results import NullRun, PosteriorResult, TemplateRun, _with_amplitude, wrap_phi
 from .scan_evidence import family_grid_evidence, grid_run, template_grid_evidence
 from .settings import SamplingSettings
+from .odds import scan_alternatives
+from ...templates.asymmetry import asymmetry_templates
 from .stopping import StoppingRule, template_evidence
 
-__all__ = ["LogPosterior", "NullLogPosterior", "refit_axisymmetric", "sample_posterior"]
+__all__ = ["LogPosterior", "NullLogPosterior", "lower_grid_runs", "refit_axisymmetric", "sample_posterior"]
 
 log = logging.getLogger(__name__)
 
@@ -210,8 +214,9 @@ def _build_likelihood(base, template, r_range, null, priors, likelihood_kwargs, 
         except InputError:
             mirror_of = None
     if mirror_of is None:
-        fp = FastPerturbation(base.u, base.v, base.weights, base.axisymmetric.brightness, template, r_range,
-                              DiscGeometry(*null.geometry_map), progress=progress, processes=processes, **lk)
+        fp = FastPerturbation(base.u, base.v, base.weights, perturbation_profile(template, base.axisymmetric),
+                              template, r_range, DiscGeometry(*null.geometry_map), progress=progress,
+                              processes=processes, **lk)
     return MarginalSpiralLikelihood(base, fp, amplitude_max=priors.amplitude_max)
 
 
@@ -298,6 +303,52 @@ def _sample_one(vis, base, null, template, priors, *, scan, chain_path, mode, r_
     if not diag["converged"]:
         _apply_policy(sampling.convergence, _convergence_message(name, diag))
     return run, likelihood
+
+
+def lower_grid_runs(runs: dict, on_grid, grids: dict, null) -> float | None:
+    """Lower the grid evidence of one hypothesis' unsampled templates (``on_grid``) by the median amount the
+    grid over-counts its sampled ones (``ln Z_chain − ln Z_grid`` < 0); never raise it. Returns that offset.
+
+    The grid leaves the geometry and the profile at the scan's (:mod:`.scan_evidence`), which over-counts
+    the arc and ring families' evidence by 6-8 (measured on a planted arc) while it under-counts strong
+    planets': a raw grid value could then outweigh the sampled templates of its own hypothesis.
+    """
+    diffs = [r.ln_evidence - (null.ln_evidence + grids[n].ln_bayes) for n, r in runs.items()
+             if n not in on_grid and r.mode == "mcmc" and grids.get(n) is not None]
+    if not diffs:
+        return None
+    offset = float(np.median(diffs))
+    if offset < 0:
+        for name in on_grid:
+            run = runs[name]
+            run.ln_evidence += offset
+            run.diagnostics.setdefault("evidence", {})["grid_offset"] = offset
+        log.info("%d templates' grid evidence lowered by %.2f, the median over-count on the sampled ones", len(on_grid),
+                 -offset)
+    return offset
+
+
+def _template_runs(vis, base, null, templates, priors, scan, chain_path, run_settings, selected, on_grid, partners,
+                   overall) -> dict:
+    """Each template's run (chain or Laplace; those ``on_grid`` are left to the caller), by name; a
+    sampled template's table is left in ``partners`` for its mirror."""
+    runs = {}
+    for template in templates:
+        if template.name in on_grid:
+            continue
+        mode = "mcmc" if template.name in selected else "laplace"
+        steps = "tables, optimum, chain" if mode == "mcmc" else "tables, optimum, Laplace evidence"
+        overall.start(f"template {template.name} ({steps})")
+        r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan, template.name)
+        run, likelihood = _sample_one(vis, base, null, template, priors, scan=scan, chain_path=chain_path,
+                                      mode=mode, r_range=r_range, partners=partners, settings=run_settings)
+        if mode == "mcmc":  # its mirror shares the table (rebuilt on demand if read back from the file)
+            partners[_mirror_name(template)] = (likelihood.perturbation if likelihood is not None else
+                                                _deferred_table(base, template, r_range, null,
+                                                                run_settings["likelihood_kwargs"]))
+        if run is not None:
+            runs[template.name] = run
+    return runs
 
 
 def _final_state(store, run, samples):
@@ -415,7 +466,8 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
                                "moves": DEFAULT_MOVES if moves is None else repr(moves)},
                     "sampling": s, "progress": progress, "likelihood_kwargs": likelihood_kwargs}
     _set_mpi_rank(pool)
-    overall = _Stages(len(hypotheses) - len(on_grid) + 1 + bool(on_grid), progress)
+    n_alternatives = sum(min(s.max_chains, len(asymmetry_templates(k))) for k in s.alternatives or ())
+    overall = _Stages(len(hypotheses) - len(on_grid) + 1 + bool(on_grid) + n_alternatives, progress)
     with blas_threads(1, all_pools=True):
         overall.start("no planet: geometry mode and evidence")
         null, base = _run_null(vis, axisymmetric, priors, profile_prior, ChainStore(chain_path, NULL_GROUP),
@@ -448,33 +500,40 @@ def sample_posterior(vis, axisymmetric, templates, *, scan_result=None, priors: 
                 family_partners[key] = likelihood.perturbation
             if run is not None:
                 runs[fname] = run
-        for template in templates if not families else []:
-            if template.name in on_grid:
-                continue
-            mode = "mcmc" if template.name in selected else "laplace"
-            steps = "tables, optimum, chain" if mode == "mcmc" else "tables, optimum, Laplace evidence"
-            overall.start(f"template {template.name} ({steps})")
-            r_range = priors.r_p if mode == "mcmc" else _laplace_window(priors, scan_result, template.name)
-            run, likelihood = _sample_one(vis, base, null, template, priors, scan=scan_result, chain_path=chain_path,
-                                          mode=mode, r_range=r_range, partners=partners, settings=run_settings)
-            if mode == "mcmc":  # its mirror shares the table (rebuilt on demand if read back from the file)
-                partners[_mirror_name(template)] = (likelihood.perturbation if likelihood is not None else
-                                                    _deferred_table(base, template, r_range, null, likelihood_kwargs))
-            if run is not None:
-                runs[template.name] = run
+        if not families:
+            runs.update(_template_runs(vis, base, null, templates, priors, scan_result, chain_path, run_settings,
+                                       selected, on_grid, partners, overall))
         if on_grid:
             metadata = {family_name(f): (family_metadata(f, mass_prior), float(f.h_ps[0])) for f, _ in families}
             for name in on_grid:
                 meta, h_p = metadata.get(name) or (template_metadata(templates[names.index(name)]), None)
                 runs[name] = grid_run(name, meta, grids[name], null, priors, chain_streams(seed, name)[3],
                                       mass_prior=mass_prior, h_p=h_p)
+            lower_grid_runs(runs, on_grid, grids, null)
+        alternative_runs = []
+        if s.alternatives:
+            alt_templates, alt_scan = scan_alternatives(vis, axisymmetric, s.alternatives, scan_result,
+                                                        float(getattr(vis, "wavelength", None) or 0.87e-3))
+            for temps in alt_templates.values():
+                alt_names = [t.name for t in temps]
+                alt_grids = _grid_evidences(alt_scan, temps, [], priors, mass_prior)
+                alt_selected = _select_mcmc(alt_names, [], alt_grids, replace(s, mcmc_templates=None))
+                alt_on_grid = set() if alt_scan is None else set(alt_names) - alt_selected
+                done = _template_runs(vis, base, null, temps, priors, alt_scan, chain_path, run_settings,
+                                      alt_selected, alt_on_grid, {}, overall)
+                for name in alt_on_grid:
+                    t = temps[alt_names.index(name)]
+                    done[name] = grid_run(name, template_metadata(t), alt_grids[name], null, priors,
+                                          chain_streams(seed, name)[3])
+                lower_grid_runs(done, alt_on_grid, alt_grids, null)
+                alternative_runs += [done[n] for n in alt_names if n in done]
     overall.close()
     if pool == "mpi" and not runs:
         return None
     result = PosteriorResult([runs[n] for n in hypotheses if n in runs], priors, prior_t, run_name, str(chain_path),
                              provenance_record(data_hash=common["data_hash"], geometry=axisymmetric.geometry.to_dict(),
                                                profile_prior=profile_prior.source),
-                             null, float(planet_prior))
+                             null, float(planet_prior), alternative_runs)
     ChainStore(chain_path, NULL_GROUP).write_root(summary=result.to_dict())
     log.info("%s", result.verdict)
     return result
@@ -522,8 +581,8 @@ def _check_templates(templates, mass: str = "bank") -> list:
 def _deferred_table(base, template, r_range, null, likelihood_kwargs):
     """A function that builds ``template``'s table exactly as :func:`_sample_one` would."""
     lk = {k: v for k, v in likelihood_kwargs.items() if k not in ("tolerance", "order")}
-    return lambda: FastPerturbation(base.u, base.v, base.weights, base.axisymmetric.brightness, template, r_range,
-                                    DiscGeometry(*null.geometry_map), **lk)
+    return lambda: FastPerturbation(base.u, base.v, base.weights, perturbation_profile(template, base.axisymmetric),
+                                    template, r_range, DiscGeometry(*null.geometry_map), **lk)
 
 
 def _mirror_name(template) -> str:

@@ -55,7 +55,8 @@ class SamplingSettings:
     max_chains: int = option(3, "most templates (families) sampled by emcee, the best by scan-grid evidence; the "
                                 "others get pruned_evidence")
     pruned_evidence: str = option("scan", "evidence of the templates without a chain: 'scan' (from the scan's grid, "
-                                          "shifted by the offset measured on the sampled ones; milliseconds) or "
+                                          "lowered by the median over-count measured on the sampled ones of the "
+                                          "same hypothesis, never raised; milliseconds) or "
                                           "'laplace' (tables, optimum and Laplace approximation; ~20 s each)")
     evidence_draws: int = option(2000, "draws of the importance-sampled evidence")
     mcmc_templates: tuple | None = option(None, "names of the templates that get a chain (empty: chosen by "
@@ -65,6 +66,9 @@ class SamplingSettings:
                                       "hypothesis)")
     mass: str = option("bank", "'bank': every template is its own hypothesis, the mass a label; 'continuous': the "
                                "planet mass is sampled within each family (variant, tau0, beta, hand, H/r)")
+    alternatives: tuple | None = option(None, "competing explanations sampled beside the planet, for the posterior "
+                                              "odds P(planet), P(arc), P(ring): 'arc', 'eccentric_ring' (empty: none)",
+                                        toml=[])
     stop_when_planet_free: bool = option(True, "also stop a chain once its geometry has converged and its Bayes "
                                                "factor says the planet is not preferred (ln B + 2 sigma < 1)")
     # code only: objects a TOML file cannot hold
@@ -118,6 +122,9 @@ class SamplingSettings:
             raise InputError(f"pruned_evidence = {self.pruned_evidence!r}: choose one of {PRUNED_EVIDENCE}")
         if self.mass not in MASS_MODES:
             raise InputError(f"mass = {self.mass!r}: choose one of {MASS_MODES}")
+        from .odds import check_alternatives
+
+        object.__setattr__(self, "alternatives", check_alternatives(self.alternatives) or None)
 
 
 @documented

@@ -374,13 +374,21 @@ def stage_limits(job, prep: Prepared, axisym, templates, verdict: dict) -> str:
 
 def wants_posterior(mode: str, verdict: dict) -> bool:
     """Whether the survey's posterior policy asks for this disc's posterior."""
-    return mode == "all" or (mode == "candidates" and (verdict.get("detected") or verdict.get("candidate") is not None))
+    from .table import outcome
+
+    # a handed compact peak beside a failed global one is followed up too (Verdict.candidate)
+    return mode == "all" or (mode == "candidates" and (outcome(verdict) in ("detected", "candidate")
+                                                       or verdict.get("candidate") is not None))
 
 
 @_staged("posterior")
 def stage_posterior(job, prep: Prepared, verdict: dict, mode: str, steps: int) -> dict | None:
-    """The posterior (``spiralbayes sample``) of a disc the policy selects, with the candidate's template."""
+    """The posterior (``spiralbayes sample``) of a disc the policy selects, with the candidate's template; a
+    candidate compact source is sampled with the competing explanations (``[sample] alternatives``) unless
+    the survey file names them."""
+    from ...templates.asymmetry import ASYMMETRY_KINDS
     from ..sample_command import run_sample_config
+    from .table import outcome
 
     if not wants_posterior(mode, verdict):
         return None
@@ -391,6 +399,9 @@ def stage_posterior(job, prep: Prepared, verdict: dict, mode: str, steps: int) -
     best = verdict.get("candidate") or {"template": verdict.get("template")}
     if not sample["mcmc_templates"] and best.get("template"):
         sample["mcmc_templates"] = [best["template"]]
+    if outcome(verdict) == "candidate" and not sample["alternatives"]:
+        # a compact source that a planet and another model both explain: weigh them (posterior odds)
+        sample["alternatives"] = list(ASYMMETRY_KINDS)
     out = job.out_dir
     key = content_hash(prep.scan_key, sample, config["priors"])
     info = done(out, "posterior", key, f"{sample['run_name']}_summary.json")
@@ -400,7 +411,8 @@ def stage_posterior(job, prep: Prepared, verdict: dict, mode: str, steps: int) -
             replaced += clear(out, "chains")
         since = begin(out, "posterior", key)
         post = run_sample_config(config, progress=False)
-        info = {"p_planet": float(post.p_planet), "verdict": str(post.verdict)}
+        info = {"p_planet": float(post.p_planet), "verdict": str(post.verdict),
+                "model_probabilities": post.model_probabilities}
         _replaced(job, "posterior", replaced)
         mark(out, "posterior", key, {**info, "replaced": replaced} if replaced else info, since=since)
     return info

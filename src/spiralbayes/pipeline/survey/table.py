@@ -40,10 +40,22 @@ def _pass(flag) -> str:
 
 
 def _where(v: dict, c: dict | None) -> str:
-    src = c if c is not None else v
     d = v.get("distance")
+    source = v.get("compact_source")
+    if source and source.get("origin") == "arc" and not v.get("detected"):
+        r = f"{source['r'] * d:.0f} au" if d else f"{source['r']:.3f} arcsec"
+        return f"compact source (arc/vortex fit) at {r}, {source['phi_deg']:.0f} deg"
+    src = c if c is not None else v
     r = f"{src['r_p'] * d:.0f} au" if d else f"{src['r_p']:.3f} arcsec"
     return f"{src['template']} at {r}, {src['phi_p_deg']:.0f} deg"
+
+
+def outcome(verdict: dict) -> str:
+    """"detected", "candidate" or "not detected" of a ``verdict.json`` (its ``outcome``; files written
+    without one: detected or not)."""
+    if verdict.get("outcome"):
+        return str(verdict["outcome"])
+    return "detected" if verdict["detected"] else "not detected"
 
 
 def disc_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> dict:
@@ -60,21 +72,29 @@ def disc_row(job, verdict: dict, limits_path: str, posterior: dict | None) -> di
     for mass in job.config["limits"]["thresholds"]:
         row[f"excluded_ge{mass:g}Mth"] = format_ranges(limits, limits.excluded_ranges(None, mass), mass)
     candidate = verdict.get("candidate")
-    state = "detected" if verdict["detected"] else ("candidate" if candidate is not None else "not detected")
+    source = verdict.get("compact_source") or {}
     row.update({
-        "verdict": state,
+        "verdict": outcome(verdict),
         "best_candidate": _where(verdict, candidate),
         "delta_bic": float(verdict["delta_bic"]),
         "test1": _pass(verdict.get("test1_passed")), "test2": _pass(verdict.get("test2_passed")),
         "test3": _pass(verdict.get("test3_passed")),
         "test3_alternative": verdict.get("best_alternative_label") or "",
+        "explained_by": " or ".join(source.get("explained_by") or []),
+        "source_flux_mJy": float("nan") if source.get("flux_mJy") is None else float(source["flux_mJy"]),
         "family": families_text(limits),
         "morphologies": ", ".join(morphologies(limits)),
         "price_of_robustness": price_text(limits),
         "p_planet": float("nan") if posterior is None else float(posterior["p_planet"]),
+        "p_arc": _odds(posterior, "arc/vortex"), "p_ring": _odds(posterior, "eccentric ring"),
         "status": "ok", "error": "",
     })
     return row
+
+
+def _odds(posterior: dict | None, hypothesis: str) -> float:
+    odds = (posterior or {}).get("model_probabilities") or {}
+    return float(odds.get(hypothesis, float("nan")))
 
 
 def failed_row(name: str, error: str) -> dict:
@@ -83,9 +103,10 @@ def failed_row(name: str, error: str) -> dict:
 
 
 COLUMNS = ("disc", "R_eff95_arcsec", "R_eff95_au")
-TAIL = ("verdict", "best_candidate", "delta_bic", "test1", "test2", "test3", "test3_alternative", "family",
-        "morphologies", "price_of_robustness", "p_planet", "status", "error")
-UNITS = {"R_eff95_arcsec": "arcsec", "R_eff95_au": "AU"}
+TAIL = ("verdict", "best_candidate", "delta_bic", "test1", "test2", "test3", "test3_alternative", "explained_by",
+        "source_flux_mJy", "family",
+        "morphologies", "price_of_robustness", "p_planet", "p_arc", "p_ring", "status", "error")
+UNITS = {"R_eff95_arcsec": "arcsec", "R_eff95_au": "AU", "source_flux_mJy": "mJy"}
 
 
 def survey_table(rows: list[dict], *, name: str = "survey"):
@@ -99,7 +120,8 @@ def survey_table(rows: list[dict], *, name: str = "survey"):
     columns = {}
     for key in names:
         values = [row.get(key) for row in rows]
-        numeric = key in ("R_eff95_arcsec", "R_eff95_au", "delta_bic", "p_planet")
+        numeric = key in ("R_eff95_arcsec", "R_eff95_au", "delta_bic", "source_flux_mJy", "p_planet", "p_arc",
+                          "p_ring")
         columns[key] = np.array([np.nan if v is None else v for v in values], float) if numeric else \
             np.array(["" if v is None else str(v) for v in values], dtype=str)
     table = Table(columns, names=names, meta={"survey": name})
