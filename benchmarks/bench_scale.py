@@ -111,11 +111,13 @@ def growth(rows: list[dict]) -> list[str]:
     lines = []
     for mode in sorted({r["mode"] for r in rows}):
         for name in STAGES:
-            pts = sorted((r["n"], r["wall_s"]) for r in rows if r["mode"] == mode and r["stage"] == name)
-            for (n0, t0), (n1, t1) in zip(pts, pts[1:]):
-                if t0 > 0 and t1 > 0:
+            pts = sorted((r["n"], r["wall_s"], r["cpu_s"]) for r in rows if r["mode"] == mode and r["stage"] == name)
+            for (n0, w0, c0), (n1, w1, c1) in zip(pts, pts[1:]):
+                if w0 > 0 and w1 > 0 and c0 > 0 and c1 > 0:
+                    # CPU time follows the work done whatever else the machine runs; wall time follows the load
                     lines.append(f"{mode:4s} {name:10s} {n0:.0e} -> {n1:.0e}: exponent "
-                                 f"{math.log(t1 / t0) / math.log(n1 / n0):.2f}")
+                                 f"{math.log(c1 / c0) / math.log(n1 / n0):.2f} (CPU time), "
+                                 f"{math.log(w1 / w0) / math.log(n1 / n0):.2f} (wall)")
     return lines
 
 

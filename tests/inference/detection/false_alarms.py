@@ -168,6 +168,34 @@ def format_table(rows) -> str:
     return "\n".join(lines)
 
 
+def passes_test3_at(row: dict, threshold: float) -> bool:
+    """Would the verdict's test 3 pass with ``nested_threshold = threshold``? Tests 1 and 2 pass, the
+    statistic exceeds it, and no geometry error survives beside the spiral (the geometry rule)."""
+    v = row["verdict"]
+    geometry_survives = any(f["alternative"] == "geometry" and f.get("survives") for f in v.get("nested") or [])
+    return bool(row["test1"] and row["test2"] and v.get("nested_delta_bic") is not None
+                and v["nested_delta_bic"] > threshold and not geometry_survives)
+
+
+def threshold_table(rows, thresholds=(0.0, 5.0, 10.0, 15.0, 20.0, 30.0)) -> str:
+    """Markdown: for each ``nested_threshold``, the datasets whose test 3 would pass (tests 1 and 2 passed),
+    without and with gain errors, and the rate's 95 % upper bound (a planet would be claimed in these unless the
+    calibration diagnostic withholds it: with gain errors it does, docs/verdict.md)."""
+    from scipy.stats import beta
+
+    plain = [r for r in rows if r["kind"] != "gains"]
+    gains = [r for r in rows if r["kind"] == "gains"]
+    lines = ["| nested_threshold | would pass test 3: no gain errors | rate (95 % upper bound) | with gain errors |",
+             "| --- | --- | --- | --- |"]
+    for t in thresholds:
+        k = sum(passes_test3_at(r, t) for r in plain)
+        upper = float(beta.ppf(0.95, k + 1, len(plain) - k)) if plain else float("nan")
+        g = sum(passes_test3_at(r, t) for r in gains)
+        rate = k / max(len(plain), 1)
+        lines.append(f"| {t:g} | {k} of {len(plain)} | {rate:.2%} ({upper:.2%}) | {g} of {len(gains)} |")
+    return "\n".join(lines)
+
+
 def seeds(kind: str, n: int = N_PER_KIND) -> list[int]:
     return [SEED0 + 1000 * KINDS.index(kind) + i for i in range(n)]
 
@@ -196,4 +224,7 @@ def main(out: str = "false_alarms.json", n: str = str(N_PER_KIND), start: str = 
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:])
+    if sys.argv[1:2] == ["--thresholds"]:  # --thresholds OUT.json [OUT2.json ...]: test 3's rate per threshold
+        print(threshold_table([r for f in sys.argv[2:] for r in json.loads(Path(f).read_text())]))
+    else:
+        main(*sys.argv[1:])

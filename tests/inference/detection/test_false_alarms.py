@@ -3,10 +3,12 @@
 Seven kinds × :data:`~tests.inference.detection.false_alarms.N_PER_KIND` reduced fiducial datasets
 (:mod:`tests.inference.detection.false_alarms`; 350 in all): no planet may be claimed, and where
 tests 1 and 2 pass (where test 3 decides) the nested ΔBIC of the scan's best peak must stay below
-the default threshold. Not for gain errors: there it exceeded the threshold once in 50 (seed 11042,
-3.2° rms, 64.3 against the geometry model), and the geometry rule (no claim while a geometry error
+the default threshold; not for gain errors: there it exceeded the threshold in 50 (seed 11042,
+3.2° rms, 64.3 against the geometry model; seed 11004, 20.6), and the geometry rule (no claim while a geometry error
 survives beside the spiral; the rescan at the fitted geometry then fails test 2) is what holds; the
-measured table is in docs/verdict.md.
+measured table is in docs/verdict.md. No candidate compact source is named on planet-free data, on
+geometry or on gain errors, and a candidate on an arc or eccentric ring names that model among its
+explanations.
 """
 
 import logging
@@ -30,6 +32,12 @@ def test_no_planet_is_claimed_on_planet_free_impostor_and_gain_error_data(kind):
     decided = [r for r in rows if r["test1"] and r["test2"]]
     if kind != "gains":
         assert all(r["nested_delta_bic"] <= DetectionSettings().nested_threshold for r in decided), decided
+    sources = [r["compact_source"] for r in rows if r["compact_source"]]
+    if kind in ("planet_free", "geometry", "gains"):  # nothing compact in the sky
+        assert not sources, sources
+    elif kind in ("arc", "eccentric_ring"):
+        label = {"arc": "arc/vortex", "eccentric_ring": "eccentric ring"}[kind]
+        assert all(any(label in x for x in s["explained_by"]) for s in sources), sources
 
 
 @pytest.mark.parametrize("n", [pytest.param(10, id="10-per-kind"),

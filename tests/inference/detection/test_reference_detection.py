@@ -1,6 +1,7 @@
-"""Issue 22, Done-when 3 and 4 (slow): every planted reference spiral that the data can show is
-detected with the morphology-variant bank — test 3 passing, mass within one bank step, r_p within
-one grid step, φ_p within 4° — and planet-free data give no detection.
+"""Issue 22, Done-when 3 and 4, and issue 55 (slow): every planted reference spiral that the data can show
+is detected with the morphology-variant bank — test 3 passing, mass within one bank step, r_p within
+one grid step, φ_p within 4° — or, where its own map gives ΔBIC > 30, named a candidate compact source
+at the planet; and planet-free data give no detection.
 
 The set-ups are in :mod:`tests.inference.detection.reference_detection` and
 :mod:`tests.inference.detection.planet_free`; the measured tables are in docs/verdict.md
@@ -20,16 +21,13 @@ from tests.templates.fidelity import PHYSICS_FILE, REF_DIR, run_gap
 log = logging.getLogger(__name__)
 
 KNOWN_FAILURES = {
-    # measured 2026-12-05 with the maps planted in discs holding their runs' gaps (docs/verdict.md); in every
-    # one the own map passes test 3 (nested Delta BIC 38 to 3439): a template the bank lacks, not the data
+    # measured 2026-12-06 with the maps planted in discs holding their runs' gaps (docs/verdict.md), nested
+    # threshold 10; in every one the own map passes test 3 (nested Delta BIC 41 to 3439): a template the bank
+    # lacks, not the data
     ("fargo3d:h0.07_mu1", 0.3): "bank best Delta BIC -15 against the own map's 42 (test 1 fails); the same planet "
                                 "run again (physics nu 1e-6: 20 orbits, 187 cells) gives 1.0 (map_pool)",
-    ("fargo3dlib:h0.05_mu3", 0.3): "test 3 Delta BIC 19 against a lopsided disc, below 30 (own 201, bank 19, placed "
-                                   "exactly; own map's nested 191)",
     ("fargo3dlib:h0.07_mu1_st0.01", 0.3): "bank best Delta BIC 7 against the own map's 40 (test 1 fails)",
     ("fargo3dlib:h0.07_mu1_st0.03", 0.3): "bank best Delta BIC -5 against the own map's 115 (test 1 fails)",
-    ("wakeflow:h0.05_mu1", 0.3): "test 3 Delta BIC 5.4 against an arc at the planet, below 30 (bank Delta BIC 25, "
-                                 "placed exactly; own map's nested 38); FARGO3D's map of this planet gives -32",
     ("fargo3dlib:h0.07_mu1_orbits200", 0.3): "own Delta BIC 16 in the gapped disc, bank -5 (test 1 fails); the "
                                              "500-orbit map as the template would recover it",
     # the dust runs of the dust2 run set: the dust's ring and co-orbital structure, which no template models,
@@ -43,9 +41,8 @@ KNOWN_FAILURES = {
                                           "against an arc)",
     ("fargo3dlib:h0.07_mu3_st0.01", 3.0): "own 6351, bank 1257 (hydro m3) 32 deg off; test 2 fails",
     # the physics run set (tests/data/references/physics)
-    ("fargo3dlib:h0.07_mu1_nu1e-04", 0.3): "test 3: nested Delta BIC 23 against an arc at the planet, below 30 "
-                                           "(own Delta BIC 50, bank 27, placed right; own map's nested 47)",
-    ("fargo3dlib:h0.07_mu1_nu1e-06", 0.3): "bank best Delta BIC 9 against the own map's 42 (test 1 fails)",
+    ("fargo3dlib:h0.07_mu1_nu1e-06", 0.3): "bank best Delta BIC 9 against the own map's 42 (test 1 fails); no "
+                                           "compact arc either",
 }
 """Cases that fail the acceptance as measured, with why (non-strict: a refit of the variants may fix them)."""
 
@@ -64,8 +61,6 @@ KNOWN_FAILURES_WITH_MAPS = {
                                    "(Delta BIC 391; the variants' 351 at the truth); every H/r 0.07 1 M_th map "
                                    "in the top ten (296-391) peaks there; the summary names the H/r 0.10 "
                                    "template at the truth (Verdict.best_by_kind)",
-    ("wakeflow:h0.05_mu1", 0.3): "test 3 Delta BIC 5 against an arc at the planet, below 30 (bank 25, own map's "
-                                 "nested 38), as without the maps",
 }
 """The same table's failures with the maps in the bank (:func:`rd.map_bank`)."""
 
@@ -162,9 +157,12 @@ def test_planted_reference_spiral_is_detected_with_simulated_maps_in_the_bank(ca
 def _check_detection(r):
     log.info("%s", {k: v for k, v in r.items() if k != "verdict"})
     if not rd.required(r):
-        # the data cannot show it (own template's Delta BIC <= 10): only no false claim at a wrong place
+        # the data cannot show it (own template's Delta BIC <= 10): no false claim, no candidate named
         assert not r["detected"] or rd.accepted(r), r
+        assert r["outcome"] != "candidate", r["compact_source"]
         return
+    if not rd.accepted(r) and r["own_delta_bic"] > rd.CANDIDATE_OWN_THRESHOLD and rd.named_candidate(r):
+        return  # not claimed, but named: a compact source at the planet that a planet and another model explain
     own_nested = r["own_nested_delta_bic"]
     if not rd.accepted(r) and own_nested is not None and own_nested <= DetectionSettings().nested_threshold:
         pytest.xfail(f"the true spiral itself fails test 3: own map's nested Delta BIC {own_nested:.0f} against "

@@ -14,11 +14,11 @@ then be repeated at the fitted geometry first):
   handed peak) and test 3 fails, but not by much: its statistic (the nested ΔBIC) exceeds
   ``candidate_threshold``. The explanations are the spiral with its near-planet peak and every
   alternative test 3 compared it with.
-* **a compact arc** (``origin == "arc"``): the spiral does not pass tests 1 and 2, and the arc/vortex
-  alternative is significant (ΔBIC > ``bic_threshold_value`` against the axisymmetric disc), compact
-  (azimuthal width σ_φ ≤ ``compact_arc_width``) and not beaten by another alternative by more than
-  ``bic_threshold_value``. A planet whose spiral the bank does not hold shows this way: its
-  near-planet peak is what the data see.
+* **a compact arc** (``origin == "arc"``), otherwise: the arc/vortex alternative is significant
+  (ΔBIC > ``bic_threshold_value`` against the axisymmetric disc), compact (azimuthal width σ_φ ≤
+  ``compact_arc_width``) and not beaten by another alternative by more than ``bic_threshold_value``.
+  A planet whose spiral the bank does not hold shows this way: its near-planet peak (or the dust it
+  gathers) is what the data see.
 
 The source's flux is the positive excess of the arc model at its best fit (its brightness above the
 axisymmetric disc, projected on the sky) when the arc lies at the source (within
@@ -39,6 +39,8 @@ OUTCOMES = ("detected", "candidate", "not detected")
 """The verdict's outcomes (:attr:`~spiralbayes.inference.detection.verdict.Verdict.outcome`)."""
 
 SPIRAL_LABEL = "a planet's spiral with its near-planet peak"
+ARC_KEYS = {"contrast", "r_c", "phi_c_deg", "sigma_r", "sigma_phi_deg"}
+"""The arc fit's values a candidate needs (:meth:`~spiralbayes.alternatives.fields.ArcModel.describe`)."""
 ARC_ORIGIN_LABELS = ("an arc/vortex", "a planet's near-planet peak (its spiral not among the templates)")
 
 
@@ -84,7 +86,8 @@ def explanation_labels(verdict, origin: str) -> list[str]:
 
 
 def _spiral_flux(verdict, arc, brightness, cos_inc) -> tuple[float | None, str | None]:
-    if arc is not None and _arc_near(arc["params"], verdict.r_p, verdict.phi_p_deg):
+    if arc is not None and set(arc.get("params") or ()) >= ARC_KEYS and _arc_near(arc["params"], verdict.r_p,
+                                                                                    verdict.phi_p_deg):
         return arc_excess_flux(arc["params"], brightness, cos_inc), "arc model's excess at its best fit"
     peaks = [f.get("peak_flux", 0.0) for f in verdict.nested or [] if "peak" in f.get("hypothesis", "")]
     if peaks and max(peaks) > 0:
@@ -131,7 +134,7 @@ def compact_source(verdict, axisymmetric=None, settings=None) -> dict | None:
         out = {"origin": "spiral", "r": float(verdict.r_p), "phi_deg": float(verdict.phi_p_deg),
                "delta_bic": float(verdict.delta_bic), "nested_delta_bic": float(verdict.nested_delta_bic),
                "template": verdict.template, "flux_mJy": None if flux is None else 1e3 * flux, "flux_from": source}
-    elif not (verdict.test1_passed and verdict.test2_passed) and arc is not None:
+    elif arc is not None and set(arc.get("params") or ()) >= ARC_KEYS:
         best = max((a["delta_bic"] for a in alts.values()), default=-np.inf)
         p = arc["params"]
         if (arc["delta_bic"] > s.bic_threshold_value and p["sigma_phi_deg"] <= s.compact_arc_width
@@ -178,7 +181,7 @@ def deeper_time_factor(verdict, threshold: float) -> float | None:
 def next_steps_sentence(source: dict) -> str:
     """What a user can do with a candidate: the posterior odds, then deeper data."""
     text = ("Next: weigh the explanations with the posterior odds (sb.sample_posterior(vis, disc, templates, "
-            "alternatives=('arc', 'eccentric_ring')), or [posterior] alternatives for spiralbayes sample), which "
+            "alternatives=('arc', 'eccentric_ring')), or [sample] alternatives for spiralbayes sample), which "
             "report P(planet), P(arc) and P(ring)")
     f = source.get("deeper_time_factor")
     if f is not None:

@@ -17,9 +17,9 @@ DELTA_BIC_THRESHOLD = 10.0
 """Test 1: the best template's ΔBIC must exceed this ("very strong" evidence, Stevenson et al. 2024)."""
 MASS_BAND = 10.0
 """Templates within this ΔBIC of the best (near its position) make the reported mass range."""
-NESTED_THRESHOLD = 30.0
+NESTED_THRESHOLD = 10.0
 """Nested test 3: BIC(alternative) − BIC(alternative + spiral) must exceed this (docs/verdict.md: calibration)."""
-CANDIDATE_THRESHOLD = -20.0
+CANDIDATE_THRESHOLD = -30.0
 """Test 3's statistic above which a spiral that fails only test 3 is a candidate (docs/verdict.md, "Candidates")."""
 COMPACT_ARC_WIDTH = 40.0
 """Widest arc fit [deg, sigma_phi] that names a candidate compact source (docs/verdict.md, "Candidates")."""

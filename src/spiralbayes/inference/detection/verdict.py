@@ -441,7 +441,7 @@ class Verdict(ResultMixin):
                    f"{c['nested_delta_bic']:.1f} <= {self.nested_threshold:g})")
         else:
             why = (f"the arc/vortex model finds it (Delta BIC = {c['delta_bic']:.1f} against the axisymmetric "
-                   "disc), while no spiral template passes tests 1 and 2")
+                   "disc), and no spiral template explains it as well")
         return (f" Candidate: a compact source at {where}, phi = {c['phi_deg']:.0f} deg{flux}, explained by "
                 f"{models}: {why}. {c['next_steps']}")
 
