@@ -4,7 +4,8 @@
     python tools/continuum_coverage.py [tests/data/references/continuum/fargo3d_continuum.h5]
 
 One Markdown row per reduced run, in design order, with the cost FARGO3D recorded (wall time on
-the machine that ran it) and the run's arm RMS; a last line counts the design's points still missing.
+the machine that ran it, and CPU seconds per orbit where the driver recorded them) and the run's
+arm RMS; a last line counts the design's points still missing.
 """
 
 from __future__ import annotations
@@ -35,15 +36,21 @@ def rows(path: Path) -> tuple[list[str], list[str]]:
         out.append(f"| {case.name.split('_')[0]} | {a['mu_Mth']:g} | {a['h_p']:.2f} | {a['p_sigma']:g} "
                    f"| {a['alpha_at_rp']:.1e} | {a['nx_phi']} × {a['ny_r']} ({a['cells_per_H']:.1f} per H) "
                    f"| {a['orbits']:g} | {a['wall_time_s']} ({a['wall_time_per_orbit_s']:.0f} per orbit) "
-                   f"| {a['arm_rms']:.3f} |")
+                   f"| {_cpu(a)} | {a['arm_rms']:.3f} |")
     return out, missing
+
+
+def _cpu(a: dict) -> str:
+    """CPU seconds per orbit (when the driver recorded them): the cost whatever else the machine ran."""
+    return f"{a['cpu_time_per_orbit_s']:.1f}" if "cpu_time_per_orbit_s" in a else "–"
 
 
 def main(argv=None) -> None:
     argv = sys.argv[1:] if argv is None else argv
     found, missing = rows(Path(argv[0]) if argv else DEFAULT)
-    print("| point | M_p [M_th] | H/r | p | α at r_p | cells (φ × r) | orbits | wall time [s] | arm RMS δΣ/Σ |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| point | M_p [M_th] | H/r | p | α at r_p | cells (φ × r) | orbits | wall time [s] | CPU s per orbit "
+          "| arm RMS δΣ/Σ |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     print("\n".join(found))
     print(f"\n{len(found)} runs reduced; {len(missing)} of the design still to run: {', '.join(missing) or 'none'}")
 

@@ -119,7 +119,13 @@ def run_timing(runs_dir: Path, case: lib.Case) -> dict:
     else:
         end = int(last)
         state = "running" if time.time() - last < 900 else "stopped before Ntot"
-    return {"wall_time_s": int(end - starts[0]), "run_state": state, "restarts": len(starts) - 1}
+    out_ = {"wall_time_s": int(end - starts[0]), "run_state": state, "restarts": len(starts) - 1}
+    cpu = logs / f"{case.name}.cpu"  # CPU seconds per (re)start, when the driver recorded them
+    if cpu.exists():
+        rows = [line.split() for line in cpu.read_text().split("\n") if line.strip()]
+        out_["cpu_time_s"] = round(sum(float(r[0]) for r in rows))
+        out_["cpu_from_orbit"] = int(rows[0][1]) * lib.ORBITS_PER_OUTPUT  # a continued run's cost starts there
+    return out_
 
 
 def relaxation_test(runs_dir: Path) -> dict | str:
@@ -245,6 +251,8 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
         "output": int(n), "orbits": round(orbits, 2), "orbits_planned": case.orbits,
         "complete": bool(n >= lib.n_outputs(case)), **timing,
         "wall_time_per_orbit_s": round(timing["wall_time_s"] / max(orbits, 1e-9), 1),
+        **({"cpu_time_per_orbit_s": round(timing["cpu_time_s"] / max(orbits - timing["cpu_from_orbit"], 1e-9), 1)}
+           if "cpu_time_s" in timing else {}),
         "valid_x_min": float(x[valid].min()), "valid_x_max": float(x[valid].max()),
         "outside_valid": "maps set to 0 (damping zones / outside the run)",
         "steadiness": steady, "arm_rms": round(arm_rms(d, x, valid), 5),

@@ -20,6 +20,7 @@ import argparse
 import logging
 import os
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -127,9 +128,17 @@ def _run_unlocked(case: lib.Case, exe: Path, runs_dir: Path, nice: int) -> None:
     with open(logs / f"{case.name}.start", "a") as fh:
         fh.write(f"{int(time.time())} {done[-1] if done else 0}\n")
     log.info("%s: %s", case.name, " ".join(cmd + [str(par)]))
-    with open(logs / f"{case.name}.log", "a") as fh:
-        subprocess.run(cmd + [str(par)], cwd=exe.parent.parent, stdout=fh, stderr=subprocess.STDOUT,
-                       check=True)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    try:
+        with open(logs / f"{case.name}.log", "a") as fh:
+            subprocess.run(cmd + [str(par)], cwd=exe.parent.parent, stdout=fh, stderr=subprocess.STDOUT,
+                           check=True)
+    finally:
+        # CPU seconds of this (re)start, one line each: the run's cost whatever else the machine ran
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        with open(logs / f"{case.name}.cpu", "a") as fh:
+            fh.write(f"{after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime:.1f} "
+                     f"{done[-1] if done else 0}\n")
     (logs / f"{case.name}.end").write_text(f"{int(time.time())}\n")
 
 
