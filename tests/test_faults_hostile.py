@@ -310,6 +310,7 @@ class _Posterior(PosteriorResult):
 
     def __init__(self, ln_b: float, planet_prior: float = 0.5):
         self._ln_b, self.planet_prior, self.null = ln_b, planet_prior, object()
+        self.alternative_runs = []  # planet against no planet only
 
     @property
     def ln_bayes_factor(self) -> float:

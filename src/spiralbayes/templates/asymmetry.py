@@ -117,7 +117,7 @@ class RingProfile:
     """``r dI_A/dr`` [Jy/sr] of an axisymmetric model: the eccentric ring's perturbation profile.
 
     The derivative is a central difference of the model's band-limited series (step
-    :attr:`STEP` arcsec; relative error ~1e-7 for profiles varying on 0.01 arcsec), zero from
+    ``STEP`` arcsec; relative error ~1e-7 for profiles varying on 0.01 arcsec), zero from
     ``Rmax`` on like the model's brightness, whose jump there is left out.
     """
 

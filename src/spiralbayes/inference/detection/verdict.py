@@ -337,7 +337,7 @@ class Verdict(ResultMixin):
     @property
     def outcome(self) -> str:
         """"detected" (tests 1-3 pass), "candidate" (a compact source is named, :attr:`compact_source`) or
-        "not detected" (a handed compact peak other than the global one, :attr:`candidate`, has not been
+        "not detected" (a handed compact peak other than the global one, ``candidate``, has not been
         through test 3 and does not make a candidate: the summary suggests following it up)."""
         if self.detected:
             return "detected"
