@@ -6,6 +6,8 @@ renamed into place (:func:`~spiralbayes._provenance.atomic_path`); :func:`open_f
 path, the HDF5 signature and the kind, and turns each failure into one line that names the file —
 also failures while reading inside the ``with`` block (a truncated file often opens but cannot
 give its datasets back; a missing attribute or an unparsable JSON attribute means the same).
+:func:`open_reference` opens, checks and reports alike the files spiralbayes reads but does not write
+(reduced simulations), which carry no ``kind``.
 
 Result classes are written and read by one routine, :func:`save_dataclass` / :func:`load_dataclass`,
 which walks the dataclass's fields (layout version :data:`RESULT_LAYOUT_VERSION`):
@@ -33,7 +35,7 @@ from pathlib import Path
 from ._provenance import FORMAT_VERSION, atomic_path, json_default
 from .exceptions import DataFileError, InputError, MissingFileError, SpiralbayesError
 
-__all__ = ["RESULT_LAYOUT_VERSION", "checked_dataset", "load_dataclass", "open_file", "read_kind",
+__all__ = ["RESULT_LAYOUT_VERSION", "checked_dataset", "load_dataclass", "open_file", "open_reference", "read_kind",
            "refuse_other_kind", "require_file", "save_dataclass", "write_file"]
 
 RESULT_LAYOUT_VERSION = 2
@@ -109,10 +111,30 @@ def open_file(path, kind: str | tuple[str, ...], what: str, mode: str = "r"):
         the block reads it (``OSError``, a missing dataset or attribute, bad JSON, or a content
         check of the caller failing: all re-raised with the file's name and the fix).
     """
+    kinds = (kind,) if isinstance(kind, str) else tuple(kind)
+    with _checked_open(path, kinds, what, mode) as f:
+        yield f
+
+
+@contextlib.contextmanager
+def open_reference(path, what: str):
+    """Yield a read-only ``h5py.File`` that spiralbayes reads but did not write (no ``kind`` attribute
+    is required: a reduced simulation file, ``tests/data/references/...``).
+
+    The file is checked and its read failures are reported as :func:`open_file` does
+    (:class:`~spiralbayes.exceptions.MissingFileError`, :class:`~spiralbayes.exceptions.DataFileError`
+    naming the file).
+    """
+    with _checked_open(path, None, what, "r") as f:
+        yield f
+
+
+@contextlib.contextmanager
+def _checked_open(path, kinds: tuple[str, ...] | None, what: str, mode: str):
+    """:func:`open_file`'s checks; ``kinds`` None accepts a file of any kind (or none)."""
     import h5py
 
     path = require_file(path, what)
-    kinds = (kind,) if isinstance(kind, str) else tuple(kind)
     try:
         f = h5py.File(path, mode)
     except OSError as exc:
@@ -120,7 +142,7 @@ def open_file(path, kind: str | tuple[str, ...], what: str, mode: str = "r"):
                             "re-create it, or delete it to start afresh") from None
     with f:
         found = read_kind(f)
-        if found not in kinds:
+        if kinds is not None and found not in kinds:
             raise DataFileError(f"{path} is not a spiralbayes {what} (kind = {found!r}, expected {kinds[0]!r})")
         try:
             yield f

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from spiralbayes.exceptions import InputError
-from spiralbayes.templates.family import H_NODES, TemplateFamily, _shift_rows, lagrange_weights
+from spiralbayes.templates.family import H_NODES, TemplateFamily, lagrange_weights, shift_rows
 from spiralbayes.templates.variants import variant_template
 
 from .family_accuracy import loss, table
@@ -23,7 +23,7 @@ def test_shift_rows_is_a_rotation_by_whole_pixels():
     rng = np.random.default_rng(1)
     delta = rng.normal(size=(3, 64))
     step = 2 * np.pi / 64
-    out = _shift_rows(delta, np.array([0.0, 3 * step, -5 * step]))
+    out = shift_rows(delta, np.array([0.0, 3 * step, -5 * step]))
     np.testing.assert_allclose(out[0], delta[0], atol=1e-12)
     np.testing.assert_allclose(out[1], np.roll(delta[1], 3), atol=1e-12)
     np.testing.assert_allclose(out[2], np.roll(delta[2], -5), atol=1e-12)

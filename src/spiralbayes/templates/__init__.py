@@ -15,6 +15,9 @@ planet at φ = 0, hand R = anticlockwise orbit with trailing arms).
   generator templates on fine nodes (:mod:`.family`).
 * :func:`make_template` — the built-in semi-analytic generator (:mod:`.wake`).
 * :func:`read_fargo3d`, :func:`read_fits_template` — bring your own simulations.
+* :class:`LearnedTemplateModel` — templates continuous in disc physics (planet mass, H/r, surface-density
+  slope, viscosity, age), learned from hydrodynamic runs; :func:`learned_bank` puts its predictions on a
+  grid into a bank for the scan (:mod:`.learned`).
 * :func:`asymmetry_templates` — the competing explanations (arc/vortex, eccentric ring) as template
   families, for the posterior odds (:mod:`.asymmetry`).
 """
@@ -25,6 +28,7 @@ from .family import TemplateFamily
 from .fargo3d import read_fargo3d
 from .fits import read_fits_template, write_fits_template
 from .generator import make_template, paper_grid
+from .learned import LearnedTemplateModel, learned_bank
 from .radiative import template_from_perturbation
 from .template import SpiralTemplate
 from .variants import default_bank, variant_bank
@@ -36,6 +40,7 @@ __all__ = [
     "arc_template",
     "asymmetry_templates",
     "ring_template",
+    "LearnedTemplateModel",
     "SpiralTemplate",
     "TemplateBank",
     "TemplateFamily",
@@ -43,6 +48,7 @@ __all__ = [
     "compromise_bank",
     "default_bank",
     "default_cache_dir",
+    "learned_bank",
     "make_template",
     "paper_grid",
     "read_fargo3d",

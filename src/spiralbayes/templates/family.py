@@ -40,7 +40,7 @@ from ..exceptions import InputError
 from .template import SpiralTemplate, template_name, validate_hand
 from .wake import WakeSettings, wake_phase
 
-__all__ = ["H_NODES", "MASS_RANGE", "N_MASS_NODES", "TemplateFamily", "lagrange_weights"]
+__all__ = ["H_NODES", "MASS_RANGE", "N_MASS_NODES", "TemplateFamily", "lagrange_weights", "shift_rows"]
 
 log = logging.getLogger(__name__)
 
@@ -88,7 +88,7 @@ def lagrange_weights(nodes: np.ndarray, value: float, order: int = 4) -> tuple[n
     return idx, w
 
 
-def _shift_rows(delta: np.ndarray, shift: np.ndarray) -> np.ndarray:
+def shift_rows(delta: np.ndarray, shift: np.ndarray) -> np.ndarray:
     """``δ(x, φ − shift(x))`` for a periodic map on a uniform azimuth grid (Fourier shift per row)."""
     F = np.fft.rfft(delta, axis=1)
     m = np.arange(F.shape[1])
@@ -303,7 +303,7 @@ class TemplateFamily:
         for j, k, w in terms:
             node = np.asarray(self.node(j, k).delta, dtype=float)
             if self.h_ps[k] != h:  # rotate the node's arms onto the ridge at h before adding it
-                node = _shift_rows(node, self._ridge(h) - self._ridge(float(self.h_ps[k])))
+                node = shift_rows(node, self._ridge(h) - self._ridge(float(self.h_ps[k])))
             delta += w * node
         prefix = "wake" if self.variant == "compromise" else self.variant
         prov = {**first.provenance, "family": {

@@ -31,8 +31,9 @@ from .._provenance import json_safe, to_json
 from ..exceptions import InputError
 from ..units import TWO_PI
 
-__all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "template_metadata", "check_mass_beta", "check_tau0",
-           "SIMULATION", "metadata_variant", "repeated_names", "template_kind", "template_name", "validate_hand"]
+__all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "bilinear", "template_metadata", "check_mass_beta",
+           "check_tau0", "SIMULATION", "metadata_variant", "repeated_names", "template_kind", "template_name",
+           "validate_hand"]
 
 log = logging.getLogger(__name__)
 
@@ -292,7 +293,7 @@ class SpiralTemplate:
         r, phi = np.broadcast_arrays(np.asarray(r, dtype=float), np.asarray(phi, dtype=float))
         with np.errstate(divide="ignore", invalid="ignore"):
             u = np.log(r / r_p)
-        return _bilinear(self.delta, np.log(self.x), self.phi, u, phi - phi_p)
+        return bilinear(self.delta, np.log(self.x), self.phi, u, phi - phi_p)
 
     def on_grid(self, x_new, n_phi: int | None = None) -> SpiralTemplate:
         """Resample onto radii ``x_new`` (r/r_p) and ``n_phi`` uniform azimuths ``2πk/n_phi``.
@@ -307,7 +308,7 @@ class SpiralTemplate:
         delta = self.evaluate(x_new[:, None], phi_new[None, :], 1.0, 0.0).astype(self.delta.dtype)
         bright = None
         if self.brightness is not None:
-            bright = _bilinear(
+            bright = bilinear(
                 self.brightness, np.log(self.x), self.phi, np.log(x_new)[:, None], phi_new[None, :]
             )
         prov = dict(self.provenance)
@@ -358,11 +359,11 @@ def _mirror_phi(values: np.ndarray, phi: np.ndarray) -> np.ndarray:
         idx = (-np.arange(n) + int(round(shift))) % n
         return values[:, idx].copy()
     log.debug("mirror: phi grid not symmetric about 0; interpolating")
-    return _bilinear(values, np.arange(values.shape[0], dtype=float), phi,
-                     np.arange(values.shape[0], dtype=float)[:, None], -phi[None, :]).astype(values.dtype)
+    return bilinear(values, np.arange(values.shape[0], dtype=float), phi,
+                    np.arange(values.shape[0], dtype=float)[:, None], -phi[None, :]).astype(values.dtype)
 
 
-def _bilinear(table: np.ndarray, u_grid: np.ndarray, phi_grid: np.ndarray, u, phi) -> np.ndarray:
+def bilinear(table: np.ndarray, u_grid: np.ndarray, phi_grid: np.ndarray, u, phi) -> np.ndarray:
     """Bilinear interpolation of ``table[u, φ]``: linear in ``u`` (zero outside
     ``[u_grid[0], u_grid[-1]]``) and periodic-linear in φ on the uniform ``phi_grid``."""
     u = np.asarray(u, dtype=float)

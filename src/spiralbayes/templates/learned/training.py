@@ -1,0 +1,271 @@
+"""The learned model's training data: isothermal gas runs read from reduced FARGO3D files.
+
+:func:`read_training_runs` reads every usable run of the reduced reference files
+(``tests/data/references/...``, layout in tools/README.md, "File layout") as a :class:`TrainingRun`:
+its physics point (planet mass, ``H/r``, surface-density slope, viscosity, age) and its
+surface-density maps. :func:`row_weight` is the per-radius weight the visibilities give a map,
+with which the model's bases are fitted.
+
+Masses are in thermal masses ``M_th = h_p³ M_*``; ``α`` is the Shakura–Sunyaev parameter at
+``r_p`` (``ν = α h_p² r_p² Ω_p``); ages in orbits of the planet.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..._hdf5 import open_reference
+from ...exceptions import DataFileError, InputError
+
+__all__ = ["DISC_EXTENT", "FLARING", "MAX_CHANGE", "NUMERICAL_CHECKS", "OUTSIDE_WEIGHT", "PARAMETERS", "WEIGHT_TAU0",
+           "TrainingRun", "parameter_vector", "read_training_runs", "row_weight"]
+
+log = logging.getLogger(__name__)
+
+PARAMETERS = ("ln_mass", "h_p", "slope", "log10_alpha", "ln_orbits")
+"""The regression's inputs, in order: ``ln(M_p/M_th)``, ``H/r`` at r_p, surface-density slope ``p``
+(Σ ∝ r^-p), ``log10 α`` at r_p, ``ln`` of the age in orbits."""
+
+FLARING = 0.25
+"""Flaring index of the training runs (``H/r ∝ r^0.25``: FARGO3D's ``FLARINGINDEX``; ``c_s ∝ r^-1/4``)."""
+
+NUMERICAL_CHECKS = ("soft", "res")
+"""Prefixes of the library's ``variant`` attribute that mark checks of one numerical setting
+(softening ``soft0.35``, resolution ``res14``): the same physics as another run, left out."""
+
+MAX_CHANGE = 0.5
+"""Largest RMS change of δΣ/Σ over a run's last 5 orbits for it to be trained on (the references'
+rule, ``tests/templates/fidelity.py``: above it, vortices at the gap edges dominate the map)."""
+
+WEIGHT_TAU0 = 1.0
+"""Optical depth of the brightness in :func:`row_weight` (between the bank's 0.3 and 3)."""
+
+DISC_EXTENT = (0.2, 2.2)
+"""The fiducial disc in ``x = r/r_p`` (10–110 au around a planet at 50 au); rows outside it are
+weighted :data:`OUTSIDE_WEIGHT` times less."""
+
+OUTSIDE_WEIGHT = 0.3
+"""Relative weight of the rows outside :data:`DISC_EXTENT` (:func:`row_weight`)."""
+
+
+def row_weight(x) -> np.ndarray:
+    """Per-row weight of the maps in the basis fit, ``w(x) ∝ x I_axi(x)``, maximum 1.
+
+    ``I_axi ∝ x^-1/2 (1 − e^{−τ/x})`` (T ∝ r^-1/2, Σ ∝ r^-1, τ = :data:`WEIGHT_TAU0` at the planet):
+    the squared weighted map ``w² δ²`` is ``δ² I² x² dln x``, the disc-area integral of the
+    brightness perturbation the visibilities see on a log-spaced grid. Rows outside
+    :data:`DISC_EXTENT` count :data:`OUTSIDE_WEIGHT` times less.
+
+    Parameters
+    ----------
+    x : array
+        ``r / r_p``, positive.
+
+    Returns
+    -------
+    array
+        Weights, the shape of ``x``.
+    """
+    x = np.asarray(x, dtype=float)
+    w = x * x**-0.5 * -np.expm1(-WEIGHT_TAU0 / x)
+    w = w * np.where((x >= DISC_EXTENT[0]) & (x <= DISC_EXTENT[1]), 1.0, OUTSIDE_WEIGHT)
+    return w / w.max()
+
+
+def parameter_vector(mass: float, h_p: float, slope: float, alpha: float, orbits: float) -> np.ndarray:
+    """The regression inputs (:data:`PARAMETERS`) of one physics point.
+
+    Parameters
+    ----------
+    mass, h_p, slope, alpha, orbits : float
+        ``M_p/M_th``, ``H/r`` at r_p, Σ slope ``p``, ``α`` at r_p, age [orbits].
+
+    Returns
+    -------
+    (5,) array
+        ``(ln M_p, h_p, p, log10 α, ln orbits)``.
+    """
+    return np.array([math.log(mass), h_p, slope, math.log10(alpha), math.log(orbits)], dtype=float)
+
+
+@dataclass(frozen=True, eq=False)
+class TrainingRun:
+    """One reduced hydrodynamic run (tools/README.md, "File layout").
+
+    Attributes
+    ----------
+    name : str
+        ``<source>:<group>``, e.g. ``library:h0.07_mu1`` (source: the file's folder, or its stem for
+        files in ``tests/data/references``).
+    mass : float
+        Planet mass ``M_p/M_th``.
+    h_p : float
+        ``H/r`` at r_p.
+    slope : float
+        Surface-density slope ``p`` (initial Σ ∝ r^-p).
+    alpha : float
+        Viscosity ``α`` at r_p (``ν / h_p²``).
+    orbits : float
+        Age of the map [planet orbits].
+    x : (n_x,) array
+        ``r / r_p``.
+    phi : (n_phi,) array
+        Azimuths [rad], uniform, planet at 0.
+    dsigma : (n_x, n_phi) array
+        ``δΣ/Σ = Σ/⟨Σ⟩_φ − 1`` (hand R).
+    gap : (n_x,) array
+        ``⟨Σ⟩_φ / Σ_init`` (the planet's gap); NaN where ``valid`` is False.
+    valid : (n_x,) bool array
+        Rows inside the run's undamped domain.
+    file : str
+        The reduced file it was read from (its group is the name after the colon).
+    """
+
+    name: str
+    mass: float
+    h_p: float
+    slope: float
+    alpha: float
+    orbits: float
+    x: np.ndarray
+    phi: np.ndarray
+    dsigma: np.ndarray
+    gap: np.ndarray
+    valid: np.ndarray
+    file: str = ""
+
+    @property
+    def group(self) -> str:
+        """The run's group in ``file``."""
+        return self.name.split(":", 1)[1]
+
+    @property
+    def inputs(self) -> np.ndarray:
+        """The regression inputs (:data:`PARAMETERS`)."""
+        return parameter_vector(self.mass, self.h_p, self.slope, self.alpha, self.orbits)
+
+    @property
+    def parameters(self) -> dict:
+        """``{mass, h_p, slope, alpha, orbits}``: the arguments of
+        :meth:`~spiralbayes.templates.learned.model.LearnedTemplateModel.predict`."""
+        return {"mass": self.mass, "h_p": self.h_p, "slope": self.slope, "alpha": self.alpha,
+                "orbits": self.orbits}
+
+
+def _source_label(path: Path) -> str:
+    stem = path.stem.removeprefix("fargo3d_")
+    return stem if path.parent.name == "references" else path.parent.name
+
+
+def _last_change(attrs) -> float:
+    steady = attrs.get("steadiness")
+    if steady is None:
+        return 0.0
+    steady = json.loads(steady) if isinstance(steady, (str, bytes)) else dict(steady)
+    orbits = float(attrs.get("orbits", 0.0))
+    return float(steady.get(f"rms_rel_diff_vs_orbit_{orbits - 5:g}", 0.0))
+
+
+def _skip_reason(attrs, max_change: float) -> str | None:
+    """Why a group is not a training run of the isothermal gas model (None: it is one)."""
+    fluid = attrs.get("fluid", "gas")
+    fluid = "gas" if fluid is None else (fluid.decode() if isinstance(fluid, bytes) else str(fluid))
+    if fluid != "gas" or float(attrs.get("stokes", 0.0) or 0.0) > 0:
+        return f"fluid {fluid!r} (the model is of the gas)"
+    if float(attrs.get("beta", 0.0) or 0.0) > 0:
+        return f"beta = {float(attrs['beta']):g} (the model is locally isothermal)"
+    variant = str(attrs.get("variant", "") or "")
+    if variant.startswith(NUMERICAL_CHECKS):
+        return f"a check of one numerical setting ({variant})"
+    if str(attrs.get("run_state", "finished")).startswith("running"):
+        return "still running"
+    change = _last_change(attrs)
+    if change > max_change:
+        return f"not quasi-steady (δΣ/Σ changes by {change:.0%} in 5 orbits > {max_change:.0%})"
+    for key in ("h_p", "mu_Mth", "orbits"):
+        if key not in attrs:
+            return f"no {key!r} attribute"
+    return None
+
+
+def _read_file(path: Path, max_change: float) -> list[TrainingRun]:
+    """The training runs of one reduced file."""
+    import h5py
+
+    source = _source_label(path)
+    runs = []
+    with open_reference(path, "reduced reference file") as f:
+        if "x" not in f or "phi" not in f:
+            raise DataFileError(f"{path} has no root 'x' and 'phi' datasets: not a reduced reference file "
+                                "(tools/README.md, 'File layout')")
+        x, phi = f["x"][()].astype(float), f["phi"][()].astype(float)
+        for name in sorted(f):
+            g = f[name]
+            if not isinstance(g, h5py.Group):
+                continue
+            a = g.attrs
+            reason = _skip_reason(a, max_change)
+            if reason is None and not {"dsigma", "sigma_axisym"} <= set(g):
+                reason = "no dsigma or sigma_axisym dataset"
+            if reason is not None:
+                log.info("%s:%s not trained on: %s", path.name, name, reason)
+                continue
+            h_p = float(a["h_p"])
+            slope = float(a.get("p_sigma", 1.0))
+            alpha = float(a["alpha_at_rp"]) if "alpha_at_rp" in a else float(a["nu"]) / h_p**2
+            valid = g["valid"][()].astype(bool) if "valid" in g else np.ones(x.size, bool)
+            gap = np.where(valid, g["sigma_axisym"][()].astype(float) * x**slope, np.nan)
+            runs.append(TrainingRun(f"{source}:{name}", float(a["mu_Mth"]), h_p, slope, alpha, float(a["orbits"]),
+                                    x, phi, g["dsigma"][()].astype(float), gap, valid, str(path)))
+    return runs
+
+
+def read_training_runs(paths: Iterable, *, max_change: float = MAX_CHANGE) -> list[TrainingRun]:
+    """The isothermal gas runs of reduced reference files (tools/README.md, "File layout").
+
+    Every group of each file is read except dust (``fluid`` not gas, ``stokes > 0``), β-cooled runs
+    (``beta > 0``), checks of one numerical setting (``variant`` starting with
+    :data:`NUMERICAL_CHECKS`), runs still going and maps that are not quasi-steady (RMS change of
+    δΣ/Σ over the last 5 orbits above ``max_change``); each skip is logged. Files that gain groups
+    (runs reduced later) give more runs on the next call.
+
+    Parameters
+    ----------
+    paths : iterable of path
+        Reduced HDF5 files (``fargo3d_library.h5`` layout: root ``x``, ``phi``; one group per run with
+        ``dsigma``, ``sigma_axisym``, ``valid`` and the attributes ``h_p``, ``mu_Mth``, ``p_sigma``,
+        ``nu`` or ``alpha_at_rp``, ``orbits``).
+    max_change : float
+        Largest relative change over the last 5 orbits (default :data:`MAX_CHANGE`).
+
+    Returns
+    -------
+    list of TrainingRun
+        Sorted by name.
+
+    Raises
+    ------
+    InputError
+        A file does not exist, or two files hold runs of one name.
+    DataFileError
+        A file is not a reduced reference file (no root ``x`` and ``phi``), or is corrupt.
+    """
+    runs = []
+    for path in paths:
+        path = Path(path)
+        if not path.exists():
+            raise InputError(f"reference file {path} does not exist: give reduced FARGO3D files "
+                             "(tests/data/references/...; tools/README.md, 'File layout')")
+        runs += _read_file(path, max_change)
+    names = [r.name for r in runs]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"training runs {twice} come from more than one file: give each file once")
+    return sorted(runs, key=lambda r: r.name)
