@@ -122,15 +122,11 @@ def reference_cases(files=None) -> list[Case]:
 
 
 def _last_change(attrs) -> float:
-    """RMS relative change of δΣ/Σ over the last 5 orbits (the library's ``steadiness``; 0 without)."""
-    import json
+    """RMS relative change of δΣ/Σ over the last 5 orbits (the library's ``steadiness``; 0 without): the
+    rule the learned model trains by, so that the references and its training runs agree."""
+    from spiralbayes.templates.learned.training import _last_change as steadiness_rule
 
-    steady = attrs.get("steadiness")
-    if steady is None:
-        return 0.0
-    steady = json.loads(steady) if isinstance(steady, (str, bytes)) else dict(steady)
-    orbits = float(attrs.get("orbits", 0.0))
-    return float(steady.get(f"rms_rel_diff_vs_orbit_{orbits - 5:g}", 0.0))
+    return steadiness_rule(attrs)
 
 
 def _role(group: str) -> str:
