@@ -38,7 +38,7 @@ from .generator import paper_grid
 from .template import SpiralTemplate, repeated_names, validate_hand
 from .wake import WakeSettings
 
-__all__ = ["DEFAULT_H_PS", "TemplateBank", "compromise_bank", "default_cache_dir"]
+__all__ = ["DEFAULT_H_PS", "TemplateBank", "cached_bank", "compromise_bank", "default_cache_dir"]
 
 log = logging.getLogger(__name__)
 
@@ -205,6 +205,24 @@ def default_cache_dir() -> Path:
     return base / "spiralbayes"
 
 
+def cached_bank(path: Path, key_field: str, key: str, n_expected: int, rebuild: bool = False) -> TemplateBank | None:
+    """The bank cached at ``path`` if it was built from the same inputs (its provenance's ``key_field``
+    is ``key`` and it holds ``n_expected`` templates); None when it is missing, stale, unreadable or
+    ``rebuild`` is asked for (the caller then builds and saves it)."""
+    if rebuild or not path.exists():
+        return None
+    try:
+        bank = TemplateBank.load(path)
+    except (ValueError, OSError, KeyError) as exc:
+        log.warning("cached bank %s unreadable (%s); rebuilding", path, exc)
+        return None
+    if bank.provenance.get(key_field) == key and len(bank) == n_expected:
+        log.debug("loaded cached template bank %s", path)
+        return bank
+    log.warning("cached bank %s does not match its inputs; rebuilding", path)
+    return None
+
+
 DEFAULT_H_PS = (0.05, 0.07, 0.10)
 """Disc aspect ratios ``H/r`` at r_p of the default bank (the paper fixes 0.07; 0.05 and 0.10
 bracket the discs surveyed, and planets in discs thinner or thicker than the template are missed
@@ -249,15 +267,9 @@ def compromise_bank(cache_dir: str | os.PathLike | None = None, rebuild: bool = 
     n_expected = 64 * len(h_ps)
     folder = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
     path = folder / f"bank-{key}.h5"
-    if path.exists() and not rebuild:
-        try:
-            bank = TemplateBank.load(path)
-            if bank.provenance.get("generator_key") == key and len(bank) == n_expected:
-                log.debug("loaded cached template bank %s", path)
-                return bank
-            log.warning("cached bank %s does not match the generator; rebuilding", path)
-        except (ValueError, OSError, KeyError) as exc:
-            log.warning("cached bank %s unreadable (%s); rebuilding", path, exc)
+    cached = cached_bank(path, "generator_key", key, n_expected, rebuild)
+    if cached is not None:
+        return cached
     t0 = time.perf_counter()
     templates = paper_grid(h_ps=h_ps, progress=progress, **options)
     bank = TemplateBank(templates, {"generator_key": key, "generator_settings": settings.to_dict(),

@@ -58,7 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
-from .bank import DEFAULT_H_PS, TemplateBank, default_cache_dir
+from .bank import DEFAULT_H_PS, TemplateBank, cached_bank, default_cache_dir
 from .generator import make_template
 from .radiative import template_from_perturbation
 from .template import SpiralTemplate, template_name, validate_hand
@@ -353,13 +353,9 @@ def variant_bank(variants=DEFAULT_VARIANTS, h_ps=None, cache_dir=None, rebuild: 
     key = hashlib.sha256(blob.encode()).hexdigest()[:16]
     path = (Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()) / f"variants-{key}.h5"
     n_expected = 64 * len(h_ps) * len(chosen)
-    if path.exists() and not rebuild:
-        try:
-            bank = TemplateBank.load(path)
-            if bank.provenance.get("variant_key") == key and len(bank) == n_expected:
-                return bank
-        except (ValueError, OSError, KeyError):
-            pass
+    cached = cached_bank(path, "variant_key", key, n_expected, rebuild)
+    if cached is not None:
+        return cached
     t0 = time.perf_counter()
     templates = variant_grid(chosen, h_ps=h_ps, **options)
     log.info("built the morphology-variant bank (%d templates) in %.1f s", len(templates), time.perf_counter() - t0)

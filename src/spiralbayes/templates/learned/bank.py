@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ...exceptions import InputError
-from ..bank import TemplateBank, default_cache_dir
+from ..bank import TemplateBank, cached_bank, default_cache_dir
 from ..template import validate_hand
 from .model import MODEL_VERSION, LearnedTemplateModel
 
@@ -117,14 +117,9 @@ def learned_bank(model: LearnedTemplateModel, masses, h_ps, slopes, alphas, orbi
     points = list(itertools.product(grid["slopes"], grid["alphas"], grid["orbits"], grid["h_ps"], grid["masses"]))
     n_expected = len(points) * len(grid["tau0s"]) * len(hands)
     path = (Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()) / f"learned-{key}.h5"
-    if path.exists() and not rebuild:
-        try:
-            bank = TemplateBank.load(path)
-            if bank.provenance.get("learned_bank_key") == key and len(bank) == n_expected:
-                log.debug("loaded cached learned bank %s", path)
-                return bank
-        except (ValueError, OSError, KeyError) as exc:
-            log.warning("cached learned bank %s unreadable (%s); rebuilding", path, exc)
+    cached = cached_bank(path, "learned_bank_key", key, n_expected, rebuild)
+    if cached is not None:
+        return cached
     for slope, alpha, age, h_p, mass in points:  # every point checked before any is predicted
         model._check(mass, h_p, slope, alpha, age, extrapolate)
     t0 = time.perf_counter()
