@@ -51,6 +51,19 @@ def test_bad_configuration_is_refused(user, match):
         merge_config(user)
 
 
+@pytest.mark.parametrize("user,match", [
+    ({"templates": {"bank": "learned"}}, r"bank = 'learned' needs \[templates\] learned_model.*--fit-learned"),
+    ({"templates": {"slope": [1.0]}}, r"templates.slope = \[1.0\] is read only with bank = 'learned'"),
+    ({"templates": {"bank": "learned", "learned_model": "m.h5", "alpha": [0.0]}}, r"templates.alpha .* element 0.0"),
+    ({"templates": {"bank": "learned", "learned_model": "m.h5", "orbits": ["old"]}}, "templates.orbits .*numbers"),
+])
+def test_learned_bank_options_are_checked(user, match):
+    """The learned bank's options: a model file is required, they are refused with another bank, and
+    each value is checked (α and ages > 0)."""
+    with pytest.raises(ValueError, match=match):
+        merge_config(user)
+
+
 def test_missing_and_invalid_files(tmp_path):
     with pytest.raises(FileNotFoundError, match="--print-config"):
         load_config(tmp_path / "nope.toml")
@@ -198,7 +211,8 @@ def test_templates_without_options_use_the_robust_default_bank():
     from spiralbayes.templates import compromise_bank, default_bank
 
     section = default_config()["templates"]
-    assert section["bank"] == "default" and set(BUILT_IN_BANKS) == set(inputs.BANKS)
+    # every built-in name is a bank of its own but "learned", which a saved model makes (learned_templates)
+    assert section["bank"] == "default" and set(BUILT_IN_BANKS) == set(inputs.BANKS) | {"learned"}
     assert inputs.BANKS[section["bank"]] is default_bank and inputs.BANKS["compromise"] is compromise_bank
 
 

@@ -181,7 +181,7 @@ def main(argv=None) -> int:
     ap.add_argument("--trend", choices=("disc", "map", "amplitudes", "all", "none"), default="disc",
                     help="outputs regressed on a linear trend under the processes (default: disc)")
     ap.add_argument("--no-gap-depth", action="store_true", help="a basis of the log gap itself (no depth × shape)")
-    ap.add_argument("--no-patch", action="store_true", help="no separate near-planet patch")
+    ap.add_argument("--patch", action="store_true", help="model the near-planet patch apart (off by default)")
     ap.add_argument("--n-patch-components", type=int, default=6)
     ap.add_argument("--no-bank", action="store_true", help="skip the variant bank's recovery")
     ap.add_argument("--cache", default=None, help="JSON-lines cache (default: <cache dir>/learned_loro.jsonl)")
@@ -202,7 +202,7 @@ def main(argv=None) -> int:
     cache = Cache(Path(args.cache) if args.cache else default_cache_dir() / "learned_loro.jsonl")
     options = {"n_components": args.n_components, "n_gap_components": args.n_gap_components,
                "align": not args.no_align, "restarts": args.restarts, "sharing": args.sharing,
-               "trend": args.trend, "gap_depth": not args.no_gap_depth, "patch": not args.no_patch,
+               "trend": args.trend, "gap_depth": not args.no_gap_depth, "patch": args.patch,
                "n_patch_components": args.n_patch_components}
     held = [r for r in runs if args.runs is None or any(s in r.name for s in args.runs)]
     bank = None

@@ -6,12 +6,18 @@ variants), ``compute_limits(cl=0.95, resolution=0, bright_radius=inf)`` per β f
 the compromise alone, the robust ``M_lim`` (every variant must exclude) and their ratio at
 r_p = 0.25, 0.35 and 0.45″, for image sensitivities 35 and 12 µJy/beam.
 
-    PYTHONPATH=src:. python tools/price_of_robustness.py
+With ``--learned`` the robust set is the learned bank's instead (``[templates] bank = "learned"``'s
+default discs: slopes 0.5, 1, 1.5 × α 2e-4, 1e-3, 1e-2 at 200 orbits, β 0, the same masses, τ0 and
+H/r; the model fitted to the repository's training runs), scanned beside the compromise's β = 0
+family, whose limit the price divides by.
+
+    PYTHONPATH=src:. python tools/price_of_robustness.py [--learned]
 """
 
 from __future__ import annotations
 
 import logging
+import sys
 
 import numpy as np
 
@@ -24,10 +30,42 @@ log = logging.getLogger("price_of_robustness")
 RADII = (0.25, 0.35, 0.45)
 
 
-def main() -> None:
+MASSES = (0.1, 0.3, 1.0, 3.0)
+
+
+def learned_templates() -> list:
+    """The learned bank's default discs at the set-up's masses, τ0 0.3 and H/r 0.07."""
+    from spiralbayes.templates.learned import (DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, LearnedTemplateModel,
+                                               learned_bank, reference_files)
+
+    model = LearnedTemplateModel.from_references(reference_files())
+    return list(learned_bank(model, MASSES, 0.07, DEFAULT_SLOPES, DEFAULT_ALPHAS, DEFAULT_ORBITS, 0.3))
+
+
+def learned_price() -> None:
+    templates = variant_grid(("compromise",), masses=MASSES, taus=(0.3,), betas=(0.0,), **L.GRID)
+    templates += learned_templates()
+    log.info("| noise | M_lim compromise [M_th] | M_lim robust over the learned discs [M_th] | price |")
+    log.info("|---|---|---|---|")
+    for sensitivity in (35e-6, 12e-6):
+        _, _, _, result = L.scanned(sensitivity, templates=templates)
+        limits = compute_limits(result, cl=0.95, resolution=0.0, bright_radius=np.inf)
+        idx = [int(np.argmin(np.abs(result.r_p - r))) for r in RADII]
+        learned = [f for f in limits.families if str(f.key.get("variant", "")).startswith("learned")]
+        robust, _ = combined_m_lim(limits, learned)
+        single, _ = combined_m_lim(limits, [f for f in limits.families if f.key.get("variant") == "compromise"])
+        fmt = ", ".join
+        log.info("| %.0f µJy/beam | %s | %s | %s |", sensitivity * 1e6, fmt(f"{single[i]:.2f}" for i in idx),
+                 fmt(f"{robust[i]:.2f}" for i in idx), fmt(f"{robust[i] / single[i]:.1f}" for i in idx))
+
+
+def main(argv=None) -> None:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     logging.getLogger("spiralbayes").setLevel(logging.ERROR)
-    templates = variant_grid(DEFAULT_VARIANTS, masses=(0.1, 0.3, 1.0, 3.0), taus=(0.3,), betas=(0.0, 10.0), **L.GRID)
+    if "--learned" in (sys.argv[1:] if argv is None else argv):
+        learned_price()
+        return
+    templates = variant_grid(DEFAULT_VARIANTS, masses=MASSES, taus=(0.3,), betas=(0.0, 10.0), **L.GRID)
     log.info("| family, noise | M_lim compromise [M_th] | M_lim robust [M_th] | price |")
     log.info("|---|---|---|---|")
     for sensitivity in (35e-6, 12e-6):

@@ -270,6 +270,8 @@ def _cmd_forecast(args) -> int:
 
 
 def _cmd_templates(args) -> int:
+    if args.fit_learned:
+        return _fit_learned(args)
     from .templates import default_bank
 
     bank = default_bank(rebuild=args.rebuild)
@@ -284,6 +286,19 @@ def _cmd_templates(args) -> int:
 
         save_figure(plot_bank_overview(bank), args.plot, dpi=120, bbox_inches="tight")
         print(f"wrote {args.plot}")
+    return 0
+
+
+def _fit_learned(args) -> int:
+    from .templates.learned import LearnedTemplateModel, reference_files
+
+    _refuse_existing(args.fit_learned, "--fit-learned", args.overwrite)
+    paths = args.references or reference_files()
+    model = LearnedTemplateModel.from_references(paths)
+    model.save(args.fit_learned)
+    bounds = ", ".join(f"{k} {lo:.3g}-{hi:.3g}" for k, (lo, hi) in model.bounds.items())
+    print(f"wrote {args.fit_learned}: {len(model.run_names)} training runs; box {bounds}; use it with "
+          f"[templates] bank = \"learned\", learned_model = \"{args.fit_learned}\"")
     return 0
 
 
@@ -537,6 +552,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("templates", help="build (or load) the default template bank")
     p.add_argument("--rebuild", action="store_true", help="compute the bank again instead of loading the cached one")
     p.add_argument("--plot", default="", help="write a bank overview PNG here")
+    p.add_argument("--fit-learned", default="", metavar="FILE",
+                   help="instead: fit the learned template model (continuous in disc physics) to reduced FARGO3D "
+                        "runs and save it here, for [templates] bank = \"learned\" (a minute)")
+    p.add_argument("--references", nargs="+", default=None, metavar="H5",
+                   help="with --fit-learned: the reduced FARGO3D files (default: the repository's "
+                        "tests/data/references training files)")
+    p.add_argument("--overwrite", action="store_true", help="with --fit-learned: replace an existing FILE")
     p.set_defaults(func=_cmd_templates)
     return parser
 

@@ -82,8 +82,15 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
                             "for H/r = 0.05, 0.07, 0.10 in the compromise, hydro and wakeflow morphologies, 576 "
                             "templates, cached; limits hold for every morphology; 'variants' is the same bank), "
                             "'compromise' (the same grid in the compromise morphology alone, 192 templates: the "
-                            "paper's comparison, limits not robust to the spiral's shape; docs/limits.md) or the path "
-                            "of a TemplateBank HDF5 file"),
+                            "paper's comparison, limits not robust to the spiral's shape; docs/limits.md), "
+                            "'learned' (templates predicted by a model continuous in disc physics, learned_model, at "
+                            "every mass, h_p, slope, alpha, orbits and tau0 given; isothermal, beta 0; cached; "
+                            "docs/templates.md) or the path of a TemplateBank HDF5 file"),
+        "learned_model": ("", "a saved LearnedTemplateModel (.h5: spiralbayes templates --fit-learned FILE) for "
+                              "bank = 'learned'"),
+        "slope": ([], "surface-density slopes p, Sigma ~ r^-p, of bank = 'learned' (empty: 0.5, 1, 1.5)"),
+        "alpha": ([], "viscosities alpha at r_p of bank = 'learned' (empty: 2e-4, 1e-3, 1e-2)"),
+        "orbits": ([], "planet ages [orbits] of bank = 'learned' (empty: 200)"),
         "maps": ([], "TemplateBank HDF5 files of maps from your own simulations (read_fargo3d, "
                      "read_fits_template, then TemplateBank(...).save) scanned beside the bank, filtered by mass, "
                      "tau0, beta and hand; test 3 then also tries the best template of the other kind at the "
@@ -156,10 +163,14 @@ SECTION_SETTINGS: dict[str, type] = {
 dataclass's own checks run when the file is read, before any data."""
 
 
-BUILT_IN_BANKS = ("default", "variants", "compromise")
+BUILT_IN_BANKS = ("default", "variants", "compromise", "learned")
 """``[templates] bank`` values that name a built-in bank rather than a file: ``"default"`` and
-``"variants"`` the morphology-robust bank, ``"compromise"`` the single-morphology bank."""
-PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("sample", "scan"), ("output", "dir"))
+``"variants"`` the morphology-robust bank, ``"compromise"`` the single-morphology bank, ``"learned"``
+the bank a learned model (``[templates] learned_model``) predicts."""
+LEARNED_OPTIONS = ("learned_model", "slope", "alpha", "orbits")
+"""``[templates]`` options read only with ``bank = "learned"``."""
+PATH_KEYS = (("data", "path"), ("frank", "model"), ("templates", "bank"), ("templates", "learned_model"),
+             ("sample", "scan"), ("output", "dir"))
 """Every path option; relative ones are resolved against the configuration file's folder (``~`` is
 expanded). ``templates.bank = "default"`` names the built-in bank, not a file."""
 PATH_LIST_KEYS = (("templates", "maps"),)
@@ -241,7 +252,8 @@ CHECKS: dict[str, dict[str, Callable[[Any], str | None]]] = {
     "geometry": {"inc": _inclination, "PA": _finite, "dRA": _finite, "dDec": _finite, "distance": _distance},
     "templates": {"mass": _each(_number(_positive)), "tau0": _each(_number(_positive)),
                   "beta": _each(_number(_non_negative)), "hand": _each(_string(_choice("R", "L", case=False))),
-                  "h_p": _each(_number(_positive)),
+                  "h_p": _each(_number(_positive)), "slope": _each(_number(_non_negative)),
+                  "alpha": _each(_number(_positive)), "orbits": _each(_number(_positive)),
                   "maps": _each(_string(lambda v: None if v.strip() else "must name a file"))},
     "grid": {key: _scan_check(key) for key in GRID_FIELDS},
     "scan": {key: _scan_check(key) for key in ScanSettings.field_names() if key not in GRID_FIELDS},
@@ -267,6 +279,16 @@ def _check_values(config: dict) -> None:
                 error = check(value)
                 if error:
                     raise ConfigError(f"{section}.{key} = {value!r} {error}")
+    templates = config.get("templates", {})
+    if "bank" in templates:
+        learned = templates["bank"] == "learned"
+        stray = [k for k in LEARNED_OPTIONS if templates.get(k) and templates[k] != SCHEMA["templates"][k][0]]
+        if stray and not learned:
+            raise ConfigError(f"templates.{stray[0]} = {templates[stray[0]]!r} is read only with bank = 'learned' "
+                              f"(bank = {templates['bank']!r}): set [templates] bank = \"learned\" or remove it")
+        if learned and not templates.get("learned_model"):
+            raise ConfigError("templates.bank = 'learned' needs [templates] learned_model = \"model.h5\", a saved "
+                              "LearnedTemplateModel (fit one with: spiralbayes templates --fit-learned model.h5)")
     grid = config.get("grid", {})
     if grid.get("r_p_min") and grid.get("r_p_max") and grid["r_p_min"] >= grid["r_p_max"]:
         raise ConfigError(f"grid.r_p_min = {grid['r_p_min']!r} must be smaller than grid.r_p_max = "

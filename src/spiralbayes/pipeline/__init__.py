@@ -13,7 +13,7 @@ once the scan it describes has finished.
 
 from .compare import CompareResult, compare_table, run_compare_config
 from .demo import DemoResult, run_axisym, run_demo
-from .inputs import load_axisymmetric, load_data, load_maps, load_templates, select_templates
+from .inputs import learned_templates, load_axisymmetric, load_data, load_maps, load_templates, select_templates
 from .outputs import save_figure, write_scan_outputs
 from .sample_command import run_sample_config
 from .scan_command import ScanRun, run_scan, run_scan_config
@@ -25,6 +25,7 @@ __all__ = [
     "LimitsRun",
     "ScanRun",
     "compare_table",
+    "learned_templates",
     "load_axisymmetric",
     "load_data",
     "load_maps",

@@ -19,7 +19,7 @@ from ..templates.bank import DEFAULT_H_PS
 from ..templates.template import template_metadata
 from ..visibilities import estimate_weights
 
-__all__ = ["load_axisymmetric", "load_data", "load_maps", "load_templates", "select_templates"]
+__all__ = ["learned_templates", "load_axisymmetric", "load_data", "load_maps", "load_templates", "select_templates"]
 
 log = logging.getLogger(__name__)
 
@@ -102,15 +102,18 @@ BANKS: dict[str, Callable[..., TemplateBank]] = {"default": default_bank, "varia
 ``default`` and ``variants`` are the morphology-robust bank, ``compromise`` the single-morphology one."""
 
 
-def load_templates(templates: dict) -> list:
+def load_templates(templates: dict, *, progress: bool = False) -> list:
     """The templates chosen by the ``[templates]`` section of a configuration: a built-in bank by
     name (:data:`BANKS`; the default is robust to the spiral's morphology, docs/limits.md §4d) or
     a TemplateBank file, then the section's selection, then the ``maps`` files' templates
-    (:func:`load_maps`). ``h_p`` values a built-in bank does not hold (it has
-    :data:`~spiralbayes.templates.bank.DEFAULT_H_PS`) make that bank at those aspect ratios."""
+    (:func:`load_maps`); ``bank = "learned"``: :func:`learned_templates`. ``h_p`` values a built-in
+    bank does not hold (it has :data:`~spiralbayes.templates.bank.DEFAULT_H_PS`) make that bank at
+    those aspect ratios."""
     name = templates["bank"]
     h_ps = sorted({float(h) for h in templates.get("h_p", ())})
-    if name in BANKS and h_ps and not set(h_ps) <= set(DEFAULT_H_PS):
+    if name == "learned":
+        chosen = learned_templates(templates, progress=progress)
+    elif name in BANKS and h_ps and not set(h_ps) <= set(DEFAULT_H_PS):
         # aspect ratios the cached bank lacks: the same built-in bank made at them (generator templates, cached)
         chosen = select_templates(BANKS[name](h_ps=tuple(h_ps)), templates["mass"], templates["tau0"],
                                   templates["beta"], templates["hand"])
@@ -125,6 +128,34 @@ def load_templates(templates: dict) -> list:
         except InputError as err:
             raise InputError(f"[templates] maps: {err}") from None
     return chosen + maps
+
+
+def learned_templates(templates: dict, *, progress: bool = False) -> list:
+    """The templates of ``[templates] bank = "learned"``: the saved model ``learned_model`` predicts one at
+    every combination of the section's ``mass``, ``h_p``, ``slope``, ``alpha``, ``orbits``, ``tau0`` and
+    ``hand`` (:func:`~spiralbayes.templates.learned.learned_bank`, cached); an empty option takes the
+    built-in banks' values (masses, H/r, τ0) or the learned bank's defaults (slope, α, age:
+    :data:`~spiralbayes.templates.learned.bank.DEFAULT_SLOPES` ...). The model is isothermal, so ``beta``
+    may only hold 0."""
+    from ..templates.learned import DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, LearnedTemplateModel, learned_bank
+    from ..templates.wake import PAPER_MASSES, PAPER_TAUS
+
+    betas = [float(b) for b in templates.get("beta", ())]
+    if betas and 0.0 not in betas:
+        raise InputError(f"[templates] beta = {betas}: the learned model's templates are isothermal (beta 0); "
+                         "add 0 or leave beta empty")
+    model = LearnedTemplateModel.load(templates["learned_model"])
+    try:
+        bank = learned_bank(model, templates.get("mass") or PAPER_MASSES, templates.get("h_p") or DEFAULT_H_PS,
+                            templates.get("slope") or DEFAULT_SLOPES, templates.get("alpha") or DEFAULT_ALPHAS,
+                            templates.get("orbits") or DEFAULT_ORBITS, templates.get("tau0") or PAPER_TAUS,
+                            [h.upper() for h in templates.get("hand", ())] or ("R", "L"), progress=progress)
+    except InputError as err:
+        raise InputError(f"[templates] bank = 'learned' ({templates['learned_model']}): {err}") from None
+    log.info("learned bank: %d templates from %s", len(bank), templates["learned_model"])
+    for t in bank:  # the posterior's continuous mass remakes each disc's family from this file
+        t.provenance["learned"]["model_file"] = str(templates["learned_model"])
+    return list(bank)
 
 
 def load_maps(templates: dict, taken=frozenset()) -> list:

@@ -132,7 +132,7 @@ def run_limits_config(config: dict, *, progress: bool = True) -> LimitsRun:
     """
     out_dir = Path(config["output"]["dir"])
     calibration_settings(config)
-    templates = load_templates(config["templates"])
+    templates = load_templates(config["templates"], progress=progress)
     settings = scan_settings(config)
     scan_file, model_file = out_dir / "scan.h5", out_dir / "axisymmetric.h5"
     if scan_file.exists() or model_file.exists():  # reused only when made from these inputs, else refused

@@ -58,7 +58,7 @@ def run_sample_config(config: dict, *, progress: bool = True) -> PosteriorResult
         axisym = load_axisymmetric(config, vis, progress=progress)
     if gains is None:  # no saved solution: solve now (a no-op with [calibration] solve = "none")
         vis, axisym, gains = run_calibration(config, vis, axisym, out_dir, progress=progress)
-    templates = load_templates(config["templates"])
+    templates = load_templates(config["templates"], progress=progress)
     scan_path = s["scan"] or (out_dir / "scan.h5" if (out_dir / "scan.h5").exists() else "")
     scan_result = reusable_scan(scan_path, vis, axisym) if scan_path else None
     _write_text(out_dir / f"{run_name}_config.toml", describe_config(config))

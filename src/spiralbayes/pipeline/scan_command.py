@@ -84,7 +84,7 @@ def run_scan(config: dict, *, progress: bool = True, force_resume: bool = False,
     raw = vis
     second_solve = calibration_settings(config).enabled and calibration_settings(config).candidate_min_snr > 0
     vis, axisym, gains = run_calibration(config, vis, axisym, out_dir, progress=progress, save=not second_solve)
-    templates = load_templates(config["templates"])
+    templates = load_templates(config["templates"], progress=progress)
     out_dir.mkdir(parents=True, exist_ok=True)
     amplitude = settings.free_amplitude
     scan_kwargs = {"settings": settings, "distance": config["geometry"]["distance"], "scheduler": scheduler,

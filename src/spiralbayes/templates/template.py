@@ -392,6 +392,18 @@ def bilinear(table: np.ndarray, u_grid: np.ndarray, phi_grid: np.ndarray, u, phi
     return out
 
 
+LEARNED_PHYSICS = ("slope", "alpha", "orbits")
+"""The disc physics a learned template adds to its metadata (:func:`template_metadata`): surface-density
+slope ``p``, viscosity ``α`` at r_p and age [orbits]."""
+
+LEARNED_LIMIT_MARGIN = 0.45
+"""The limits' margin of a learned template (metadata ``limit_margin``): a mass is excluded only where
+the data's upper limit on the template's amplitude is below 0.45, i.e. the template scaled by 0.45 is
+excluded (the variants' shrink of 0.8 does the same for them). The largest margin at which every
+source of the leave-one-source-out check passes (docs/limits.md §4d; the continuum design held out
+needs 0.45, wakeflow 0.5)."""
+
+
 def template_metadata(template) -> dict:
     """JSON-able description of a template (name and physical parameters).
 
@@ -407,6 +419,10 @@ def template_metadata(template) -> dict:
     if variant is not None:  # the morphology variant (templates.variants)
         meta["variant"] = str(variant)
     provenance = getattr(template, "provenance", None) or {}
+    learned = provenance.get("learned")
+    if isinstance(learned, dict) and "point" in learned:  # the learned model's disc (templates.learned)
+        meta.update({k: float(learned["point"][k]) for k in LEARNED_PHYSICS})
+        meta["limit_margin"] = float(learned.get("limit_margin", LEARNED_LIMIT_MARGIN))
     if "asymmetry" in provenance:  # a competing explanation's template (templates.asymmetry)
         meta["kind"] = str(provenance["asymmetry"])
         meta.update({k: provenance[k] for k in ("sigma_r_over_r", "sigma_phi_deg") if k in provenance})

@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -109,16 +110,43 @@ def map_templates() -> tuple:
     return _map_bank("", 3.0, 0.0)
 
 
-def evaluate(kind: str, seed: int, maps: bool = False) -> dict:
+@lru_cache(maxsize=1)
+def learned_templates() -> tuple:
+    """The learned bank in the set's disc and optical depth: the learned model fitted to every training run
+    (:func:`~spiralbayes.templates.learned.reference_files`), predicted at the bank's masses, H/r 0.07 and τ0 3
+    for the default slopes, viscosities and age of ``[templates] bank = "learned"`` (9 discs), both hands:
+    72 templates, in place of the variants' 24."""
+    from spiralbayes.templates.learned import (DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, LearnedTemplateModel,
+                                               learned_bank, reference_files)
+    from spiralbayes.templates.wake import PAPER_MASSES
+
+    model = LearnedTemplateModel.from_references(reference_files())
+    return tuple(learned_bank(model, PAPER_MASSES, planet_free.BANK["h_ps"], DEFAULT_SLOPES, DEFAULT_ALPHAS,
+                              DEFAULT_ORBITS, planet_free.BANK["taus"]))
+
+
+BANKS = ("variants", "maps", "learned")
+"""The banks the set is run with: the variants (24 templates), the variants and the reference maps, the
+learned bank (:func:`learned_templates`)."""
+
+
+def bank_templates(bank: str) -> tuple:
+    if bank == "learned":
+        return learned_templates()
+    return planet_free.bank_templates() + (map_templates() if bank == "maps" else ())
+
+
+def evaluate(kind: str, seed: int, maps: bool = False, bank: str | None = None) -> dict:
     """The nested test's and the verdict's numbers for one dataset; ``maps``: the bank also holds
-    :func:`map_templates`."""
+    :func:`map_templates`; ``bank`` (one of :data:`BANKS`) overrides ``maps``."""
     from spiralbayes.calibration import diagnose_calibration
     from spiralbayes.inference.detection import detect_with_planet_peak, fit_alternatives
     from spiralbayes.inference.detection.nested import best_nested_test
     from spiralbayes.inference.scan.run import scan
 
     vis, axisym, geometry, params = dataset(kind, seed)
-    templates = planet_free.bank_templates() + (map_templates() if maps else ())
+    bank = bank or ("maps" if maps else "variants")
+    templates = bank_templates(bank)
     result = scan(vis, axisym, list(templates), geometry, r_p=planet_free.R_GRID, distance=planet_free.DISTANCE,
                   progress=False)
     alts = fit_alternatives(vis, axisym, geometry, progress=False)
@@ -136,7 +164,7 @@ def evaluate(kind: str, seed: int, maps: bool = False) -> dict:
             "nested_each": {f.alternative: {"delta_bic": f.delta_bic, "joint": f.delta_bic_joint,
                                             "spiral_alone": f.delta_bic_spiral_alone} for f in fits},
             "phase_rms_deg": calibration.phase_rms_deg, "calibration_warns": calibration.warning is not None,
-            "detected": verdict.detected, "explanation": verdict.explanation, "maps": maps,
+            "detected": verdict.detected, "explanation": verdict.explanation, "maps": bank == "maps", "bank": bank,
             "nested_template": verdict.nested_template, "outcome": verdict.outcome,
             "compact_source": verdict.compact_source, "verdict": verdict.to_dict()}
 
@@ -204,9 +232,10 @@ def main(out: str = "false_alarms.json", n: str = str(N_PER_KIND), start: str = 
          step: str = "1") -> None:
     """Round-robin over the kinds, ``n`` datasets each from index ``start`` (every ``step``-th: two processes
     share a set with ``start`` 0 and 1, ``step`` 2, and different ``out``); rows appended to ``out``;
-    ``bank``: ``maps`` adds :func:`map_templates` to the scan."""
-    if bank not in ("variants", "maps"):
-        raise SystemExit(f"the fourth argument is 'variants' or 'maps', not {bank!r}")
+    ``bank``: ``maps`` adds :func:`map_templates` to the scan, ``learned`` scans :func:`learned_templates`
+    instead of the variants."""
+    if bank not in BANKS:
+        raise SystemExit(f"the fourth argument is one of {', '.join(BANKS)}, not {bank!r}")
     logging.basicConfig(level=logging.INFO)
     path = Path(out)
     rows = json.loads(path.read_text()) if path.exists() else []
@@ -216,7 +245,7 @@ def main(out: str = "false_alarms.json", n: str = str(N_PER_KIND), start: str = 
             seed = seeds(kind, int(n))[i]
             if (kind, seed) in done:
                 continue
-            rows.append(evaluate(kind, seed, maps=bank == "maps"))
+            rows.append(evaluate(kind, seed, bank=bank))
             log.info("%s", {k: v for k, v in rows[-1].items() if k != "params"})
             with atomic_path(path) as tmp:  # a run stopped mid-write keeps the rows it had
                 tmp.write_text(json.dumps(rows, indent=1, default=float))

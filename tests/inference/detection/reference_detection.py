@@ -93,6 +93,38 @@ def bank_templates(tau0: float, beta: float) -> tuple:
     return tuple(variant_grid(DEFAULT_VARIANTS, masses=BANK_MASSES, taus=(tau0,), betas=(beta,), h_ps=DEFAULT_H_PS))
 
 
+def learned_templates(case: Case, tau0: float) -> tuple:
+    """The learned bank in place of the variants: the model refitted without the training runs of the
+    planted map's source (as the variants are held out from it;
+    :func:`tests.inference.validation.learned_calibration.source_of`), predicted at the bank's masses,
+    H/r 0.05, 0.07, 0.10 and τ0, for the default discs of ``[templates] bank = "learned"``, both hands."""
+    from tests.inference.validation.learned_calibration import source_of
+
+    return _learned_templates(source_of(case), float(tau0))
+
+
+@lru_cache(maxsize=4)
+def _learned_model(source: str):
+    from spiralbayes.templates.learned import LearnedTemplateModel, read_training_runs, reference_files
+    from tests.inference.validation.learned_calibration import run_sources
+
+    runs = read_training_runs(reference_files())
+    sources = run_sources(runs)
+    return LearnedTemplateModel.fit([r for r in runs if sources[r.name] != source])
+
+
+@lru_cache(maxsize=4)
+def _learned_templates(source: str, tau0: float) -> tuple:
+    import tempfile
+
+    from spiralbayes.templates.bank import DEFAULT_H_PS
+    from spiralbayes.templates.learned import DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, learned_bank
+
+    with tempfile.TemporaryDirectory() as cache:
+        return tuple(learned_bank(_learned_model(source), BANK_MASSES, DEFAULT_H_PS, DEFAULT_SLOPES, DEFAULT_ALPHAS,
+                                  DEFAULT_ORBITS, tau0, cache_dir=cache))
+
+
 def map_bank(case: Case, tau0: float, beta: float, every_source: bool = False) -> tuple:
     """The reference maps of every *other* calibration source at (τ0, β), both hands: simulated
     templates beside the variant bank, held out from the planted map's source as the variants are
@@ -131,12 +163,12 @@ def _coverage():
 
 
 def plant_and_scan(case: Case, tau0: float, seed: int = SEED, n_rp: int = N_RP, frank: bool = False,
-                   gap: bool = True, maps: bool = False, every_source: bool = False):
+                   gap: bool = True, maps: bool = False, every_source: bool = False, learned: bool = False):
     """Simulate, model the disc, scan ``[own] + bank``; returns ``(vis, axisym, geometry, own_result,
     bank_result, templates)``. ``gap``: the disc holds the run's own gap
     (:class:`~tests.templates.fidelity.GappedDisc`); ``False`` plants the map in the unperturbed disc.
     ``maps``: the bank also holds the other sources' reference maps (:func:`map_bank`, with
-    ``every_source``)."""
+    ``every_source``); ``learned``: the learned bank (:func:`learned_templates`) in place of the variants."""
     from spiralbayes import DiscGeometry
     from spiralbayes.axisymmetric import fit_axisymmetric
     from spiralbayes.inference.scan.run import scan
@@ -144,8 +176,8 @@ def plant_and_scan(case: Case, tau0: float, seed: int = SEED, n_rp: int = N_RP, 
 
     geometry = DiscGeometry(INC, PA)
     ref = reference_template(case, tau0)
-    templates = list(bank_templates(tau0, case.beta)) + list(map_bank(case, tau0, case.beta, every_source)
-                                                            if maps else ())
+    bank = learned_templates(case, tau0) if learned else bank_templates(tau0, case.beta)
+    templates = list(bank) + list(map_bank(case, tau0, case.beta, every_source) if maps else ())
     disc = planting_disc(case, tau0, gap)
     r_true = R_P_AU / DISTANCE
     vis = simulate_observation("fiducial", disc, geometry, ref, r_p=r_true, phi_p=np.radians(PHI_P_DEG), seed=seed,
@@ -171,14 +203,14 @@ def _rows(result, rows: slice):
 
 
 def evaluate(case: Case, tau0: float, seed: int = SEED, keep: dict | None = None, frank: bool = False,
-             gap: bool = True, maps: bool = False, every_source: bool = False) -> dict:
+             gap: bool = True, maps: bool = False, every_source: bool = False, learned: bool = False) -> dict:
     """One row of the detection table (see :func:`format_table` for the columns); ``keep`` receives
     the scans, alternatives and verdict; ``maps``, ``every_source``: see :func:`plant_and_scan`."""
     from spiralbayes.inference.detection import DetectionSettings, detect_with_planet_peak, fit_alternatives
     from spiralbayes.inference.detection.nested import nested_test
 
     vis, axisym, geometry, own, bank, templates = plant_and_scan(case, tau0, seed, frank=frank, gap=gap, maps=maps,
-                                                                 every_source=every_source)
+                                                                 every_source=every_source, learned=learned)
     own_shows = own.best.delta_bic > OWN_THRESHOLD
     # fitted whatever test 1 says, as the pipeline does: a compact arc names a candidate on its own
     alts = fit_alternatives(vis, axisym, geometry, progress=False)
@@ -307,11 +339,12 @@ def main(out: str = "reference_detection.json", only: str = "", frank: str = "",
     ``files``: comma-separated reduced reference files to take the cases from instead of the
     committed ones (e.g. runs reduced with ``tools/fargo3d_library_reduce.py --out``); ``gap``:
     ``nogap`` plants the maps in the unperturbed disc (:func:`plant_and_scan`); ``bank``: ``maps`` adds
-    the other sources' reference maps to the variant bank (:func:`map_bank`)."""
+    the other sources' reference maps to the variant bank (:func:`map_bank`), ``learned`` scans the learned
+    bank instead (:func:`learned_templates`)."""
     if gap not in ("gap", "nogap"):
         raise SystemExit(f"the fifth argument is 'gap' or 'nogap', not {gap!r}")
-    if bank not in ("variants", "maps"):
-        raise SystemExit(f"the sixth argument is 'variants' or 'maps', not {bank!r}")
+    if bank not in ("variants", "maps", "learned"):
+        raise SystemExit(f"the sixth argument is 'variants', 'maps' or 'learned', not {bank!r}")
     import pickle
 
     logging.basicConfig(level=logging.INFO)
@@ -322,7 +355,8 @@ def main(out: str = "reference_detection.json", only: str = "", frank: str = "",
             if only and only not in f"{case.label}_tau{tau0:g}":
                 continue
             keep: dict = {}
-            rows.append(evaluate(case, tau0, keep=keep, frank=bool(frank), gap=gap == "gap", maps=bank == "maps"))
+            rows.append(evaluate(case, tau0, keep=keep, frank=bool(frank), gap=gap == "gap", maps=bank == "maps",
+                                 learned=bank == "learned"))
             with open(f"{out}.{case.source}_{case.group}_tau{tau0:g}.pkl", "wb") as f:
                 pickle.dump(keep, f)
             log.info("%s", {k: v for k, v in rows[-1].items() if k != "verdict"})

@@ -119,6 +119,48 @@ def test_limits_name_their_morphologies_and_the_price_of_robustness(tmp_path):
     assert again.morphologies == limits.morphologies and again.morphology_note() == note
 
 
+def test_a_learned_banks_discs_are_robust_over_each_other_with_the_price_not_measured():
+    """A learned bank's discs are morphologies of their own: a mass is excluded only where every disc excludes
+    it (the largest of their limits), and with no compromise family the price of robustness is not measured
+    (NaN, and the note and Table 3 say so) rather than 1."""
+    from spiralbayes.inference.limits.table3 import price_text
+
+    discs = ("learned_p0.5_a0.001_o200", "learned_p1.5_a0.001_o200")
+    a_up = {discs[0]: (2.0, 0.5, 0.1), discs[1]: (2.0, 2.0, 0.5)}
+    limits = compute_limits(multi_family_scan(variants=discs, a_up=a_up))
+    assert limits.morphologies == list(discs)
+    weak = limits.m_lim[limits.family_index({"h_p": 0.07, "variant": discs[1]})]
+    robust, _ = combined_m_lim(limits)
+    np.testing.assert_allclose(robust, weak)
+    assert np.all(np.isnan(limits.price_of_robustness()))
+    note = limits.morphology_note()
+    assert "every morphology (learned_p0.5_a0.001_o200, learned_p1.5_a0.001_o200)" in note
+    assert "no compromise family was scanned, so the price of robustness is not measured" in note
+    assert price_text(limits) == "not measured"
+
+
+def test_a_templates_limit_margin_divides_its_upper_limit():
+    """A template with ``limit_margin`` m (a learned bank's) stands for m times itself: its A_up is the
+    scan's divided by m, so it excludes where the template scaled by m is excluded, and the limiting mass
+    moves up accordingly; templates without a margin are unchanged."""
+    from spiralbayes.templates.template import LEARNED_LIMIT_MARGIN
+
+    scan = multi_family_scan(h_ps=(0.07,))
+    plain = compute_limits(scan)
+    for meta in scan.templates:
+        meta["limit_margin"] = 0.4
+    scaled = compute_limits(scan)
+    np.testing.assert_allclose(scaled.upper_limit, plain.upper_limit / 0.4)
+    # A_up = a_up[mass] (0.3, 1, 3 M_th: 2, 0.5, 0.1): 1 and 3 M_th excluded, M_lim between 0.3 and 1; with the
+    # margin A_up = 5, 1.25, 0.25: only 3 M_th is, M_lim between 1 and 3
+    assert np.all((plain.m_lim[0] > 0.3) & (plain.m_lim[0] < 1.0))
+    assert np.all((scaled.m_lim[0] > 1.0) & (scaled.m_lim[0] < 3.0))
+    # templates R, L of 0.3, 1 and 3 M_th: the 1 M_th pair is excluded everywhere without the margin, nowhere with it
+    assert np.all(plain.excluded_fraction[2:] == 1.0)
+    assert np.all(scaled.excluded_fraction[2:4] == 0.0) and np.all(scaled.excluded_fraction[4:] == 1.0)
+    assert 0 < LEARNED_LIMIT_MARGIN < 1
+
+
 def test_generator_templates_without_a_variant_are_the_compromise_morphology():
     """The compromise bank's templates carry no variant: named by the generator's ``wake_`` prefix."""
     scan = multi_family_scan(h_ps=(0.07,))

@@ -79,3 +79,47 @@ def test_the_scan_takes_a_learned_bank(model, planet_observation, tmp_path):
     assert best.template == "learned_m1_tau3_b0_h0.07_p1_a0.002_o20_R"
     assert abs(best.i_rp - int(np.argmin(np.abs(SCAN_RP - R_P_TRUE)))) <= 1
     assert abs(np.degrees(wrap_angle(best.phi_p))) < 8
+
+
+def test_configuration_bank_learned_predicts_the_sections_grid(model, tmp_path, monkeypatch):
+    """``[templates] bank = "learned"``: the saved model's templates at the section's mass, h_p, slope,
+    alpha, orbits, tau0 and hand (the same as learned_bank's at that grid); empty options take the built-in
+    banks' masses, H/r and τ0 and the learned bank's slope, α and age defaults; β may only hold 0."""
+    from spiralbayes.config import load_config
+    from spiralbayes.pipeline import inputs
+    from spiralbayes.templates.bank import DEFAULT_H_PS
+    from spiralbayes.templates.learned import DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES
+    from spiralbayes.templates.wake import PAPER_MASSES, PAPER_TAUS
+
+    monkeypatch.setenv("SPIRALBAYES_CACHE", str(tmp_path / "cache"))
+    model.save(tmp_path / "model.h5")
+    path = tmp_path / "c.toml"
+    path.write_text('[data]\npath = "d.txt"\n[geometry]\ninc = 30\nPA = 60\n[templates]\nbank = "learned"\n'
+                    'learned_model = "model.h5"\nmass = [0.3, 1.0]\nh_p = [0.06]\nslope = [1.0]\nalpha = [1e-3]\n'
+                    'orbits = [20.0, 100.0]\ntau0 = [0.3, 3.0]\nhand = ["r", "L"]\n')
+    config = load_config(path)
+    assert config["templates"]["learned_model"] == str(tmp_path / "model.h5")
+    chosen = inputs.load_templates(config["templates"])
+    expected = learned_bank(model, **GRID, cache_dir=tmp_path / "direct")
+    assert [t.name for t in chosen] == expected.names
+    for a, b in zip(chosen, expected):
+        np.testing.assert_allclose(a.delta, b.delta, rtol=1e-6, atol=1e-7 * np.max(np.abs(b.delta)))
+
+    seen = {}
+
+    def capture(model, masses, h_ps, slopes, alphas, orbits, tau0s, hands, **kw):
+        seen.update(masses=tuple(masses), h_ps=tuple(h_ps), slopes=tuple(slopes), alphas=tuple(alphas),
+                    orbits=tuple(orbits), tau0s=tuple(tau0s), hands=tuple(hands))
+        return expected
+
+    monkeypatch.setattr("spiralbayes.templates.learned.learned_bank", capture)
+    empty = {**config["templates"], **{k: [] for k in ("mass", "h_p", "slope", "alpha", "orbits", "tau0", "hand")}}
+    inputs.load_templates(empty)
+    assert seen == {"masses": PAPER_MASSES, "h_ps": DEFAULT_H_PS, "slopes": DEFAULT_SLOPES, "alphas": DEFAULT_ALPHAS,
+                    "orbits": DEFAULT_ORBITS, "tau0s": PAPER_TAUS, "hands": ("R", "L")}
+    with pytest.raises(InputError, match=r"beta = \[10.0\].*isothermal"):
+        inputs.load_templates({**config["templates"], "beta": [10.0]})
+    monkeypatch.undo()
+    monkeypatch.setenv("SPIRALBAYES_CACHE", str(tmp_path / "cache"))
+    with pytest.raises(InputError, match=r"\[templates\] bank = 'learned' .*mass = 9 outside"):
+        inputs.load_templates({**config["templates"], "mass": [9.0]})

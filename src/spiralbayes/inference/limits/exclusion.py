@@ -8,7 +8,8 @@ scan's model is ``A = 1``): ``Δχ²(A) = 2 A cross - A² power``, so ``A_hat = 
 error ``sigma_A = 1 / sqrt(power)`` (Gaussian noise: ``cross = power (A_true + noise)``). The
 one-sided upper limit at confidence ``CL`` is ``A_up = A_hat + z_CL sigma_A``
 (``z_CL = Phi^-1(CL)``, 1.645 at 95 %); the planet is **excluded** there when ``A_up < 1``. For
-a planet planted exactly as the template, ``P(excluded) = 1 - CL``.
+a planet planted exactly as the template, ``P(excluded) = 1 - CL``. A template's ``limit_margin`` m
+(metadata; the learned bank's) makes it stand for m times itself: its ``A_up`` is divided by m.
 
 **Azimuths.** (a) ``excluded_fraction``: the fraction of the scanned ``phi_p`` where a template
 is excluded. (b) A planet is excluded at ``r_p`` (``method="all_phi"``, the paper's conservative
@@ -460,20 +461,19 @@ def compute_limits(scan_result, *, settings: LimitSettings | None = None, vis=No
     families = template_families(scan_result.templates)
     if not families:
         select_family(families)  # raises the explanation
-    if resolution is None:
-        resolution = data_resolution(vis) if vis is not None else 0.0
-    if bright_radius is None:
-        bright_radius = bright_extent(axisymmetric, extent_fraction) if axisymmetric is not None else np.inf
+    resolution = (data_resolution(vis) if vis is not None else 0.0) if resolution is None else resolution
+    bright_radius = ((bright_extent(axisymmetric, extent_fraction) if axisymmetric is not None else np.inf)
+                     if bright_radius is None else bright_radius)
     r_p = np.asarray(scan_result.r_p, dtype=float)
     flags = _flags(r_p, resolution, resolution_factor, bright_radius)
     if np.all(flags != ""):
-        raise InputError(
-            f"every scanned r_p ({r_p.min():.3g}-{r_p.max():.3g} arcsec) lies outside the data: below "
-            f"{resolution_factor:g} x the resolution ({resolution:.3g} arcsec) or beyond the disc's bright "
-            f"extent ({bright_radius:.3g} arcsec); scan radii between these")
+        raise InputError(f"every scanned r_p ({r_p.min():.3g}-{r_p.max():.3g} arcsec) lies outside the data: below "
+                         f"{resolution_factor:g} x the resolution ({resolution:.3g} arcsec) or beyond the disc's "
+                         f"bright extent ({bright_radius:.3g} arcsec); scan radii between these")
     flags, near, bands = guards.guard_flags(r_p, flags, planets, resolution if planet_beam is None else planet_beam)
-    upper = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, method)
-    per_instance = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, "instance")
+    margin = np.array([float(meta.get("limit_margin") or 1.0) for meta in scan_result.templates])[:, None]
+    upper = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, method) / margin
+    per_instance = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, "instance") / margin[..., None]
     fraction = np.mean(per_instance < 1.0, axis=-1)
     m_lim = np.full((len(families), r_p.size), np.nan)
     status = np.full((len(families), r_p.size), "none", dtype=object)

@@ -18,8 +18,9 @@ and every ``phi_p``: :mod:`~spiralbayes.inference.limits`). Two sets are used:
 variant names of the scanned families (templates without one are the compromise when the built-in
 generator made them, names ``wake_…``, else ``"unlabelled"``). Over every family the price of
 robustness is ``M_lim(robust over every family) / M_lim(robust over the compromise families)``
-per r_p (:func:`overall_price`); every limits output names the set and this price, or says that
-the limit assumes a single morphology and is not robust to the spiral's shape.
+per r_p (:func:`overall_price`; NaN, "not measured", when several morphologies are scanned and none
+is the compromise, as with a learned bank's discs); every limits output names the set and this
+price, or says that the limit assumes a single morphology and is not robust to the spiral's shape.
 
 **Near a planet** (:func:`near_planet_mask`): radii within one beam of a detected or candidate
 planet are not excluded unless the limit was computed with that planet in the model — the
@@ -144,9 +145,11 @@ def overall_price(limits, family=None, single: str = SINGLE_VARIANT) -> np.ndarr
         fam = limits.family(family)
         fams = next(g["members"] for g in variant_groups(fams) if fam in g["members"])
     alone = [f for f in fams if family_morphology(limits, f) == single]
-    if len({family_morphology(limits, f) for f in fams}) < 2 or not alone:
-        alone = fams
     robust, _ = combined_m_lim(limits, fams)
+    if len({family_morphology(limits, f) for f in fams}) < 2:
+        alone = fams
+    elif not alone:  # several morphologies and none is the reference one (a learned bank's discs): unmeasured
+        return np.full(robust.shape, np.nan)
     base, _ = combined_m_lim(limits, alone)
     with np.errstate(invalid="ignore", divide="ignore"):
         return robust / base
@@ -165,10 +168,20 @@ def morphology_note(limits, family=None) -> str:
         return f"These limits assume {shape} only; not robust to the spiral's shape."
     price = overall_price(limits)
     ok = np.isfinite(price)
+    if SINGLE_VARIANT not in names:
+        return (f"These limits hold for every morphology ({_short_list(names)}): a mass counts as ruled out only "
+                f"where every morphology rules it out; no {SINGLE_VARIANT} family was scanned, so the price of "
+                "robustness is not measured.")
     text = (f"median {np.median(price[ok]):.2g} (range {np.min(price[ok]):.2g}-{np.max(price[ok]):.2g})"
             if ok.any() else "undefined (no radius where both have a limit)")
     return (f"These limits hold for every morphology ({', '.join(names)}): a mass counts as ruled out only where "
             f"every morphology rules it out; price of robustness M_lim(robust)/M_lim({SINGLE_VARIANT}) {text}.")
+
+
+def _short_list(names, at_most: int = 4) -> str:
+    if len(names) <= at_most:
+        return ", ".join(names)
+    return f"{', '.join(names[:at_most])} and {len(names) - at_most} more"
 
 
 def near_planet_mask(r_p, planets, beam: float) -> np.ndarray:

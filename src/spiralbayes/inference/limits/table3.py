@@ -22,7 +22,7 @@ import numpy as np
 __all__ = ["build_table3", "describe_family_limits", "families_text", "limits_table", "markdown_table", "price_text",
            "table_markdown", "write_table"]
 
-from .robust import family_morphology, morphologies, overall_price
+from .robust import SINGLE_VARIANT, family_morphology, morphologies, overall_price
 from .wording import THRESHOLDS, _span, format_range, format_ranges, guard_sentences, runs
 
 
@@ -43,9 +43,13 @@ def families_text(limits) -> str:
 
 def price_text(limits) -> str:
     """The price of robustness, ``M_lim(robust) / M_lim(compromise)``, over the radii with both limits:
-    ``"1.2-3.4"``; ``"1"`` for a single morphology; ``"undefined"`` where they never both have one."""
-    if len(morphologies(limits)) < 2:
+    ``"1.2-3.4"``; ``"1"`` for a single morphology; ``"undefined"`` where they never both have one;
+    ``"not measured"`` when no compromise family was scanned (a learned bank's discs)."""
+    names = morphologies(limits)
+    if len(names) < 2:
         return "1"
+    if SINGLE_VARIANT not in names:
+        return "not measured"
     price = overall_price(limits)
     ok = np.isfinite(price)
     return _span(np.min(price[ok]), np.max(price[ok])) if ok.any() else "undefined"

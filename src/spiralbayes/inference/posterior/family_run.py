@@ -77,9 +77,10 @@ def family_name(family) -> str:
 
 
 def family_metadata(family, mass_prior: MassPrior) -> dict:
+    physics = getattr(family.nodes, "physics", None) or {}  # a learned family's disc (slope, alpha, orbits)
     return {"name": family_name(family), "mass": None, "tau0": family.tau0, "beta": family.beta, "hand": family.hand,
             "h_p": float(family.h_ps[0]), "variant": family.variant, "mass_mode": "continuous",
-            **mass_prior.to_dict(), "n_mass_nodes": int(family.masses.size)}
+            **mass_prior.to_dict(), "n_mass_nodes": int(family.masses.size), **physics}
 
 
 def scan_peak(scan, name: str) -> float:

@@ -149,7 +149,10 @@ class MassPrior:
 
 
 def family_of(template, mass_range=(0.1, 3.0), n_masses: int | None = None):
-    """The :class:`~spiralbayes.templates.family.TemplateFamily` of a generator or variant template.
+    """The :class:`~spiralbayes.templates.family.TemplateFamily` of a generator, variant or learned template.
+
+    A learned template's family is its disc's (:func:`~spiralbayes.templates.learned.family.learned_family`),
+    from the model file its ``provenance["learned"]["model_file"]`` names.
 
     The family has the template's morphology, τ0, β, hand and ``H/r``, and the generator settings
     recorded in its provenance (grid, disc); ``template`` is checked to be what the family's node
@@ -158,6 +161,8 @@ def family_of(template, mass_range=(0.1, 3.0), n_masses: int | None = None):
     from ...templates.family import N_MASS_NODES, TemplateFamily
 
     prov = getattr(template, "provenance", {}) or {}
+    if "learned" in prov:
+        return _learned_family_of(template, prov["learned"], mass_range, n_masses or N_MASS_NODES)
     settings = dict(prov.get("settings") or {})
     if "builtin" not in str(prov.get("generator", "")) or not settings:
         raise InputError(f"template {template.name!r} was not made by the built-in generator: a continuous mass "
@@ -179,6 +184,26 @@ def family_of(template, mass_range=(0.1, 3.0), n_masses: int | None = None):
                                                                        atol=1e-7):
         raise InputError(f"template {template.name!r}: the generator with its recorded settings does not remake it, "
                          "so its family is unknown (pass mass='bank')")
+    return family
+
+
+def _learned_family_of(template, learned: dict, mass_range, n_masses: int):
+    """The learned model's family of ``template`` (one disc), from the model file its provenance records."""
+    from ...templates.learned.family import learned_family, model_from_file
+
+    if not learned.get("model_file"):
+        raise InputError(f"template {template.name!r} was predicted by a learned model that it does not name: pass "
+                         "learned_family(model, ...) for a continuous mass, or mass='bank'")
+    model = model_from_file(learned["model_file"])
+    point = learned["point"]
+    family = learned_family(model, point["h_p"], point["slope"], point["alpha"], point["orbits"], template.tau0,
+                            template.hand, mass_range=mass_range, n_masses=n_masses)
+    made = model.predict(point["mass"], point["h_p"], point["slope"], point["alpha"], point["orbits"], template.tau0,
+                         template.hand)
+    if made.delta.shape != np.shape(template.delta) or not np.allclose(made.delta, template.delta, rtol=1e-5,
+                                                                       atol=1e-6 * np.max(np.abs(made.delta))):
+        raise InputError(f"template {template.name!r}: the model in {learned['model_file']} does not predict it "
+                         "(another model saved under that name?); build the bank again from the model")
     return family
 
 

@@ -43,6 +43,7 @@ from .diagnostics import chain_inference_data
 from .likelihood import draw_amplitude
 from .priors import GEOMETRY_NAMES, Priors
 from ...templates.asymmetry import ASYMMETRY_KINDS as ASYMMETRY_LABELS
+from ...templates.template import LEARNED_PHYSICS
 
 INCONCLUSIVE_LN_B = 1.0
 """``|ln B(planet : none)|`` below this is "inconclusive" (Jeffreys scale: B < e either way)."""
@@ -530,11 +531,14 @@ class PosteriorResult(ResultMixin):
                 "systematic": float(best.get("mass_systematic_ln", 0.0)), "n_samples": int(n)}
 
     def marginals(self) -> dict:
-        """``P(value | data, planet)`` of each value of hand, mass, beta, tau0, h_p and morphology variant
-        (summed over templates; templates without a variant are left out of its marginal)."""
+        """``P(value | data, planet)`` of each value of hand, mass, beta, tau0, h_p and morphology variant,
+        and of a learned bank's disc physics (slope, alpha, orbits) (summed over templates; templates without
+        a key are left out of its marginal, and a key no template has is absent)."""
         probs = self.template_probabilities
         out: dict = {}
-        for key in ("hand", "mass", "beta", "tau0", "h_p", "variant"):
+        for key in ("hand", "mass", "beta", "tau0", "h_p", "variant", *LEARNED_PHYSICS):
+            if key in LEARNED_PHYSICS and not any(key in r.metadata for r in self.runs):
+                continue
             table: dict = {}
             for r in self.runs:
                 value = r.metadata.get(key)

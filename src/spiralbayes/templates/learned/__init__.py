@@ -10,11 +10,12 @@ docs/templates.md, "A template model continuous in disc physics". One concept pe
 
 * :mod:`.training` — the training runs (:func:`~.training.read_training_runs`: the isothermal gas
   runs of reduced FARGO3D files) and the per-radius weight of the maps (:func:`~.training.row_weight`);
-* :mod:`.patch` — the planet's surroundings, cut out with a window in scale heights and modelled on a
-  grid in ``((x − 1)/h_p, φ/h_p)``, where the runs' near-planet peaks look alike at every aspect ratio;
-* :mod:`.basis` — the bases: the rest of the map with every row rotated onto the linear wake's ridge
-  and weighted as the visibilities see it, the gap as a depth times a shape, and the patch, each
-  divided by its RMS and reduced to its mean and first principal components;
+* :mod:`.patch` — optionally (``patch=True``), the planet's surroundings, cut out with a window in
+  scale heights and modelled on a grid in ``((x − 1)/h_p, φ/h_p)``, where the runs' near-planet peaks
+  look alike at every aspect ratio;
+* :mod:`.basis` — the bases: the map with every row rotated onto the linear wake's ridge and weighted
+  as the visibilities see it, the gap as a depth times a shape (and the patch), each divided by its
+  RMS and reduced to its mean and first principal components;
 * :mod:`.regression` — every coefficient and amplitude a Gaussian process (scikit-learn) of
   ``(ln M_p, h_p, p, log10 α, ln orbits)`` over a linear trend;
 * :mod:`.model` — :class:`~.model.LearnedTemplateModel`: fit, predict a
@@ -22,15 +23,18 @@ docs/templates.md, "A template model continuous in disc physics". One concept pe
   (one model serves every optical depth τ0), save and load;
 * :mod:`.uncertainty` — the predictive uncertainty (:class:`~.uncertainty.PredictionUncertainty`);
 * :mod:`.bank` — :func:`~.bank.learned_bank`: a
-  :class:`~spiralbayes.templates.bank.TemplateBank` of predictions on a grid of the physics, for the scan.
+  :class:`~spiralbayes.templates.bank.TemplateBank` of predictions on a grid of the physics, for the scan;
+* :mod:`.family` — :func:`~.family.learned_family`: one disc's templates with the mass continuous
+  (a :class:`~spiralbayes.templates.family.TemplateFamily`), for the posterior.
 
 Masses are in thermal masses ``M_th = h_p³ M_*``; ``α`` is the Shakura–Sunyaev parameter at
 ``r_p`` (``ν = α h_p² r_p² Ω_p``); ages in orbits of the planet. Predictions outside the training
 box raise :class:`~spiralbayes.exceptions.InputError` unless ``extrapolate=True``.
 """
 
-from .bank import learned_bank, model_key
+from .bank import DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, learned_bank, model_key
 from .basis import GAP_DEPTH_FLOOR, Bases, fit_bases
+from .family import learned_family, model_from_file
 from .model import LEARNED_KIND, MODEL_VERSION, LearnedTemplateModel
 from .patch import PATCH_POINTS, PATCH_RADIUS, PATCH_WIDTH, from_patch, patch_grid, scaled_offsets, to_patch, window
 from .regression import TRENDS
@@ -41,15 +45,20 @@ from .training import (
     NUMERICAL_CHECKS,
     OUTSIDE_WEIGHT,
     PARAMETERS,
+    REFERENCE_FILES,
     WEIGHT_TAU0,
     TrainingRun,
     parameter_vector,
     read_training_runs,
+    reference_files,
     row_weight,
 )
 from .uncertainty import PredictionUncertainty
 
 __all__ = [
+    "DEFAULT_ALPHAS",
+    "DEFAULT_ORBITS",
+    "DEFAULT_SLOPES",
     "DISC_EXTENT",
     "FLARING",
     "GAP_DEPTH_FLOOR",
@@ -62,6 +71,7 @@ __all__ = [
     "PATCH_POINTS",
     "PATCH_RADIUS",
     "PATCH_WIDTH",
+    "REFERENCE_FILES",
     "TRENDS",
     "WEIGHT_TAU0",
     "Bases",
@@ -71,10 +81,13 @@ __all__ = [
     "fit_bases",
     "from_patch",
     "learned_bank",
+    "learned_family",
+    "model_from_file",
     "model_key",
     "parameter_vector",
     "patch_grid",
     "read_training_runs",
+    "reference_files",
     "row_weight",
     "scaled_offsets",
     "to_patch",

@@ -27,12 +27,23 @@ from ..bank import TemplateBank, cached_bank, default_cache_dir
 from ..template import validate_hand
 from .model import MODEL_VERSION, LearnedTemplateModel
 
-__all__ = ["learned_bank", "model_key"]
+__all__ = ["DEFAULT_ALPHAS", "DEFAULT_ORBITS", "DEFAULT_SLOPES", "learned_bank", "model_key"]
 
 log = logging.getLogger(__name__)
 
 _ARRAYS = ("x", "phi", "weight", "mean", "components", "gap_mean", "gap_components", "inputs", "targets", "thetas",
            "residual_variance", "trends", "patch_mean", "patch_components")
+
+
+DEFAULT_SLOPES = (0.5, 1.0, 1.5)
+"""Surface-density slopes ``p`` (Σ ∝ r^-p) of a learned bank when none are given (``[templates] slope``):
+the disc physics set's and the continuum design's range."""
+DEFAULT_ALPHAS = (2e-4, 1e-3, 1e-2)
+"""Viscosities ``α`` at r_p of a learned bank when none are given (``[templates] alpha``): near the
+training box's ends (its runs span α 1.3e-4–2e-2) and between them."""
+DEFAULT_ORBITS = (200.0,)
+"""Planet age [orbits] of a learned bank when none is given (``[templates] orbits``): the oldest age the
+training set holds at several masses and aspect ratios (docs/templates.md, the coverage table)."""
 
 
 def model_key(model: LearnedTemplateModel) -> str:

@@ -170,7 +170,7 @@ class LearnedTemplateModel(ResultMixin):
     @classmethod
     def fit(cls, runs: Sequence[TrainingRun], *, n_components: int = 10, n_gap_components: int = 5,
             n_patch_components: int = 6, align: bool = True, restarts: int = 2, sharing: str = "grouped",
-            trend: str = "disc", gap_depth: bool = True, patch: bool = True) -> LearnedTemplateModel:
+            trend: str = "disc", gap_depth: bool = True, patch: bool = False) -> LearnedTemplateModel:
         """Fit the bases (:func:`~spiralbayes.templates.learned.basis.fit_bases`) and the Gaussian
         processes (:mod:`spiralbayes.templates.learned.regression`) to ``runs``.
 
@@ -215,8 +215,9 @@ class LearnedTemplateModel(ResultMixin):
             (:mod:`spiralbayes.templates.learned.patch`), normalised by its RMS (``ln P`` regressed)
             and given a basis of its own; the global maps are ``(1 − W) δΣ/Σ``. The near-planet peak
             and the wake's start scale with ``H_p``, not with ``r_p``, so in these coordinates the
-            runs' patches look alike at every aspect ratio; docs/templates.md gives what the patch
-            changes in the leave-one-run-out recoveries.
+            runs' patches look alike at every aspect ratio. Off by default: left out, the
+            leave-one-run-out recoveries keep their medians and their worst runs do better
+            (docs/templates.md).
 
         Returns
         -------

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,8 +25,9 @@ import numpy as np
 from ..._hdf5 import open_reference
 from ...exceptions import DataFileError, InputError
 
-__all__ = ["DISC_EXTENT", "FLARING", "MAX_CHANGE", "NUMERICAL_CHECKS", "OUTSIDE_WEIGHT", "PARAMETERS", "WEIGHT_TAU0",
-           "TrainingRun", "parameter_vector", "read_training_runs", "row_weight"]
+__all__ = ["DISC_EXTENT", "FLARING", "MAX_CHANGE", "NUMERICAL_CHECKS", "OUTSIDE_WEIGHT", "PARAMETERS",
+           "REFERENCE_FILES", "WEIGHT_TAU0", "TrainingRun", "parameter_vector", "read_training_runs",
+           "reference_files", "row_weight"]
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +55,30 @@ weighted :data:`OUTSIDE_WEIGHT` times less."""
 
 OUTSIDE_WEIGHT = 0.3
 """Relative weight of the rows outside :data:`DISC_EXTENT` (:func:`row_weight`)."""
+
+REFERENCE_FILES = ("continuum/fargo3d_continuum.h5", "fargo3d_library.h5", "physics/fargo3d_library.h5",
+                   "fargo3d_isothermal.h5")
+"""The reduced FARGO3D files the model is trained on, relative to a checkout's ``tests/data/references``:
+the continuum design, the library, the disc physics set and the two older isothermal runs."""
+
+
+def reference_files(root=None) -> list[Path]:
+    """The training files :data:`REFERENCE_FILES` in ``root`` (default: the ``tests/data/references``
+    folder of the repository checkout this package is installed from).
+
+    Raises
+    ------
+    InputError
+        A file is missing (e.g. a package installed from a wheel, which carries no reference files):
+        the message says to pass the files, or ``root``, explicitly.
+    """
+    base = Path(root) if root is not None else Path(__file__).resolve().parents[4] / "tests" / "data" / "references"
+    paths = [base / name for name in REFERENCE_FILES]
+    missing = [str(p) for p in paths if not p.exists()]
+    if missing:
+        raise InputError(f"the learned model's training files {missing} are not there: run from a clone of the "
+                         "spiralbayes repository (pip install -e .) or give the reduced FARGO3D files explicitly")
+    return paths
 
 
 def row_weight(x) -> np.ndarray:
@@ -206,6 +232,7 @@ def _read_file(path: Path, max_change: float) -> list[TrainingRun]:
             raise DataFileError(f"{path} has no root 'x' and 'phi' datasets: not a reduced reference file "
                                 "(tools/README.md, 'File layout')")
         x, phi = f["x"][()].astype(float), f["phi"][()].astype(float)
+        skipped: list[str] = []
         for name in sorted(f):
             g = f[name]
             if not isinstance(g, h5py.Group):
@@ -215,7 +242,8 @@ def _read_file(path: Path, max_change: float) -> list[TrainingRun]:
             if reason is None and not {"dsigma", "sigma_axisym"} <= set(g):
                 reason = "no dsigma or sigma_axisym dataset"
             if reason is not None:
-                log.info("%s:%s not trained on: %s", path.name, name, reason)
+                log.debug("%s:%s not trained on: %s", path.name, name, reason)
+                skipped.append(reason.split(" (")[0])
                 continue
             h_p = float(a["h_p"])
             slope = float(a.get("p_sigma", 1.0))
@@ -224,6 +252,10 @@ def _read_file(path: Path, max_change: float) -> list[TrainingRun]:
             gap = np.where(valid, g["sigma_axisym"][()].astype(float) * x**slope, np.nan)
             runs.append(TrainingRun(f"{source}:{name}", float(a["mu_Mth"]), h_p, slope, alpha, float(a["orbits"]),
                                     x, phi, g["dsigma"][()].astype(float), gap, valid, str(path)))
+    if skipped:
+        counts = ", ".join(f"{n} {why}" for why, n in sorted(Counter(skipped).items()))
+        log.info("%s: %d runs read, %d not trained on (%s; -v names them)", path.name,
+                 len(runs), len(skipped), counts)
     return runs
 
 
