@@ -323,9 +323,15 @@ def test_every_config_path_resolves_against_the_config_file(tmp_path, monkeypatc
                 ("templates", "bank"): tmp_path / "bank.h5",
                 ("sample", "scan"): tmp_path / "project" / "out" / "scan.h5",
                 ("output", "dir"): tmp_path / "project" / "out"}
-    assert set(expected) == set(PATH_KEYS)
+    # the learned bank's model file is read only with bank = "learned", so it is checked in a file of its own
+    assert set(expected) | {("templates", "learned_model")} == set(PATH_KEYS)
     for (section, key), path in expected.items():
         assert config[section][key] == str(path), (section, key)
+    learned = tmp_path / "project" / "learned.toml"
+    learned.write_text('[templates]\nbank = "learned"\nlearned_model = "models/lm.h5"\n')
+    config = load_config(Path("project") / "learned.toml")
+    assert config["templates"]["bank"] == "learned"
+    assert config["templates"]["learned_model"] == str(tmp_path / "project" / "models" / "lm.h5")
     cfg.write_text('[templates]\nbank = "default"\n[output]\ndir = "~/sb-out"\n')
     config = load_config(cfg)
     assert config["templates"]["bank"] == "default"
