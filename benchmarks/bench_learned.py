@@ -32,25 +32,16 @@ from pathlib import Path
 
 import numpy as np
 
-from spiralbayes import AxisymmetricModel, DiscGeometry
+from spiralbayes import AxisymmetricModel
 from spiralbayes.inference.scan.run import scan
-from spiralbayes.simulate import DiscModel, observe, uv_coverage
 from spiralbayes.templates import compromise_bank, make_template
 from spiralbayes.templates.learned import LearnedTemplateModel, learned_bank, learned_family, reference_files
 from spiralbayes.templates.wake import PAPER_MASSES, PAPER_TAUS
 
-GEOMETRY = DiscGeometry(30.0, 60.0)
-R_P = np.linspace(0.02, 0.5, 25)
-N_PHI = 90
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_scan import GEOMETRY, N_PHI, R_P, observation  # the scan benchmark's observation and grid
+
 DISC = {"h_ps": 0.07, "slopes": 1.0, "alphas": 2e-3, "orbits": 20.0}
-
-
-def observation():
-    wavelength = 0.87e-3
-    cov = uv_coverage(["C-4", "C-7"], -25.0, [(-0.12, 0.12), (-0.35, 0.35)], 30.0, wavelength)
-    axisym = AxisymmetricModel.from_profile(DiscModel(tau_ref=3.0).profile(wavelength), GEOMETRY)
-    vis = observe(lambda u, v: axisym.visibilities(u, v, GEOMETRY), cov, sensitivity=35e-6, seed=0)
-    return vis, axisym
 
 
 def load_model(path: str | None) -> tuple[LearnedTemplateModel, float]:

@@ -42,21 +42,32 @@ def learned_templates() -> list:
     return list(learned_bank(model, MASSES, 0.07, DEFAULT_SLOPES, DEFAULT_ALPHAS, DEFAULT_ORBITS, 0.3))
 
 
+def scanned_limits(templates, sensitivity: float):
+    """The set-up's limits with ``templates`` at one image sensitivity [Jy/beam], and the indices of :data:`RADII`."""
+    _, _, _, result = L.scanned(sensitivity, templates=templates)
+    limits = compute_limits(result, cl=0.95, resolution=0.0, bright_radius=np.inf)
+    return limits, [int(np.argmin(np.abs(result.r_p - r))) for r in RADII]
+
+
+def cells(limits, robust_families, single_families, idx) -> str:
+    """``M_lim`` of the single and the robust sets at the radii ``idx``, and their ratio (three table cells)."""
+    robust, _ = combined_m_lim(limits, robust_families)
+    single, _ = combined_m_lim(limits, single_families)
+    fmt = ", ".join
+    return (f"{fmt(f'{single[i]:.2f}' for i in idx)} | {fmt(f'{robust[i]:.2f}' for i in idx)} | "
+            f"{fmt(f'{robust[i] / single[i]:.1f}' for i in idx)}")
+
+
 def learned_price() -> None:
     templates = variant_grid(("compromise",), masses=MASSES, taus=(0.3,), betas=(0.0,), **L.GRID)
     templates += learned_templates()
     log.info("| noise | M_lim compromise [M_th] | M_lim robust over the learned discs [M_th] | price |")
     log.info("|---|---|---|---|")
     for sensitivity in (35e-6, 12e-6):
-        _, _, _, result = L.scanned(sensitivity, templates=templates)
-        limits = compute_limits(result, cl=0.95, resolution=0.0, bright_radius=np.inf)
-        idx = [int(np.argmin(np.abs(result.r_p - r))) for r in RADII]
+        limits, idx = scanned_limits(templates, sensitivity)
         learned = [f for f in limits.families if str(f.key.get("variant", "")).startswith("learned")]
-        robust, _ = combined_m_lim(limits, learned)
-        single, _ = combined_m_lim(limits, [f for f in limits.families if f.key.get("variant") == "compromise"])
-        fmt = ", ".join
-        log.info("| %.0f µJy/beam | %s | %s | %s |", sensitivity * 1e6, fmt(f"{single[i]:.2f}" for i in idx),
-                 fmt(f"{robust[i]:.2f}" for i in idx), fmt(f"{robust[i] / single[i]:.1f}" for i in idx))
+        single = [f for f in limits.families if f.key.get("variant") == "compromise"]
+        log.info("| %.0f µJy/beam | %s |", sensitivity * 1e6, cells(limits, learned, single, idx))
 
 
 def main(argv=None) -> None:
@@ -69,17 +80,12 @@ def main(argv=None) -> None:
     log.info("| family, noise | M_lim compromise [M_th] | M_lim robust [M_th] | price |")
     log.info("|---|---|---|---|")
     for sensitivity in (35e-6, 12e-6):
-        _, _, _, result = L.scanned(sensitivity, templates=templates)
-        limits = compute_limits(result, cl=0.95, resolution=0.0, bright_radius=np.inf)
-        idx = [int(np.argmin(np.abs(result.r_p - r))) for r in RADII]
+        limits, idx = scanned_limits(templates, sensitivity)
         for group in variant_groups(limits.families):
             members = group["members"]
-            robust, _ = combined_m_lim(limits, members)
-            single, _ = combined_m_lim(limits, [f for f in members if f.key.get("variant") == "compromise"])
-            fmt = ", ".join
-            log.info("| β = %g, %.0f µJy/beam | %s | %s | %s |", group["key"]["beta"], sensitivity * 1e6,
-                     fmt(f"{single[i]:.2f}" for i in idx), fmt(f"{robust[i]:.2f}" for i in idx),
-                     fmt(f"{robust[i] / single[i]:.1f}" for i in idx))
+            single = [f for f in members if f.key.get("variant") == "compromise"]
+            log.info("| β = %g, %.0f µJy/beam | %s |", group["key"]["beta"], sensitivity * 1e6,
+                     cells(limits, members, single, idx))
 
 
 if __name__ == "__main__":

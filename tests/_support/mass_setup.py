@@ -23,7 +23,12 @@ def bank_members(hand: str = "R") -> list:
 
 
 def planted_observation(mass: float, *, snr2: float = 400.0, n: int = 1500, seed: int = 5) -> Visibilities:
-    template = make_template(mass, TAU0, BETA, "R", **GRID)
+    return plant(make_template(mass, TAU0, BETA, "R", **GRID), snr2=snr2, n=n, seed=seed)
+
+
+def plant(template, *, snr2: float = 400.0, n: int = 1500, seed: int = 5) -> Visibilities:
+    """``template`` at (R_P, PHI_P) in the weak observation's disc, the noise set so that it alone has
+    ``chi2 = snr2``."""
     truth = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=80)
     rng = np.random.default_rng(seed)
     q = 2e6 * np.sqrt(rng.uniform(4e-4, 1, n))

@@ -137,14 +137,14 @@ def learned_templates(templates: dict, *, progress: bool = False) -> list:
     built-in banks' values (masses, H/r, τ0) or the learned bank's defaults (slope, α, age:
     :data:`~spiralbayes.templates.learned.bank.DEFAULT_SLOPES` ...). The model is isothermal, so ``beta``
     may only hold 0."""
-    from ..templates.learned import DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, LearnedTemplateModel, learned_bank
+    from ..templates.learned import DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, learned_bank, model_from_file
     from ..templates.wake import PAPER_MASSES, PAPER_TAUS
 
     betas = [float(b) for b in templates.get("beta", ())]
     if betas and 0.0 not in betas:
         raise InputError(f"[templates] beta = {betas}: the learned model's templates are isothermal (beta 0); "
                          "add 0 or leave beta empty")
-    model = LearnedTemplateModel.load(templates["learned_model"])
+    model = model_from_file(templates["learned_model"])
     try:
         bank = learned_bank(model, templates.get("mass") or PAPER_MASSES, templates.get("h_p") or DEFAULT_H_PS,
                             templates.get("slope") or DEFAULT_SLOPES, templates.get("alpha") or DEFAULT_ALPHAS,

@@ -14,17 +14,15 @@ from __future__ import annotations
 import warnings
 
 import h5py
-import numpy as np
 import pytest
 
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.inference.posterior import MassPrior, Priors
 from spiralbayes.inference.posterior.sampler import sample_posterior
-from spiralbayes.model import perturbation_visibilities
 from spiralbayes.templates import SpiralTemplate
 from spiralbayes.templates.learned import LearnedTemplateModel, learned_family, read_training_runs, reference_files
 from spiralbayes.visibilities import Visibilities
-from tests._support.mass_setup import PHI_P, R_P
+from tests._support.mass_setup import PHI_P, R_P, plant
 from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
 
 pytestmark = pytest.mark.slow
@@ -32,20 +30,11 @@ pytestmark = pytest.mark.slow
 CASES = [("physics:h0.08_mu2", 0.3), ("physics:h0.08_mu2", 3.0), ("physics:h0.07_mu1_slope0.5", 0.3)]
 
 
-def _planted(run, tau0: float, snr2: float = 400.0, n: int = 1500, seed: int = 5) -> Visibilities:
+def _planted(run, tau0: float) -> Visibilities:
     with h5py.File(run.file, "r") as f:
         delta = f[f"{run.group}/delta_tau{tau0:g}"][()].astype(float)
-    spiral = SpiralTemplate(x=run.x, phi=run.phi, delta=delta, mass=run.mass, tau0=tau0, beta=0.0, h_p=run.h_p,
-                            name="held_out")
-    truth = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=80)
-    rng = np.random.default_rng(seed)
-    q = 2e6 * np.sqrt(rng.uniform(4e-4, 1, n))
-    th = rng.uniform(0, 2 * np.pi, n)
-    u, v = q * np.cos(th), q * np.sin(th)
-    dV = perturbation_visibilities(u, v, TRUE_GEOMETRY, truth.brightness, spiral, R_P, PHI_P)
-    sigma = np.sqrt(np.sum(np.abs(dV) ** 2) / snr2)
-    V = truth.visibilities(u, v, TRUE_GEOMETRY) + dV + sigma * (rng.normal(size=n) + 1j * rng.normal(size=n))
-    return Visibilities(u, v, V, np.full(n, sigma**-2))
+    return plant(SpiralTemplate(x=run.x, phi=run.phi, delta=delta, mass=run.mass, tau0=tau0, beta=0.0, h_p=run.h_p,
+                                name="held_out"))
 
 
 @pytest.mark.parametrize("held_out, tau0", CASES)

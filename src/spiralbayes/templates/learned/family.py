@@ -89,9 +89,15 @@ def _cached_model(path: str, mtime_ns: int) -> LearnedTemplateModel:
 
 
 def model_from_file(path) -> LearnedTemplateModel:
-    """The learned model saved at ``path``, read once per file version (a posterior's families share it)."""
+    """The learned model saved at ``path``, read once per file version (the configuration's bank and the
+    posterior's families share it).
+
+    Raises
+    ------
+    DataFileError
+        No model at ``path`` (:meth:`~.model.LearnedTemplateModel.load`'s message names the file).
+    """
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"learned model file {p} does not exist (the templates were predicted by it): give the "
-                         "model again, or pass learned_family(...) templates")
+        return LearnedTemplateModel.load(p)  # raises the loader's missing-file error
     return _cached_model(str(p.resolve()), p.stat().st_mtime_ns)
