@@ -95,7 +95,7 @@ def model_from_file(path) -> LearnedTemplateModel:
     Raises
     ------
     DataFileError
-        No model at ``path`` (:meth:`~.model.LearnedTemplateModel.load`'s message names the file).
+        No model at ``path`` (the message of ``LearnedTemplateModel.load`` names the file).
     """
     p = Path(path)
     if not p.is_file():
