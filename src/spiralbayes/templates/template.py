@@ -31,9 +31,9 @@ from .._provenance import json_safe, to_json
 from ..exceptions import InputError
 from ..units import TWO_PI
 
-__all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "bilinear", "template_metadata", "check_mass_beta",
-           "check_tau0", "SIMULATION", "metadata_variant", "repeated_names", "template_kind", "template_name",
-           "validate_hand"]
+__all__ = ["SpiralTemplate", "HANDS", "SCALAR_FIELDS", "bilinear", "limit_margin", "template_metadata",
+           "check_mass_beta", "check_tau0", "SIMULATION", "metadata_variant", "repeated_names", "template_kind",
+           "template_name", "validate_hand"]
 
 log = logging.getLogger(__name__)
 
@@ -402,6 +402,13 @@ the data's upper limit on the template's amplitude is below 0.45, i.e. the templ
 excluded (the variants' shrink of 0.8 does the same for them). The largest margin at which every
 source of the leave-one-source-out check passes (docs/limits.md §4d; the continuum design held out
 needs 0.45, wakeflow 0.5)."""
+
+
+def limit_margin(meta: dict) -> float:
+    """The limits' margin recorded in a template's metadata (:func:`template_metadata`): 1 for a template
+    without one, :data:`LEARNED_LIMIT_MARGIN` for a learned template. The limits exclude a mass only where
+    the template scaled by it is excluded, and completeness plants the template scaled by it."""
+    return float(meta.get("limit_margin") or 1.0)
 
 
 def template_metadata(template) -> dict:

@@ -102,3 +102,21 @@ def test_fast_completeness_matches_brute_force_with_frank_refits(bright_case):
     brute = completeness_brute_force(vis, model, templates, result, refit=refit, **grid)
     assert np.all(binomial_agreement(fast.probability, brute.probability, fast.n_trials))
     assert abs(fast.probability.mean() - brute.probability.mean()) <= 0.1
+
+
+def test_a_templates_limit_margin_scales_the_planted_planet_in_both_paths(bright_case):
+    """A learned template's margin (metadata ``limit_margin``) plants the template scaled by it: the fast
+    path against brute-force re-scans of data with the scaled planet added."""
+    import copy
+
+    vis, model, templates, result = bright_case
+    grid = dict(masses=[1.0], radii=[0.45], n_azimuths=2)
+    scaled = copy.deepcopy(result)
+    for meta in scaled.templates:
+        meta["limit_margin"] = 0.5
+    full = completeness(vis, model, templates, result, progress=False, **grid)
+    fast = completeness(vis, model, templates, scaled, progress=False, **grid)
+    brute = completeness_brute_force(vis, model, templates, scaled, **grid)
+    np.testing.assert_allclose(fast.delta_bic, brute.delta_bic, atol=1e-3 * np.max(np.abs(brute.delta_bic)))
+    # half the planet: the scan's cross terms with it halve, so every ΔBIC falls
+    assert np.all(fast.delta_bic < full.delta_bic - 1.0)

@@ -56,6 +56,7 @@ from ..._provenance import provenance_record
 from ...exceptions import InputError
 from ...results import ResultMixin
 from ...settings import with_overrides
+from ...templates.template import limit_margin
 from ...units import mth_to_mjup
 from . import guards
 from .families import Family, select_family, template_families
@@ -471,7 +472,7 @@ def compute_limits(scan_result, *, settings: LimitSettings | None = None, vis=No
                          f"{resolution_factor:g} x the resolution ({resolution:.3g} arcsec) or beyond the disc's "
                          f"bright extent ({bright_radius:.3g} arcsec); scan radii between these")
     flags, near, bands = guards.guard_flags(r_p, flags, planets, resolution if planet_beam is None else planet_beam)
-    margin = np.array([float(meta.get("limit_margin") or 1.0) for meta in scan_result.templates])[:, None]
+    margin = np.array([limit_margin(meta) for meta in scan_result.templates])[:, None]
     upper = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, method) / margin
     per_instance = amplitude_upper_limit(scan_result.cross, scan_result.power, cl, "instance") / margin[..., None]
     fraction = np.mean(per_instance < 1.0, axis=-1)

@@ -1,11 +1,12 @@
 """Detection completeness by injection–recovery: P(detected | M_p, r_p) and the minimum detectable mass.
 
 For every mass of a template family, every radius and ``n_azimuths`` azimuths of the scan's grid,
-a planet (the family's template of that mass and hand) is planted into the user's own data and
-the detection of :func:`~spiralbayes.inference.detection.detect` is run again: ΔBIC > 10 (test 1)
-and the handedness and compactness tests (test 2). A planet counts as *recovered* when the verdict
-is a detection whose best template has the planted hand and lies within ``max_rp_steps`` radius
-steps and ``max_phi_deg`` of the planted position.
+a planet (the family's template of that mass and hand, scaled by its limits' margin: 0.45 for a
+learned template, as :func:`~spiralbayes.inference.limits.compute_limits` assumes; 1 otherwise) is
+planted into the user's own data and the detection of :func:`~spiralbayes.inference.detection.detect`
+is run again: ΔBIC > 10 (test 1) and the handedness and compactness tests (test 2). A planet counts
+as *recovered* when the verdict is a detection whose best template has the planted hand and lies
+within ``max_rp_steps`` radius steps and ``max_phi_deg`` of the planted position.
 
 Neither frank nor the scan is re-run per injection: the injected dataset's Δχ² at every scanned
 instance is the data's Δχ² plus ``2 X(a, b)``, the cross term of the injected perturbation with
@@ -33,6 +34,7 @@ from ...results import ResultMixin
 from ...settings import with_overrides
 from ...units import wrap_angle
 from ..detection.settings import DetectionSettings
+from ...templates.template import limit_margin
 from ..detection.verdict import detect
 from .families import Family, select_family, template_families
 from .injection import Injection, InjectionEngine, brute_force_injection
@@ -187,6 +189,13 @@ def injection_plan(scan_result, family=None, *, masses=None, radii=None,
     return {"family": fam, "hands": hands, "masses": np.array(sorted(masses)), "i_r": i_r, "i_phi": i_phi}
 
 
+def _injection(templates, scan_result, index: int, i_r: int, i_phi: int) -> Injection:
+    """Template ``index`` planted at a scanned position, scaled by its limits' margin (a learned
+    template's planet may give only that fraction of its signal, as the limits assume)."""
+    return Injection(templates[index], float(scan_result.r_p[i_r]), float(scan_result.phi_p[i_phi]),
+                     amplitude=limit_margin(scan_result.templates[index]))
+
+
 def _recovered(verdict, best, best_meta, meta_inj, i_r, phi, criteria) -> bool:
     if not verdict.detected:
         return False
@@ -308,8 +317,8 @@ def completeness(vis, axisymmetric, templates, scan_result, *, settings: Complet
     with tqdm(total=len(cells), desc="injections", unit="injection", disable=not progress) as bar:
         for start in range(0, len(cells), chunk):
             part = cells[start:start + chunk]
-            injections = [Injection(templates[fam.index(mass, hand)], float(scan_result.r_p[i_r]),
-                                    float(scan_result.phi_p[i_phi])) for _, hand, mass, i_r, i_phi in part]
+            injections = [_injection(templates, scan_result, fam.index(mass, hand), i_r, i_phi)
+                          for _, hand, mass, i_r, i_phi in part]
             extra = engine.cross(injections, chunk=chunk)
             for (where, hand, mass, i_r, i_phi), x in zip(part, extra):
                 injected = ScanResult(scan_result.templates, scan_result.r_p, scan_result.phi_p,
@@ -349,8 +358,7 @@ def completeness_brute_force(vis, axisymmetric, templates, scan_result, *, setti
     criteria = _criteria(amplitude, s.max_rp_steps, s.max_phi_deg, s.detection)
     cells = list(_cells(plan))
     for where, hand, mass, i_r, i_phi in cells:
-        injection = Injection(templates[fam.index(mass, hand)], float(scan_result.r_p[i_r]),
-                              float(scan_result.phi_p[i_phi]))
+        injection = _injection(templates, scan_result, fam.index(mass, hand), i_r, i_phi)
         result = brute_force_injection(vis, axisymmetric, templates, injection, geometry, refit=refit,
                                        r_p=scan_result.r_p, n_phi_p=len(scan_result.phi_p),
                                        distance=scan_result.distance, progress=progress, nthreads=nthreads,
