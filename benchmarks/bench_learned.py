@@ -10,8 +10,13 @@
 ``posterior``  wall time of the continuous-mass posterior (``mass="continuous"``) on the posterior tests'
                weak observation (1500 baselines): one learned family (``learned_family``) against the
                generator's family at the same τ0, hand and H/r, same walkers, steps and seed.
+``physics``    wall time of the posterior with the physics free (``physics_posterior``) on the same data:
+               H/r 0.05-0.10 every 0.005, the learned bank's three slopes and viscosities, ``--masses``
+               masses, both hands, the default position grid (100 r_p x 360 phi_p), and what it finds; beside
+               the continuous-mass posterior's time for one family (``posterior``), a run of which per disc
+               and H/r value would be the alternative.
 
-    python benchmarks/bench_learned.py                  # both cases (a few minutes)
+    python benchmarks/bench_learned.py                  # every case (10-20 minutes)
     python benchmarks/bench_learned.py --case bank --templates 16
 
 The learned model is fitted to the repository's reference files once per run (``--model FILE`` reuses a
@@ -121,12 +126,38 @@ def case_posterior(args, model) -> dict:
     return out
 
 
+def case_physics(args, model) -> dict:
+    from spiralbayes.inference.posterior import MassPrior, Priors
+    from spiralbayes.inference.posterior.physics import physics_posterior
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests._support.mass_setup import planted_observation
+    from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
+
+    vis = planted_observation(1.0)
+    axisym = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=80)
+    h_p = np.round(np.arange(0.05, 0.1001, 0.005), 4)
+    with tempfile.TemporaryDirectory() as cache, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        t0, c0 = time.perf_counter(), time.process_time()
+        post = physics_posterior(vis, axisym, model, 0.3, h_p=h_p, masses=np.geomspace(0.1, 3.0, args.masses),
+                                 priors=Priors.default(axisym, r_p=R_RANGE), mass_prior=MassPrior(), cache_dir=cache,
+                                 progress=False, nthreads=2)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    ci = post.intervals(0.95)
+    return {"N_vis": vis.n, "templates": int(post.ln_bayes.size), "wall_s": wall, "cpu_s": cpu,
+            "wall_per_template_s": wall / post.ln_bayes.size, "position_resolved": post.position_resolved(),
+            "h_p_95": [ci["h_p"]["lo"], ci["h_p"]["hi"]], "M_p_95": [ci["M_p"]["lo"], ci["M_p"]["hi"]],
+            "discs_x_h_p_x_hands": int(post.ln_bayes.size // post.mass.size)}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--case", choices=("bank", "posterior", "all"), default="all")
+    ap.add_argument("--case", choices=("bank", "posterior", "physics", "all"), default="all")
     ap.add_argument("--templates", type=int, default=32, help="learned templates scanned (of 32)")
     ap.add_argument("--walkers", type=int, default=28)
     ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--masses", type=int, default=8, help="masses of the physics case's lattice")
     ap.add_argument("--model", default=None, help="a saved LearnedTemplateModel (default: fit one now)")
     args = ap.parse_args(argv)
     model, fit_s = load_model(args.model)
@@ -135,6 +166,8 @@ def main(argv=None) -> int:
         results["bank"] = case_bank(args, model)
     if args.case in ("posterior", "all"):
         results["posterior"] = case_posterior(args, model)
+    if args.case in ("physics", "all"):
+        results["physics"] = case_physics(args, model)
     print(json.dumps(results, indent=2))
     return 0
 

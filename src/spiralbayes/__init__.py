@@ -30,6 +30,7 @@ from .inference.limits.recovery import CompletenessResult, completeness
 from .inference.limits.settings import CompletenessSettings, ForecastSettings, LimitSettings
 from .inference.posterior.conditional import SpiralLikelihood
 from .inference.posterior.mass import MassPrior
+from .inference.posterior.physics import PhysicsPosterior, physics_posterior
 from .inference.posterior.priors import Priors
 from .inference.posterior.results import PosteriorResult
 from .inference.posterior.sampler import sample_posterior
@@ -87,7 +88,7 @@ LIMITS = ["ExclusionLimits", "LimitSettings", "compute_limits", "CompletenessRes
           "completeness", "Forecast", "ForecastSettings", "forecast"]
 """Limits: exclusion limits, completeness, forecasts."""
 POSTERIOR = ["PosteriorResult", "Priors", "MassPrior", "PriorSettings", "SamplingSettings", "SpiralLikelihood",
-             "sample_posterior"]
+             "sample_posterior", "PhysicsPosterior", "physics_posterior"]
 """Posterior: the sampled posterior and its parts."""
 PLOTTING = ["plotting"]
 """Plotting: ``spiralbayes.plotting`` (Matplotlib, imported on first use)."""

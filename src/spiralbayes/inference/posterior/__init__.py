@@ -15,6 +15,8 @@
 * :mod:`.results` — :class:`PosteriorResult` and its runs;
 * :mod:`~spiralbayes.inference.posterior.mass`, :mod:`.family_run` — the planet mass sampled within a template family
   (``mass="continuous"``);
+* :mod:`.physics` — the disc's physics (H/r, slope, α, age) and the mass on a learned model's lattice
+  (:func:`physics_posterior`);
 * :mod:`.odds` — the posterior odds between a planet and the competing explanations (arc, eccentric ring).
 """
 
@@ -63,9 +65,14 @@ from .mass import (
 from .family_run import family_evidence, family_metadata, family_name, sample_family
 from .scan_evidence import GRID_LN_B_ERROR, GridEvidence, family_grid_evidence, grid_run, template_grid_evidence
 from .sampler import LogPosterior, NullLogPosterior, lower_grid_runs, refit_axisymmetric, sample_posterior
+from .physics import PHYSICS_AXES, PhysicsPosterior, physics_posterior, position_ln_bayes
 from .odds import NO_ASYMMETRY, check_alternatives, hypothesis_weights, model_probabilities, scan_alternatives
 
 __all__ = [
+    "PHYSICS_AXES",
+    "PhysicsPosterior",
+    "physics_posterior",
+    "position_ln_bayes",
     "NO_ASYMMETRY",
     "check_alternatives",
     "hypothesis_weights",

@@ -18,11 +18,15 @@ marginals, draws from that piecewise-uniform density, and the medians and credib
 every parameter (also ``M_p`` in M_Jup, each draw converted with its own ``H/r``; the template
 mismatch's scatter in ``ln M_p`` and the stellar mass's prior as in :class:`~.mass.MassPrior`).
 
-What it leaves out, stated: the geometry is the scan's, not integrated (``sample_posterior`` does
-that, for the bank's discs), and a credible interval narrower than about three lattice steps is not
-resolved — :meth:`PhysicsPosterior.resolved` says so, and the summary asks for a finer lattice
-around the peak (``h_p=np.arange(...)``); and a position grid too coarse for the planet's likelihood
-peak is detected by comparing with every other radius and azimuth (:meth:`PhysicsPosterior.position_resolved`).
+The slope, viscosity and age intervals are the posterior of the model's templates, and the templates
+are not the planet: on held-out hydrodynamic planets (``tests/inference/posterior/test_physics_held_out.py``)
+H/r and M_p fell inside their intervals while the slope and viscosity came out confidently at other
+values, and the summary says so. What it leaves out, stated: the geometry is the scan's, not
+integrated (``sample_posterior`` does that, for the bank's discs); a credible interval narrower than
+about three lattice steps is not resolved (:meth:`PhysicsPosterior.resolved` says so, and the summary
+asks for a finer lattice around the peak, ``h_p=np.arange(...)``); and a position grid too coarse for
+the planet's likelihood peak is detected by comparing with every other radius and azimuth
+(:meth:`PhysicsPosterior.position_resolved`).
 """
 
 from __future__ import annotations
@@ -290,6 +294,10 @@ class PhysicsPosterior(ResultMixin):
                     text += " - narrower than 3 lattice steps: scan a finer lattice around it"
             lines.append(text)
         lines.append(f"  P(right-handed) = {self.marginal('hand').get('R', 0.0):.3f}")
+        if any(getattr(self, a).size > 1 for a in ("slope", "alpha", "orbits")):
+            lines.append("  The slope, alpha and age are those of the templates that fit best: on held-out "
+                         "hydrodynamic planets they missed the truth while H/r and M_p held (docs/templates.md), so "
+                         "read them as the spiral's morphology, not as measurements of the disc.")
         if self.position_resolved() is False:
             lines.append("  The scan's position grid does not resolve the planet (every other radius and azimuth "
                          "give other marginals): scan with more radii and azimuths (n_r_p, n_phi_p, r_p).")
