@@ -63,8 +63,7 @@ from .families import Family, select_family, template_families
 from .settings import LIMIT_METHODS, LimitSettings
 from .table3 import describe_family_limits, runs
 
-__all__ = ["ExclusionLimits", "amplitude_upper_limit", "compute_limits", "data_resolution", "bright_extent",
-           "z_score"]
+__all__ = ["ExclusionLimits", "amplitude_upper_limit", "compute_limits", "data_resolution", "bright_extent", "z_score"]
 
 LIMITS_KIND = "spiralbayes.ExclusionLimits"
 FLAG_UNRESOLVED = "unresolved"

@@ -65,11 +65,26 @@ from .mass import (
 from .family_run import family_evidence, family_metadata, family_name, sample_family
 from .scan_evidence import GRID_LN_B_ERROR, GridEvidence, family_grid_evidence, grid_run, template_grid_evidence
 from .sampler import LogPosterior, NullLogPosterior, lower_grid_runs, refit_axisymmetric, sample_posterior
-from .physics import PHYSICS_AXES, PhysicsPosterior, physics_posterior, position_ln_bayes
+from .physics import (
+    DEFAULT_H_STEP,
+    DEFAULT_N_MASSES,
+    GRID_FACTOR,
+    PHYSICS_AXES,
+    RESOLUTION_TOLERANCE,
+    UPSAMPLE,
+    PhysicsPosterior,
+    physics_posterior,
+    position_ln_bayes,
+)
 from .odds import NO_ASYMMETRY, check_alternatives, hypothesis_weights, model_probabilities, scan_alternatives
 
 __all__ = [
+    "DEFAULT_H_STEP",
+    "DEFAULT_N_MASSES",
+    "GRID_FACTOR",
     "PHYSICS_AXES",
+    "RESOLUTION_TOLERANCE",
+    "UPSAMPLE",
     "PhysicsPosterior",
     "physics_posterior",
     "position_ln_bayes",

@@ -48,25 +48,18 @@ from .priors import Priors
 from .likelihood import log_amplitude_integral
 from .scan_evidence import _nearest_cells
 
-__all__ = ["DEFAULT_H_STEP", "DEFAULT_N_MASSES", "PHYSICS_AXES", "PhysicsPosterior", "physics_posterior"]
+__all__ = ["DEFAULT_H_STEP", "DEFAULT_N_MASSES", "GRID_FACTOR", "PHYSICS_AXES", "RESOLUTION_TOLERANCE", "UPSAMPLE",
+           "PhysicsPosterior", "physics_posterior", "position_ln_bayes"]
 
 log = logging.getLogger(__name__)
 
 PHYSICS_AXES = ("h_p", "slope", "alpha", "orbits", "mass")
-"""The lattice's axes, in the order of :attr:`PhysicsPosterior.ln_bayes`'s (the hand between ``orbits``
-and ``mass``)."""
-
-def _same(v):
-    return np.asarray(v, dtype=float)
-
-
-def _exp10(c):
-    return 10.0 ** np.asarray(c, dtype=float)
-
+"""The lattice's axes, in the order of a :class:`PhysicsPosterior`'s ``ln_bayes`` (the hand between
+``orbits`` and ``mass``)."""
 
 _PRIOR_COORDINATE: dict[str, tuple[Callable, Callable]] = {
-    "h_p": (_same, _same), "slope": (_same, _same), "alpha": (np.log10, _exp10), "orbits": (np.log, np.exp),
-    "mass": (np.log, np.exp)}
+    "h_p": (np.asarray, np.asarray), "slope": (np.asarray, np.asarray), "alpha": (np.log10, lambda c: 10.0 ** c),
+    "orbits": (np.log, np.exp), "mass": (np.log, np.exp)}
 """Each axis's coordinate in which its prior is uniform (forward, inverse)."""
 
 DEFAULT_H_STEP = 0.005
@@ -78,8 +71,9 @@ DEFAULT_N_MASSES = 12
 UPSAMPLE = 4
 """How many times finer than the scan's grid :func:`position_ln_bayes` integrates the likelihood."""
 
-POSITION_GRID = {"n_r_p": 100, "n_phi_p": 360}
-"""The scan's default position grid here: four times the scan's default in each direction. A strong
+GRID_FACTOR = 4
+"""The scan's default position grid here is this many times finer in r_p and φ_p than the scan's own
+default (:class:`~spiralbayes.inference.scan.ScanSettings`: 100 radii and 360 azimuths). A strong
 planet's likelihood peak can be narrower than the scan's default cells, and then a change of ``H/r``
 (which turns the arms) trades against the grid's azimuth offsets, so that the lattice's ``ln B`` jumps
 from one ``H/r`` to the next; :func:`position_ln_bayes` interpolates ``ln L`` between the cells, which
@@ -121,7 +115,7 @@ class PhysicsPosterior(ResultMixin):
     ln_bayes_coarse : ndarray or None
         The same from every other scanned radius and azimuth (:meth:`position_resolved` compares them).
     mass_prior : dict
-        :meth:`~.mass.MassPrior.to_dict` of the prior that converts masses (stellar mass, template
+        ``MassPrior.to_dict()`` of the prior that converts masses (stellar mass, template
         mismatch).
     provenance : dict
     """
@@ -167,7 +161,7 @@ class PhysicsPosterior(ResultMixin):
 
     @property
     def log_probability(self) -> np.ndarray:
-        """Normalised ``ln P`` of each lattice cell (shape of :attr:`ln_bayes`)."""
+        """Normalised ``ln P`` of each lattice cell (the shape of ``ln_bayes``)."""
         return self._normalised(self.ln_bayes)
 
     def _normalised(self, ln_bayes: np.ndarray) -> np.ndarray:
@@ -363,7 +357,7 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
         Aspect ratios ``H/r`` at r_p; default every :data:`DEFAULT_H_STEP` across the model's box.
     slope, alpha, orbits : array_like, optional
         Surface-density slopes, viscosities α and ages [orbits]; default the learned bank's
-        (:data:`~spiralbayes.templates.learned.DEFAULT_SLOPES`, ``DEFAULT_ALPHAS``, ``DEFAULT_ORBITS``).
+        (:data:`~spiralbayes.templates.learned.bank.DEFAULT_SLOPES`, ``DEFAULT_ALPHAS``, ``DEFAULT_ORBITS``).
         One value fixes a parameter.
     masses : array_like, optional
         Template masses [M_th]; default :data:`DEFAULT_N_MASSES` log-spaced over ``mass_prior``'s range.
@@ -411,7 +405,12 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
     hands = [str(h) for h in ([hands] if isinstance(hands, str) else hands)]
     bank = learned_bank(model, lattice["mass"], lattice["h_p"], lattice["slope"], lattice["alpha"],
                         lattice["orbits"], float(tau0), hands, cache_dir=cache_dir, progress=progress)
-    grid = {k: v for k, v in POSITION_GRID.items() if not (k == "n_r_p" and r_p is not None)}
+    from ..scan.settings import ScanSettings
+
+    default = ScanSettings()
+    grid = {"n_phi_p": GRID_FACTOR * default.n_phi_p}
+    if r_p is None:
+        grid["n_r_p"] = GRID_FACTOR * default.n_r_p
     result = scan(vis, axisymmetric, bank, geometry, r_p=r_p, progress=progress, **{**grid, **scan_overrides})
     priors = priors or Priors.default(axisymmetric)
     r_scan = np.asarray(result.r_p, dtype=float)
