@@ -7,7 +7,7 @@ and ``ln`` offsets of the medians from the truth. Rows are cached in a JSON-line
 interrupted run resumes (about 10 minutes a case on 2 cores).
 
     PYTHONPATH=src:. python tools/physics_held_out.py               # every case (resumes)
-    PYTHONPATH=src:. python tools/physics_held_out.py --cases physics:h0.08_mu2 --taus 3
+    PYTHONPATH=src:. python tools/physics_held_out.py --cases physics:h0.08_mu2 --taus 3 --keep posteriors/
 """
 
 from __future__ import annotations
@@ -28,12 +28,14 @@ VERSION = 1
 """Changes when the cases' set-up changes (cached rows of another version are recomputed)."""
 
 
-def case_row(name: str, tau0: float) -> dict:
+def case_row(name: str, tau0: float, keep: Path | None = None) -> dict:
     from tests._support.physics_setup import held_out_posterior
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as cache:
         run, post = held_out_posterior(name, tau0, cache)
+    if keep is not None:  # the whole lattice, for looking at it again without rerunning
+        post.save(keep / f"{name.replace(':', '_')}_tau{tau0:g}_v{VERSION}.h5")
     ci = post.intervals(0.95)
     truth = {"h_p": run.h_p, "M_p": run.mass, "slope": run.slope, "alpha": run.alpha}
     row = {"run": name, "tau0": tau0, "truth": truth, "wall_s": time.perf_counter() - t0,
@@ -74,6 +76,7 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", nargs="*", default=list(RUNS), help="physics-set runs (default: all 7)")
     ap.add_argument("--taus", nargs="*", type=float, default=list(TAUS))
     ap.add_argument("--cache", default=None, help="JSON-lines cache (default: <cache dir>/physics_held_out.jsonl)")
+    ap.add_argument("--keep", default=None, help="a folder to save each case's PhysicsPosterior in")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     from spiralbayes.templates.bank import default_cache_dir
@@ -85,7 +88,7 @@ def main(argv=None) -> int:
             key = f"v{VERSION}|{name}|{tau0:g}"
             row = cache.get(key)
             if row is None:
-                row = {"key": key, **case_row(name, tau0)}
+                row = {"key": key, **case_row(name, tau0, Path(args.keep) if args.keep else None)}
                 cache.put(row)
                 logging.warning("%s tau0 %g done in %.0f s", name, tau0, row["wall_s"])
             rows.append(row)
