@@ -109,7 +109,7 @@ class PhysicsPosterior(ResultMixin):
     hands : list of str
         The hands scanned.
     ln_bayes : ndarray, shape (n_h, n_slope, n_alpha, n_orbits, n_hands, n_mass)
-        ``ln B`` against no planet of the template at each lattice point (the scan's grid evidence).
+        ``ln B`` against no planet of the template at each lattice point (:func:`position_ln_bayes`).
     tau0 : float
         The templates' optical depth at r_p.
     ln_bayes_coarse : ndarray or None
@@ -389,6 +389,7 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
     """
     from ...templates.learned import DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, learned_bank
     from ..scan.run import scan
+    from ..scan.settings import ScanSettings
 
     t0 = time.perf_counter()
     mass_prior = mass_prior or MassPrior()
@@ -405,8 +406,6 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
     hands = [str(h) for h in ([hands] if isinstance(hands, str) else hands)]
     bank = learned_bank(model, lattice["mass"], lattice["h_p"], lattice["slope"], lattice["alpha"],
                         lattice["orbits"], float(tau0), hands, cache_dir=cache_dir, progress=progress)
-    from ..scan.settings import ScanSettings
-
     default = ScanSettings()
     grid = {"n_phi_p": GRID_FACTOR * default.n_phi_p}
     if r_p is None:
