@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from learned_model_loro import Cache  # the tools' JSON-lines store
 
-VERSION = 1
+VERSION = 2
 """Changes when the cases' set-up changes (cached rows of another version are recomputed)."""
 
 

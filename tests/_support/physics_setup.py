@@ -4,8 +4,9 @@ posterior — shared by ``tests/inference/posterior/test_physics_held_out.py`` a
 Each run's own reduced map is planted with the exact type-3 transform in the weak observation's disc
 (1500 baselines, the planet alone at χ² = 400, ``mass_setup.plant``); the learned model is fitted without
 that run; :func:`~spiralbayes.inference.posterior.physics.physics_posterior` scans :data:`H_P` (H/r
-0.05–0.11 every 0.005), the learned bank's three slopes and viscosities, :data:`MASSES` and both hands
-(1404 templates) on 41 radii over 0.25–0.45″ and 360 azimuths, with the default template-mismatch scatter.
+0.05–0.11 every 0.005), the learned bank's three slopes and viscosities, the ages :data:`ORBITS` (the
+runs are 20 orbits old but one, 500), :data:`MASSES` and the planted hand (1404 templates) on 41 radii
+over 0.25–0.45″ and 360 azimuths, with the default template-mismatch scatter.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ RUNS = ("physics:h0.06_mu0.5", "physics:h0.07_mu1_nu1e-04", "physics:h0.07_mu1_n
 TAUS = (0.3, 3.0)
 H_P = np.round(np.arange(0.05, 0.1101, 0.005), 4)
 MASSES = np.geomspace(0.3, 3.0, 6)
+ORBITS = (20.0, 200.0)
 R_P_GRID = np.linspace(0.25, 0.45, 41)
 
 
@@ -49,7 +51,7 @@ def held_out_posterior(name: str, tau0: float, cache_dir) -> tuple[TrainingRun, 
     axisym = AxisymmetricModel.from_profile(profile, TRUE_GEOMETRY, N=80)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        post = physics_posterior(planted(run, tau0), axisym, model, tau0, h_p=H_P, masses=MASSES,
-                                 priors=Priors.default(axisym, r_p=R_RANGE), mass_prior=MassPrior(), r_p=R_P_GRID,
-                                 cache_dir=cache_dir, progress=False)
+        post = physics_posterior(planted(run, tau0), axisym, model, tau0, h_p=H_P, masses=MASSES, orbits=ORBITS,
+                                 hands="R", priors=Priors.default(axisym, r_p=R_RANGE), mass_prior=MassPrior(),
+                                 r_p=R_P_GRID, cache_dir=cache_dir, progress=False)
     return run, post

@@ -21,6 +21,5 @@ def test_held_out_planets_aspect_ratio_and_mass_lie_in_the_95_percent_intervals(
     ci = post.intervals(0.95)
     print(f"{held_out} tau0 {tau0}: truth M_p {run.mass:g}, H/r {run.h_p:g}\n{post.summary()}")
     assert post.position_resolved() is True
-    assert post.marginal("hand")["R"] > 0.95
     assert ci["h_p"]["lo"] <= run.h_p <= ci["h_p"]["hi"], ci["h_p"]
     assert ci["M_p"]["lo"] <= run.mass <= ci["M_p"]["hi"], ci["M_p"]
