@@ -66,6 +66,7 @@ from .family_run import family_evidence, family_metadata, family_name, sample_fa
 from .scan_evidence import GRID_LN_B_ERROR, GridEvidence, family_grid_evidence, grid_run, template_grid_evidence
 from .sampler import LogPosterior, NullLogPosterior, lower_grid_runs, refit_axisymmetric, sample_posterior
 from .physics import (
+    DEFAULT_AGES,
     DEFAULT_H_STEP,
     DEFAULT_N_MASSES,
     GRID_FACTOR,
@@ -79,6 +80,7 @@ from .physics import (
 from .odds import NO_ASYMMETRY, check_alternatives, hypothesis_weights, model_probabilities, scan_alternatives
 
 __all__ = [
+    "DEFAULT_AGES",
     "DEFAULT_H_STEP",
     "DEFAULT_N_MASSES",
     "GRID_FACTOR",

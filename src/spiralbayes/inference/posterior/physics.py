@@ -4,10 +4,10 @@ A learned model (:class:`~spiralbayes.templates.learned.LearnedTemplateModel`) p
 any aspect ratio ``h_p = H/r``, surface-density slope ``p``, viscosity ``α``, age and mass, so the
 posterior of those parameters need not stop at a bank's few values. :func:`physics_posterior`
 predicts the templates on a lattice (by default ``H/r`` every 0.005 across the model's box, the
-learned bank's slopes and viscosities, 12 masses), scans them, and reads each template's Bayes factor
-against no planet from the scan's terms (:func:`position_ln_bayes`: the amplitude integrated over its
-prior, ``ln L`` interpolated between the scanned positions and ``(r_p, φ_p)`` integrated over the
-prior, at the scan's geometry). With uniform priors in ``H/r``, ``p``,
+learned bank's slopes and viscosities, ages 20 and 200 orbits, 12 masses), scans them, and reads each
+template's Bayes factor against no planet from the scan's terms (:func:`position_ln_bayes`: the
+amplitude integrated over its prior, ``ln L`` interpolated between the scanned positions and
+``(r_p, φ_p)`` integrated over the prior, at the scan's geometry). With uniform priors in ``H/r``, ``p``,
 ``log10 α``, ``ln age``, ``ln M_p`` and the hand, each lattice value stands for the interval of
 values nearest to it (half intervals at the ends), and
 
@@ -48,8 +48,8 @@ from .priors import Priors
 from .likelihood import log_amplitude_integral
 from .scan_evidence import _nearest_cells
 
-__all__ = ["DEFAULT_H_STEP", "DEFAULT_N_MASSES", "GRID_FACTOR", "PHYSICS_AXES", "RESOLUTION_TOLERANCE", "UPSAMPLE",
-           "PhysicsPosterior", "physics_posterior", "position_ln_bayes"]
+__all__ = ["DEFAULT_AGES", "DEFAULT_H_STEP", "DEFAULT_N_MASSES", "GRID_FACTOR", "PHYSICS_AXES",
+           "RESOLUTION_TOLERANCE", "UPSAMPLE", "PhysicsPosterior", "physics_posterior", "position_ln_bayes"]
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +67,10 @@ DEFAULT_H_STEP = 0.005
 
 DEFAULT_N_MASSES = 12
 """Log-spaced masses of the default lattice over the mass prior's range."""
+
+DEFAULT_AGES = (20.0, 200.0)
+"""Ages [orbits] of the default lattice: the two the training runs hold at many masses and aspect ratios
+(a planet's age moves its H/r and mass in the posterior)."""
 
 UPSAMPLE = 4
 """How many times finer than the scan's grid :func:`position_ln_bayes` integrates the likelihood."""
@@ -355,10 +359,12 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
         Optical depth at r_p of the templates.
     h_p : array_like, optional
         Aspect ratios ``H/r`` at r_p; default every :data:`DEFAULT_H_STEP` across the model's box.
-    slope, alpha, orbits : array_like, optional
-        Surface-density slopes, viscosities α and ages [orbits]; default the learned bank's
-        (:data:`~spiralbayes.templates.learned.bank.DEFAULT_SLOPES`, ``DEFAULT_ALPHAS``, ``DEFAULT_ORBITS``).
-        One value fixes a parameter.
+    slope, alpha : array_like, optional
+        Surface-density slopes and viscosities α; default the learned bank's
+        (:data:`~spiralbayes.templates.learned.bank.DEFAULT_SLOPES`, ``DEFAULT_ALPHAS``). One value fixes a
+        parameter.
+    orbits : array_like, optional
+        Ages [orbits]; default :data:`DEFAULT_AGES`.
     masses : array_like, optional
         Template masses [M_th]; default :data:`DEFAULT_N_MASSES` log-spaced over ``mass_prior``'s range.
     hands : sequence of {'R', 'L'}
@@ -387,7 +393,7 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
     InputError
         A lattice value outside the model's training box (the message names it), or an empty lattice.
     """
-    from ...templates.learned import DEFAULT_ALPHAS, DEFAULT_ORBITS, DEFAULT_SLOPES, learned_bank
+    from ...templates.learned import DEFAULT_ALPHAS, DEFAULT_SLOPES, learned_bank
     from ..scan.run import scan
     from ..scan.settings import ScanSettings
 
@@ -401,7 +407,7 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
         masses = np.geomspace(mass_prior.mass_range[0], mass_prior.mass_range[1], DEFAULT_N_MASSES)
     lattice = {"h_p": _lattice("h_p", h_p), "slope": _lattice("slope", DEFAULT_SLOPES if slope is None else slope),
                "alpha": _lattice("alpha", DEFAULT_ALPHAS if alpha is None else alpha),
-               "orbits": _lattice("orbits", DEFAULT_ORBITS if orbits is None else orbits),
+               "orbits": _lattice("orbits", DEFAULT_AGES if orbits is None else orbits),
                "mass": _lattice("masses", masses)}
     hands = [str(h) for h in ([hands] if isinstance(hands, str) else hands)]
     bank = learned_bank(model, lattice["mass"], lattice["h_p"], lattice["slope"], lattice["alpha"],
