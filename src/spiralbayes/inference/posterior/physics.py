@@ -20,8 +20,8 @@ mismatch's scatter in ``ln M_p`` and the stellar mass's prior as in :class:`~.ma
 
 The slope, viscosity and age intervals are the posterior of the model's templates, and the templates
 are not the planet: on held-out hydrodynamic planets (``tests/inference/posterior/test_physics_held_out.py``)
-H/r and M_p fell inside their intervals while the slope and viscosity came out confidently at other
-values, and the summary says so. What it leaves out, stated: the geometry is the scan's, not
+H/r and M_p fell inside their intervals in every case measured, the slope and viscosity in only some,
+and the summary says so. What it leaves out, stated: the geometry is the scan's, not
 integrated (``sample_posterior`` does that, for the bank's discs); a credible interval narrower than
 about three lattice steps is not resolved (:meth:`PhysicsPosterior.resolved` says so, and the summary
 asks for a finer lattice around the peak, ``h_p=np.arange(...)``); and a position grid too coarse for
@@ -294,8 +294,8 @@ class PhysicsPosterior(ResultMixin):
         lines.append(f"  P(right-handed) = {self.marginal('hand').get('R', 0.0):.3f}")
         if any(getattr(self, a).size > 1 for a in ("slope", "alpha", "orbits")):
             lines.append("  The slope, alpha and age are those of the templates that fit best: on held-out "
-                         "hydrodynamic planets they missed the truth while H/r and M_p held (docs/templates.md), so "
-                         "read them as the spiral's morphology, not as measurements of the disc.")
+                         "hydrodynamic planets their intervals missed the truth in several cases where H/r and M_p "
+                         "held (docs/templates.md), so read them as the spiral's morphology, not as measurements.")
         if self.position_resolved() is False:
             lines.append("  The scan's position grid does not resolve the planet (every other radius and azimuth "
                          "give other marginals): scan with more radii and azimuths (n_r_p, n_phi_p, r_p).")
