@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from learned_model_loro import Cache  # the tools' JSON-lines store
+from learned_model_loro import Cache, _file_key  # the tools' JSON-lines store and training-set key
 
 VERSION = 2
 """Changes when the cases' set-up changes (cached rows of another version are recomputed)."""
@@ -82,10 +82,13 @@ def main(argv=None) -> int:
     from spiralbayes.templates.bank import default_cache_dir
 
     cache = Cache(Path(args.cache) if args.cache else default_cache_dir() / "physics_held_out.jsonl")
+    from spiralbayes.templates.learned import reference_files
+
+    training = _file_key(reference_files())  # a row is the model's on these training files
     rows = []
     for name in args.cases:
         for tau0 in args.taus:
-            key = f"v{VERSION}|{name}|{tau0:g}"
+            key = f"v{VERSION}|{name}|{tau0:g}|{training}"
             row = cache.get(key)
             if row is None:
                 row = {"key": key, **case_row(name, tau0, Path(args.keep) if args.keep else None)}
