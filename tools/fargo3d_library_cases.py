@@ -246,6 +246,22 @@ CASES += CONTINUUM
 AGED = [_case("aged00_mu3_h0.06_slope1_alpha2.0e-03_orbits200", 3.0, 0.06, sigma_slope=1.0, nu=2.0e-3 * 0.06**2,
               orbits=200.0, role="slope1_alpha2.0e-03_orbits200", batch="continuum")]
 CASES += AGED
+
+
+def _near(k: int, mu: float, h_p: float, slope: float, alpha: float) -> Case:
+    role = f"slope{slope:g}_alpha{alpha:.1e}"
+    return _case(f"near{k:02d}_mu{mu:g}_h{h_p:.2f}_{role}", mu, h_p, sigma_slope=slope, nu=alpha * h_p**2,
+                 role=role, batch="continuum")
+
+
+# 20-orbit neighbours of the runs the learned model recovers worst when they are held out
+# (docs/templates.md, "Leave one run out"): the library's 3 M_th planet at H/r 0.07 (no other
+# 20-orbit planet above 2.1 M_th between H/r 0.05 and 0.11), the low-α massive planet at H/r 0.11 and
+# the lightest planet at H/r 0.12. Cheapest and nearest first; α ≥ 2e-3 for the massive ones, whose
+# lower-viscosity neighbours at H/r 0.08–0.10 grew vortices.
+NEAR = [_near(0, 3.0, 0.06, 1.0, 2.0e-3), _near(1, 3.0, 0.08, 1.0, 5.0e-3), _near(2, 2.5, 0.07, 0.7, 2.0e-3),
+        _near(3, 1.5, 0.11, 1.2, 2.0e-4), _near(4, 0.2, 0.12, 1.0, 1.0e-3), _near(5, 3.0, 0.07, 1.3, 5.0e-3)]
+CASES += NEAR
 BY_NAME = {c.name: c for c in CASES}
 
 

@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from learned_model_loro import Cache, _file_key  # the tools' JSON-lines store and training-set key
 
-VERSION = 2
+VERSION = 3
 """Changes when the cases' set-up changes (cached rows of another version are recomputed)."""
 
 
@@ -39,7 +39,8 @@ def case_row(name: str, tau0: float, keep: Path | None = None) -> dict:
     ci = post.intervals(0.95)
     truth = {"h_p": run.h_p, "M_p": run.mass, "slope": run.slope, "alpha": run.alpha}
     row = {"run": name, "tau0": tau0, "truth": truth, "wall_s": time.perf_counter() - t0,
-           "position_resolved": post.position_resolved(), "p_right": post.marginal("hand").get("R", 0.0)}
+           "position_resolved": post.position_resolved(), "p_right": post.marginal("hand").get("R", 0.0),
+           "position_levels": post.provenance.get("position_levels", [])}
     for key, value in truth.items():
         c = ci[key]
         row[key] = {**c, "inside": bool(c["lo"] <= value <= c["hi"]), "ln_offset": float(np.log(c["median"] / value))}

@@ -111,8 +111,8 @@ SCHEMA: dict[str, dict[str, tuple[object, str]]] = {
                           "this machine; else a scheduler address (tcp://host:8786)"),
     },
     "alternatives": {
-        "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, m = "
-                      "2) and apply test 3"),
+        "fit": (True, "fit the competing asymmetry models (geometry error, arc/vortex, lopsided, eccentric ring, "
+                      "eccentric bright ring, m = 2) and apply test 3"),
         **config_options(AlternativesSettings),
         "refit_geometry": (True, "if no spiral is detected and the geometry alternative has Delta BIC > 10: refit "
                                  "frank at its geometry, rescan and decide again (OUTPUT/refit_geometry/)"),

@@ -5,7 +5,7 @@ top of the same axisymmetric profile and with exact visibilities:
 
 * ``geometry`` — the profile under another inclination, PA and phase centre
   (:mod:`.geometry_error`);
-* ``arc``, ``lopsided``, ``eccentric_ring``, ``m2`` — brightness perturbations on a polar
+* ``arc``, ``lopsided``, ``eccentric_ring``, ``eccentric_excess``, ``m2`` — brightness perturbations on a polar
   grid of the disc plane (:mod:`.fields`, transformed by :mod:`.grid`).
 
 Their maximum-likelihood fits live in :mod:`spiralbayes.inference.detection.alternatives`.
@@ -41,7 +41,8 @@ __all__ = [
 ]
 
 ALTERNATIVE_MODELS = ("geometry", *FIELD_MODELS)
-"""Every alternative, by name: ``geometry``, ``arc``, ``lopsided``, ``eccentric_ring``, ``m2``."""
+"""Every alternative, by name: ``geometry``, ``arc``, ``lopsided``, ``eccentric_ring``, ``eccentric_excess``,
+``m2``."""
 ALTERNATIVE_LABELS = {"geometry": "geometry error", **{k: m.label for k, m in FIELD_MODELS.items()}}
 
 

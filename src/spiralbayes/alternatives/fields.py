@@ -28,6 +28,16 @@ Models (``r`` and radii in arcsec, angles in rad, ``phi`` the disc azimuth of
     (1 - e^2 W^2)`` (from ``r = a (1 - e^2) / (1 + e cos(phi - omega))``), so a ring is both
     displaced towards apocentre and elongated. ``P = I_A(a) - I_A(r)``; parameters
     ``(e_c, e_s, r_c, sigma_r)`` with ``e_c + i e_s = e exp(i omega)``.
+``eccentric_excess``
+    A ring of excess (contrast > 0) or missing (< 0) brightness whose centre line is a Keplerian
+    ellipse of semi-major axis ``r_c`` and eccentricity ``e`` (star at a focus, pericentre at
+    ``omega``) over a circular disc: ``P = C I_A(r) exp(-(a - r_c)^2 / 2 w^2)`` with ``a`` as above
+    (``W = 1``). Where ``eccentric_ring`` moves the whole profile near ``r_c`` (an eccentric stretch of
+    disc, or a cavity edge), this moves only the ring (a dust ring in a disc that stays circular, as
+    eccentric rings are often modelled, e.g. MacGregor et al. 2017 for Fomalhaut). Its circular part,
+    which frank's profile holds, is removed with the ring means, so what is fitted is the eccentric
+    part, to first order ``-C I_A r e cos(phi - omega) (r - r_c) / w^2`` times the Gaussian.
+    Parameters ``(e_c, e_s, r_c, width, contrast)``.
 ``m2``
     A point-symmetric two-armed pattern, the control: a bar (``kappa = 0``) or a two-armed
     logarithmic spiral not driven by a planet (gravitational instability, flybys), ``P = I_A W
@@ -50,8 +60,8 @@ from ..exceptions import InputError
 from ..units import wrap_angle
 from .grid import DiscGrid, remove_ring_mean
 
-__all__ = ["ArcModel", "EccentricRingModel", "FIELD_MODELS", "FieldModel", "LopsidedModel", "M2Model",
-           "ProfileContext"]
+__all__ = ["ArcModel", "EccentricExcessModel", "EccentricRingModel", "FIELD_MODELS", "FieldModel", "LopsidedModel",
+           "M2Model", "ProfileContext"]
 
 PROFILE_TABLE_POINTS = 6000
 SIGMA_PHI_MAX = 1.4
@@ -293,5 +303,47 @@ class EccentricRingModel(FieldModel):
                 "r_c": float(r_c), "sigma_r": float(s_r)}
 
 
-FIELD_MODELS = {m.name: m for m in (ArcModel(), LopsidedModel(), EccentricRingModel(), M2Model())}
+class EccentricExcessModel(FieldModel):
+    name = "eccentric_excess"
+    label = "eccentric bright ring"
+    param_names = ("e_c", "e_s", "r_c", "width", "contrast")
+    amplitude_indices = (0, 1)
+    E_MAX = 0.5
+    CONTRAST_RANGE = (-1.0, 10.0)
+    """A deficit cannot remove more than the disc's brightness; an excess of 10 is a ring in a faint gap."""
+
+    def raw(self, theta, ctx):
+        e_c, e_s, r_c, w, C = theta
+        g = ctx.grid
+        cos_p, sin_p = np.cos(g.phi)[None, :], np.sin(g.phi)[None, :]
+        rr = g.r[:, None]
+        D = 1 - (e_c ** 2 + e_s ** 2)
+        num = 1 + e_c * cos_p + e_s * sin_p
+        a = rr * num / D
+        u, u0 = (a - r_c) / w ** 2, (rr - r_c) / w ** 2
+        ring = ctx.I_ring[:, None] * np.exp(-0.5 * (a - r_c) * u)
+        circle = ctx.I_ring[:, None] * np.exp(-0.5 * (rr - r_c) * u0)
+        # the circular ring subtracted here would go with the ring means anyway; this way e = 0 gives exactly 0
+        P = C * (ring - circle)
+        dP_da = -C * ring * u
+        J = np.stack([dP_da * rr * (cos_p * D + num * 2 * e_c) / D ** 2,
+                      dP_da * rr * (sin_p * D + num * 2 * e_s) / D ** 2,
+                      C * (ring * u - circle * u0), C * (ring * (a - r_c) * u - circle * (rr - r_c) * u0) / w,
+                      ring - circle])
+        return P, J
+
+    def bounds(self, ctx, theta0=None):
+        r_c, _ = _radial_bounds(ctx)
+        return [(-self.E_MAX, self.E_MAX), (-self.E_MAX, self.E_MAX), r_c, (ctx.grid.dr, 0.5 * ctx.grid.r_max),
+                self.CONTRAST_RANGE]
+
+    def describe(self, theta):
+        e_c, e_s, r_c, w, C = theta
+        return {"e": float(np.hypot(e_c, e_s)),
+                "omega_deg": float(wrap_angle(np.degrees(np.arctan2(e_s, e_c)), 0.0, 360.0)),
+                "r_c": float(r_c), "width": float(w), "contrast": float(C)}
+
+
+FIELD_MODELS = {m.name: m for m in (ArcModel(), LopsidedModel(), EccentricRingModel(), EccentricExcessModel(),
+                                    M2Model())}
 """The brightness-perturbation alternatives by name."""

@@ -295,6 +295,11 @@ def test_radii_near_a_significant_asymmetry_are_flagged_not_excluded(planted_pla
     assert bands[0]["r_min"] == pytest.approx(0.41) and bands[0]["r_max"] == pytest.approx(0.49)
     back = type(guarded).load(guarded.save(tmp_path / "limits.h5"))
     assert back.provenance["near_asymmetries"] == bands and back.summary() == guarded.summary()
+    # an eccentric bright ring's band: its width for σ_r, widened by the ellipse's reach e r_c
+    ring = {"test1_passed": False, "alternatives": {"eccentric_excess": {
+        "delta_bic": 30.0, "params": {"r_c": 0.3, "width": 0.02, "e": 0.1, "omega_deg": 10.0, "contrast": 0.5}}}}
+    assert asymmetry_bands(ring) == [{"model": "eccentric_excess", "r_min": pytest.approx(0.23),
+                                      "r_max": pytest.approx(0.37), "delta_bic": 30.0}]
 
 
 def test_a_verdict_dict_flags_the_planet_as_the_verdict_does(planted_planet_limits):

@@ -99,10 +99,17 @@ def test_a_planted_learned_planets_aspect_ratio_and_mass_lie_in_the_95_percent_i
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         post = physics_posterior(vis, axisym, model, 0.3, r_p=np.linspace(0.25, 0.45, 41), **kwargs)
-        coarse = physics_posterior(vis, axisym, model, 0.3, r_p=np.linspace(0.2, 0.5, 11), n_phi_p=60, **kwargs)
+        coarse = physics_posterior(vis, axisym, model, 0.3, r_p=np.linspace(0.2, 0.5, 11), n_phi_p=60, refine=0,
+                                   **kwargs)
+        refined = physics_posterior(vis, axisym, model, 0.3, r_p=np.linspace(0.2, 0.5, 11), n_phi_p=60, **kwargs)
     ci = post.intervals(0.95)
-    print(post.summary())
+    print(post.summary(), refined.provenance["position_levels"], sep="\n")
     assert post.position_resolved() is True and coarse.position_resolved() is False
+    # refined around the peak, the coarse grid's posterior is the fine grid's
+    assert refined.position_resolved() is True and len(refined.provenance["position_levels"]) > 1
+    for axis in ("h_p", "mass"):
+        fine, ref = np.array(list(post.marginal(axis).values())), np.array(list(refined.marginal(axis).values()))
+        assert 0.5 * np.abs(fine - ref).sum() < 0.05, (axis, fine, ref)
     assert ci["h_p"]["lo"] <= 0.0725 <= ci["h_p"]["hi"] and ci["h_p"]["hi"] - ci["h_p"]["lo"] < 0.02
     assert ci["M_p"]["lo"] <= 1.5 <= ci["M_p"]["hi"]
     assert post.marginal("hand")["R"] > 0.99 and post.ln_bayes_factor > 50

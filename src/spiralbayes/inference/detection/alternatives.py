@@ -3,7 +3,7 @@
 Each alternative of :mod:`spiralbayes.alternatives` is fitted to the same visibilities and
 weights as the scan, relative to the same axisymmetric model ``V_A``:
 ``Δχ²_alt = χ²_AO − min_θ χ²(V_A + ΔV_alt(θ), V_O)`` and ``ΔBIC_alt = Δχ²_alt − k_alt ln N``
-(k = 4 for ``geometry``, ``lopsided`` and ``eccentric_ring``, 5 for ``arc`` and ``m2``), to be
+(k = 4 for ``geometry``, ``lopsided`` and ``eccentric_ring``, 5 for ``arc``, ``eccentric_excess`` and ``m2``), to be
 compared with the best spiral's ``ΔBIC = Δχ² − 6 ln N`` (:func:`~spiralbayes.inference.detection.detect`).
 
 How:
@@ -62,7 +62,7 @@ log = logging.getLogger(__name__)
 
 ALTERNATIVES_KIND = "spiralbayes.AlternativesResult"
 PARAM_SCALES = {"A": 0.3, "a_c": 0.1, "a_s": 0.1, "c_c": 0.1, "c_s": 0.1, "e_c": 0.05, "e_s": 0.05,
-                "phi_c": 0.5, "sigma_phi": 0.5, "kappa": 1.0}
+                "phi_c": 0.5, "sigma_phi": 0.5, "kappa": 1.0, "contrast": 0.3}
 """Typical sizes of the parameters (radii scale with the grid): the optimiser works in these units."""
 
 
@@ -331,7 +331,7 @@ def fit_alternatives(vis, axisymmetric, geometry: DiscGeometry | None = None, *,
         Default: the axisymmetric model's (the scan's) geometry.
     settings : AlternativesSettings, optional
         The ``models`` (a subset of :data:`~spiralbayes.alternatives.ALTERNATIVE_MODELS`; default
-        all five), ``n_starts`` optimiser starts per field model (the best-correlating shapes of
+        all six), ``n_starts`` optimiser starts per field model (the best-correlating shapes of
         the residual image), ``max_iter`` L-BFGS-B iterations per start, the grid's outer radius
         ``r_max`` [arcsec] (default 1.1 times the radius holding 99.5 % of the profile's flux),
         its ``cell_factor`` (radial cells at most ``1 / (cell_factor uv_max)`` wide, see

@@ -462,6 +462,7 @@ def also_present_phrase(fit) -> str:
         near = d <= max(2 * p["sigma_r"], 0.15 * fit.r_p)
         return "an arc-like peak at the planet" if near else "an arc/vortex elsewhere in the disc"
     return {"lopsided": "an m = 1 lopsided asymmetry", "eccentric_ring": "an eccentric ring",
+            "eccentric_excess": "an eccentric bright (or dark) ring",
             "m2": "an m = 2 (bar or two-armed) pattern",
             "geometry": "a geometry error"}.get(
         fit.alternative, fit.label)

@@ -35,7 +35,8 @@ class AlternativesSettings:
     Every field's description is its ``metadata["doc"]``; ``help()``, the API pages and ``--print-config`` show them.
     """
 
-    models: tuple | None = option(None, "which of geometry, arc, lopsided, eccentric_ring, m2 to fit (empty: all)",
+    models: tuple | None = option(None, "which of geometry, arc, lopsided, eccentric_ring, eccentric_excess, m2 to fit "
+                                  "(empty: all)",
                                   toml=[])
     threshold: float = option(10.0, "test 3: the spiral's Delta BIC must exceed the best alternative's by more "
                                     "than this")

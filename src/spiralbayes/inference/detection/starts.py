@@ -21,6 +21,10 @@ __all__ = ["candidate_starts", "linear_amplitudes"]
 SIGMA_PHI_STARTS = (0.3, 0.8)  # rad
 
 
+START_ECCENTRICITY = 0.05
+"""Eccentricity an ``eccentric_excess`` start takes (with the contrast that gives the fitted first order)."""
+
+
 def _radial_matrix(r, centres, sigma):
     """``W[i, j] = exp(-(r_j - c_i)^2 / 2 sigma^2)``."""
     return np.exp(-0.5 * ((r[None, :] - centres[:, None]) / sigma) ** 2)
@@ -77,13 +81,17 @@ def _fourier_candidates(S, ctx, beam, model_name):
     g, r = ctx.grid, ctx.grid.r
     m = 2 if model_name == "m2" else 1
     S_m = np.fft.fft(S, axis=1)[:, m] / g.n_phi  # sum_phi S e^{-i m phi} / n_phi
-    # dP/de at e = 0 is r I_A' W cos(phi - omega)
+    # dP/de at e = 0: r I_A' W cos(phi - omega) (eccentric_ring), -C I_A r (r - r_c) / w^2 G cos(phi - omega)
+    # (eccentric_excess: a narrow ring's, whose width the beam sets)
     radial = r * ctx.interpolate(r)[1] if model_name == "eccentric_ring" else ctx.I_ring
     kappas = (-2.0, 0.0, 2.0) if model_name == "m2" else (0.0,)
     out = []
     centres = r[r > 2 * g.dr]
-    for s_r in _widths(ctx, beam, broad=True):
+    excess = model_name == "eccentric_excess"
+    for s_r in _widths(ctx, beam, broad=not excess):
         Wm = _radial_matrix(r, centres, s_r) * radial[None, :]
+        if excess:
+            Wm = -Wm * r[None, :] * (r[None, :] - centres[:, None]) / s_r ** 2
         norm = np.sqrt(0.5 * g.n_phi * (Wm ** 2 @ g.cell_area ** 2))
         for kappa in kappas:
             twist = np.exp(2j * kappa * np.log(r / centres[:, None]))  # (n_c, n_r)
@@ -94,6 +102,8 @@ def _fourier_candidates(S, ctx, beam, model_name):
                 theta = [np.cos(phase), -np.sin(phase), centres[i], s_r]
                 if model_name == "m2":
                     theta.append(kappa)
+                if excess:
+                    theta.append(1.0)   # contrast: only contrast x e is set to first order
                 out.append((float(score[i]), np.array(theta)))
     return out
 
@@ -132,6 +142,8 @@ def linear_amplitudes(model, thetas, ctx: ProfileContext, transform: FieldTransf
         t0[idx] = 0.0
         if model.name == "arc":
             t0[0] = 1.0  # the arc's Jacobian in A is its shape at any A
+        if model.name == "eccentric_excess":
+            t0[4] = 1.0  # contrast 1: the amplitudes found are contrast x e
         J = model.field_and_jacobian(t0, ctx)[1]
         basis.append(J[idx])
     dV = transform.visibilities(np.concatenate(basis)).reshape(len(thetas), len(idx), -1)
@@ -151,6 +163,10 @@ def linear_amplitudes(model, thetas, ctx: ProfileContext, transform: FieldTransf
             e = np.hypot(*a)
             if e > 0.8 * model.E_MAX:  # beyond first order: start at a safe eccentricity
                 t[idx] = a * 0.8 * model.E_MAX / e
+        if model.name == "eccentric_excess":
+            # split contrast x e, first order's only combination, at a typical e of a disc's ring (0.05)
+            contrast = float(np.clip(np.hypot(*a) / START_ECCENTRICITY, 0.05, 3.0))
+            t[idx], t[4] = a / contrast, contrast
         out.append((float(2 * a @ c - a @ M @ a), t))
     return out
 

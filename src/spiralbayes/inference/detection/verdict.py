@@ -20,14 +20,14 @@ Quantities used here (spiralbayes' definitions; thresholds are parameters):
 * ``localisation``: fraction of the scanned disc area (weights ``r dr dphi``) where the best
   template's Δχ² exceeds half its peak. Test passes when below ``max_localisation``.
 
-Test 3 (spiralbayes' addition, ``docs/verdict.md``): the paper's test 2 asks that the Δχ² structure
-show the improvement is "caused by a spiral, not some other asymmetry". Given the maximum-likelihood
-fits of the competing models (:func:`spiralbayes.inference.detection.alternatives.fit_alternatives`: geometry
-error, arc/vortex, lopsided disc, eccentric ring, m = 2 pattern), the spiral must beat the best of
-them by ``ΔBIC_spiral − ΔBIC_alt > alternative_threshold`` (default 10, "very strong" on the scale
-of Kass & Raftery 1995, the threshold test 1 uses against the axisymmetric model). Both ΔBIC are
-against the same axisymmetric model and data, so their difference is ``BIC_alt − BIC_spiral``.
-When it fails the verdict names the alternative.
+Test 3 (spiralbayes' addition, ``docs/verdict.md``): the paper's test 2 asks that the Δχ² structure show the
+improvement is "caused by a spiral, not some other asymmetry". Given the maximum-likelihood fits of the
+competing models (:func:`spiralbayes.inference.detection.alternatives.fit_alternatives`: geometry error,
+arc/vortex, lopsided disc, eccentric ring, eccentric bright ring, m = 2 pattern), the spiral must beat the
+best of them by ``ΔBIC_spiral − ΔBIC_alt > alternative_threshold`` (default 10, "very strong" on the scale of
+Kass & Raftery 1995, the threshold test 1 uses against the axisymmetric model). Both ΔBIC are against the same
+axisymmetric model and data, so their difference is ``BIC_alt − BIC_spiral``. When it fails the verdict names
+the alternative.
 
 Given the scanned data too (``vis``, ``axisymmetric``, ``templates``, as the pipeline runs it) test 3
 is the **nested** question (:mod:`.nested`): once the best alternatives (``nested_alternatives``,

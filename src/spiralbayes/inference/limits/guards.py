@@ -9,9 +9,9 @@ instead of excluded (:func:`~.exclusion.compute_limits`'s ``planets``):
   template, reads as "less than the template predicts" at the neighbouring radii
   (:func:`~.robust.near_planet_mask`);
 * **a significant competing asymmetry** (``"near_asymmetry"``): each of test 3's alternatives with an
-  annulus (arc, lopsided ring, m = 2, eccentric ring) whose ΔBIC against the axisymmetric disc
-  exceeds :data:`ASYMMETRY_THRESHOLD`, over ``r_c ± 2 σ_r``. A vortex-dominated gap edge is such a
-  disc, and no spiral template stands for it (docs/limits.md §4d).
+  annulus (arc, lopsided ring, m = 2, eccentric ring, eccentric bright ring) whose ΔBIC against the
+  axisymmetric disc exceeds :data:`ASYMMETRY_THRESHOLD`, over ``r_c ± (2 σ_r + e r_c)``. A
+  vortex-dominated gap edge is such a disc, and no spiral template stands for it (docs/limits.md §4d).
 """
 
 from __future__ import annotations
@@ -65,16 +65,18 @@ def candidate_source(planets) -> dict | None:
 
 
 def asymmetry_bands(planets, threshold: float = ASYMMETRY_THRESHOLD) -> list[dict]:
-    """The annuli ``r_c ± 2 σ_r`` [arcsec] of the verdict's competing asymmetry models with ΔBIC above
-    ``threshold`` against the axisymmetric disc (``planets``: a Verdict or its dict; none otherwise)."""
+    """The annuli ``r_c ± (2 σ_r + e r_c)`` [arcsec] of the verdict's competing asymmetry models with ΔBIC
+    above ``threshold`` against the axisymmetric disc (``planets``: a Verdict or its dict; none otherwise);
+    ``σ_r`` is a ring's ``width`` where it has one, ``e`` an eccentric model's eccentricity (else 0)."""
     verdict = _verdict_dict(planets)
     out = []
     for name, alt in ((verdict or {}).get("alternatives") or {}).items():
         params = alt.get("params") or {}
-        if alt.get("delta_bic", -np.inf) > threshold and "r_c" in params and "sigma_r" in params:
-            r_c, s_r = float(params["r_c"]), abs(float(params["sigma_r"]))
-            out.append({"model": name, "r_min": r_c - 2 * s_r, "r_max": r_c + 2 * s_r,
-                        "delta_bic": float(alt["delta_bic"])})
+        sigma = params.get("sigma_r", params.get("width"))
+        if alt.get("delta_bic", -np.inf) > threshold and "r_c" in params and sigma is not None:
+            r_c = float(params["r_c"])
+            half = 2 * abs(float(sigma)) + abs(float(params.get("e", 0.0))) * r_c  # an ellipse reaches e r_c out
+            out.append({"model": name, "r_min": r_c - half, "r_max": r_c + half, "delta_bic": float(alt["delta_bic"])})
     return out
 
 

@@ -69,20 +69,21 @@ from .physics import (
     DEFAULT_AGES,
     DEFAULT_H_STEP,
     DEFAULT_N_MASSES,
+    DEFAULT_REFINE,
     GRID_FACTOR,
     PHYSICS_AXES,
     RESOLUTION_TOLERANCE,
-    UPSAMPLE,
     PhysicsPosterior,
     physics_posterior,
-    position_ln_bayes,
 )
+from .position import UPSAMPLE, position_ln_bayes
 from .odds import NO_ASYMMETRY, check_alternatives, hypothesis_weights, model_probabilities, scan_alternatives
 
 __all__ = [
     "DEFAULT_AGES",
     "DEFAULT_H_STEP",
     "DEFAULT_N_MASSES",
+    "DEFAULT_REFINE",
     "GRID_FACTOR",
     "PHYSICS_AXES",
     "RESOLUTION_TOLERANCE",

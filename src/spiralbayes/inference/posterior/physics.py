@@ -5,7 +5,7 @@ any aspect ratio ``h_p = H/r``, surface-density slope ``p``, viscosity ``α``, a
 posterior of those parameters need not stop at a bank's few values. :func:`physics_posterior`
 predicts the templates on a lattice (by default ``H/r`` every 0.005 across the model's box, the
 learned bank's slopes and viscosities, ages 20 and 200 orbits, 12 masses), scans them, and reads each
-template's Bayes factor against no planet from the scan's terms (:func:`position_ln_bayes`: the
+template's Bayes factor against no planet from the scan's terms (:func:`~.position.position_ln_bayes`: the
 amplitude integrated over its prior, ``ln L`` interpolated between the scanned positions and
 ``(r_p, φ_p)`` integrated over the prior, at the scan's geometry). With uniform priors in ``H/r``, ``p``,
 ``log10 α``, ``ln age``, ``ln M_p`` and the hand, each lattice value stands for the interval of
@@ -18,15 +18,16 @@ marginals, draws from that piecewise-uniform density, and the medians and credib
 every parameter (also ``M_p`` in M_Jup, each draw converted with its own ``H/r``; the template
 mismatch's scatter in ``ln M_p`` and the stellar mass's prior as in :class:`~.mass.MassPrior`).
 
-The slope, viscosity and age intervals are the posterior of the model's templates, and the templates
-are not the planet: on held-out hydrodynamic planets (``tests/inference/posterior/test_physics_held_out.py``)
-H/r and M_p fell inside their intervals in every case measured, the slope and viscosity in only some,
-and the summary says so. What it leaves out, stated: the geometry is the scan's, not
-integrated (``sample_posterior`` does that, for the bank's discs); a credible interval narrower than
-about three lattice steps is not resolved (:meth:`PhysicsPosterior.resolved` says so, and the summary
-asks for a finer lattice around the peak, ``h_p=np.arange(...)``); and a position grid too coarse for
-the planet's likelihood peak is detected by comparing with every other radius and azimuth
-(:meth:`PhysicsPosterior.position_resolved`).
+The slope, viscosity and age intervals are the posterior of the model's templates, and the templates are not
+the planet: on held-out hydrodynamic planets (``tests/inference/posterior/test_physics_held_out.py``) H/r fell
+inside its interval in every case measured and M_p in all but one (a viscosity beyond the training runs'), the
+slope and viscosity in only some, and the summary says so. What it leaves out, stated: the geometry is the
+scan's, not integrated (``sample_posterior`` does that, for the bank's discs); a credible interval narrower
+than about three lattice steps is not resolved (:meth:`PhysicsPosterior.resolved` says so, and the summary
+asks for a finer lattice around the peak, ``h_p=np.arange(...)``); and a position grid too coarse for the
+planet's likelihood peak is detected by comparing with every other radius and azimuth
+(:meth:`PhysicsPosterior.position_resolved`) and refined around the peak (``refine``,
+:mod:`~spiralbayes.inference.posterior.position`).
 """
 
 from __future__ import annotations
@@ -45,11 +46,11 @@ from ...results import ResultMixin
 from ...units import M_JUP, M_SUN
 from .mass import MassPrior
 from .priors import Priors
-from .likelihood import log_amplitude_integral
+from .position import REFINE_LN_B_RANGE, PositionLevel, composite_ln_bayes, grid_log_likelihood, peak_window
 from .scan_evidence import _nearest_cells
 
-__all__ = ["DEFAULT_AGES", "DEFAULT_H_STEP", "DEFAULT_N_MASSES", "GRID_FACTOR", "PHYSICS_AXES",
-           "RESOLUTION_TOLERANCE", "UPSAMPLE", "PhysicsPosterior", "physics_posterior", "position_ln_bayes"]
+__all__ = ["DEFAULT_AGES", "DEFAULT_H_STEP", "DEFAULT_N_MASSES", "DEFAULT_REFINE", "GRID_FACTOR", "PHYSICS_AXES",
+           "RESOLUTION_TOLERANCE", "PhysicsPosterior", "physics_posterior"]
 
 log = logging.getLogger(__name__)
 
@@ -72,15 +73,12 @@ DEFAULT_AGES = (20.0, 200.0)
 """Ages [orbits] of the default lattice: the two the training runs hold at many masses and aspect ratios
 (a planet's age moves its H/r and mass in the posterior)."""
 
-UPSAMPLE = 4
-"""How many times finer than the scan's grid :func:`position_ln_bayes` integrates the likelihood."""
-
 GRID_FACTOR = 4
 """The scan's default position grid here is this many times finer in r_p and φ_p than the scan's own
 default (:class:`~spiralbayes.inference.scan.ScanSettings`: 100 radii and 360 azimuths). A strong
 planet's likelihood peak can be narrower than the scan's default cells, and then a change of ``H/r``
 (which turns the arms) trades against the grid's azimuth offsets, so that the lattice's ``ln B`` jumps
-from one ``H/r`` to the next; :func:`position_ln_bayes` interpolates ``ln L`` between the cells, which
+from one ``H/r`` to the next; :func:`~.position.position_ln_bayes` interpolates ``ln L`` between the cells, which
 needs the cells to be no wider than about the peak."""
 
 RESOLUTION_TOLERANCE = 0.1
@@ -90,6 +88,9 @@ a planet planted at H/r 0.0725 in the tests' weak observation (χ² 400): 0.55 f
 0.2–0.5″ and 90 azimuths (whose H/r marginal is off by 0.2), 0.016 from 41 radii over 0.25–0.45″ and
 360 azimuths (whose marginal agrees with 81 radii and 720 azimuths' within 0.001); 21 radii and
 180 azimuths give the right marginal (within 0.02) but are flagged, their half grid being the first's."""
+
+DEFAULT_REFINE = 3
+"""How many times :func:`physics_posterior` may refine the position grid around the peak by default."""
 
 
 def _cell_log_mass(values: np.ndarray, axis: str) -> np.ndarray:
@@ -113,11 +114,12 @@ class PhysicsPosterior(ResultMixin):
     hands : list of str
         The hands scanned.
     ln_bayes : ndarray, shape (n_h, n_slope, n_alpha, n_orbits, n_hands, n_mass)
-        ``ln B`` against no planet of the template at each lattice point (:func:`position_ln_bayes`).
+        ``ln B`` against no planet of the template at each lattice point (:func:`~.position.position_ln_bayes`).
     tau0 : float
         The templates' optical depth at r_p.
     ln_bayes_coarse : ndarray or None
-        The same from every other scanned radius and azimuth (:meth:`position_resolved` compares them).
+        The same from every other radius and azimuth of the finest grid each template was scanned on
+        (:meth:`position_resolved` compares them).
     mass_prior : dict
         ``MassPrior.to_dict()`` of the prior that converts masses (stellar mass, template
         mismatch).
@@ -174,8 +176,8 @@ class PhysicsPosterior(ResultMixin):
 
     def position_resolved(self) -> bool | None:
         """Whether the scan's position grid resolves the planet: the ``H/r`` and mass marginals from every
-        other radius and azimuth differ from the full grid's by at most :data:`RESOLUTION_TOLERANCE` in
-        total variation (None when not measured)."""
+        other radius and azimuth of the finest grid differ from the full grid's by at most
+        :data:`RESOLUTION_TOLERANCE` in total variation (None when not measured)."""
         if self.ln_bayes_coarse is None:
             return None
         fine, coarse = np.exp(self.log_probability), np.exp(self._normalised(self.ln_bayes_coarse))
@@ -346,7 +348,7 @@ def _lattice(name: str, values) -> np.ndarray:
 def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=None, alpha=None, orbits=None,
                       masses=None, hands: Sequence[str] = ("R", "L"), priors: Priors | None = None,
                       mass_prior: MassPrior | None = None, geometry=None, r_p=None, cache_dir=None,
-                      progress: bool = True, **scan_overrides) -> PhysicsPosterior:
+                      refine: int = DEFAULT_REFINE, progress: bool = True, **scan_overrides) -> PhysicsPosterior:
     """The posterior of the disc's physics and the planet's mass on a lattice of a learned model.
 
     Parameters
@@ -379,6 +381,10 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
         Scanned planet radii [arcsec] (default the scan's data-driven grid).
     cache_dir : path, optional
         Where the lattice's templates are cached (:func:`~spiralbayes.templates.learned.learned_bank`).
+    refine : int
+        While the position grid does not resolve the planet (:meth:`PhysicsPosterior.position_resolved`),
+        up to this many times rescan the templates that matter on twice the radii and azimuths around the
+        likelihood's peak (:mod:`~spiralbayes.inference.posterior.position`); 0 never.
     progress : bool
         Progress bars for the predictions and the scan.
     **scan_overrides
@@ -422,79 +428,52 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
     if r_scan.size < 4 or np.any(np.diff(r_scan) <= 0):
         raise InputError(f"the physics posterior needs at least 4 increasing scanned radii, got {r_scan.tolist()}")
     index = {axis: {float(v): i for i, v in enumerate(lattice[axis])} for axis in PHYSICS_AXES}
+    cells = []
+    for t in bank:
+        point = t.provenance["learned"]["point"]
+        cells.append((*(index[a][float(point[a])] for a in PHYSICS_AXES[:4]), hands.index(t.hand),
+                      index["mass"][float(point["mass"])]))
+    levels = [PositionLevel(r_scan, np.asarray(result.phi_p, dtype=float), (float(r_scan[0]), float(r_scan[-1])),
+                            {k: grid_log_likelihood(result.cross[k], result.power[k], priors.amplitude_max)
+                             for k in range(len(bank))})]
     shape = (*(lattice[a].size for a in PHYSICS_AXES[:4]), len(hands), lattice["mass"].size)
     ln_b, ln_b_coarse = np.full(shape, -np.inf), np.full(shape, -np.inf)
-    phi = np.asarray(result.phi_p, dtype=float)
-    for k, t in enumerate(bank):
-        point = t.provenance["learned"]["point"]
-        where = (*(index[a][float(point[a])] for a in PHYSICS_AXES[:4]), hands.index(t.hand),
-                 index["mass"][float(point["mass"])])
-        ll = _log_likelihood(result.cross[k], result.power[k], priors.amplitude_max)
-        ln_b[where] = position_ln_bayes(r_scan, phi, ll, priors.r_p)
-        ln_b_coarse[where] = position_ln_bayes(r_scan[::2], phi[::2], ll[::2, ::2], priors.r_p)
-    prov = provenance_record(wall_time_s=time.perf_counter() - t0, n_templates=len(bank),
-                             scan=result.provenance.get("data_hash"), model_runs=len(model.run_names),
-                             r_p_prior_arcsec=list(priors.r_p), amplitude_max=priors.amplitude_max)
+
+    def assemble(todo) -> PhysicsPosterior:
+        for k in todo:
+            ln_b[cells[k]] = composite_ln_bayes(levels, k, priors.r_p)
+            ln_b_coarse[cells[k]] = composite_ln_bayes(levels, k, priors.r_p, half=True)
+        return PhysicsPosterior(lattice["h_p"], lattice["slope"], lattice["alpha"], lattice["orbits"],
+                                lattice["mass"], hands, ln_b.copy(), float(tau0), ln_b_coarse.copy(),
+                                mass_prior.to_dict())
+
+    post = assemble(range(len(bank)))
+    for _ in range(int(refine)):
+        if post.position_resolved():
+            break
+        last = levels[-1]
+        log_prior = np.broadcast_to(post._log_prior(), shape)
+        best = max(ln_b[cells[k]] for k in last.log_like)
+        keep = [k for k in last.log_like if ln_b[cells[k]] >= best - REFINE_LN_B_RANGE]
+        window = peak_window(last, {k: float(log_prior[cells[k]]) for k in keep})
+        step = float(np.min(np.diff(last.r_p)))
+        r_new = np.linspace(*window, 2 * max(int(round((window[1] - window[0]) / step)), 1) + 1)
+        sub = scan(vis, axisymmetric, [bank[k] for k in keep], geometry, r_p=r_new, progress=progress,
+                   **{**scan_overrides, "n_phi_p": 2 * last.phi_p.size})
+        levels.append(PositionLevel(r_new, np.asarray(sub.phi_p, dtype=float), window,
+                                    {k: grid_log_likelihood(sub.cross[j], sub.power[j], priors.amplitude_max)
+                                     for j, k in enumerate(keep)}))
+        log.info("physics posterior: %d templates rescanned on %d radii over %.3f-%.3f arcsec and %d azimuths",
+                 len(keep), r_new.size, *window, sub.phi_p.size)
+        post = assemble(keep)
+    post.provenance = provenance_record(
+        wall_time_s=time.perf_counter() - t0, n_templates=len(bank), scan=result.provenance.get("data_hash"),
+        model_runs=len(model.run_names), r_p_prior_arcsec=list(priors.r_p), amplitude_max=priors.amplitude_max,
+        position_levels=[{"n_r_p": lev.r_p.size, "n_phi_p": lev.phi_p.size, "window_arcsec": list(lev.window),
+                          "n_templates": len(lev.log_like)} for lev in levels])
     log.info("physics posterior: %d templates scanned in %.0f s", len(bank), time.perf_counter() - t0)
-    post = PhysicsPosterior(lattice["h_p"], lattice["slope"], lattice["alpha"], lattice["orbits"], lattice["mass"],
-                            hands, ln_b, float(tau0), ln_b_coarse, mass_prior.to_dict(), prov)
     if post.position_resolved() is False:
-        log.warning("physics posterior: the scan's position grid (%d radii, %d azimuths) does not resolve the "
-                    "planet; scan more radii and azimuths (n_r_p, n_phi_p, r_p)", result.r_p.size, result.phi_p.size)
+        log.warning("physics posterior: the scan's position grid (%d radii, %d azimuths, %d refinements) does not "
+                    "resolve the planet; scan more radii and azimuths (n_r_p, n_phi_p, r_p) or raise refine",
+                    r_scan.size, levels[0].phi_p.size, len(levels) - 1)
     return post
-
-
-def _log_likelihood(cross: np.ndarray, power: np.ndarray, amplitude_max: float | None) -> np.ndarray:
-    """``ln L/L_0`` of a template at each scanned position, the amplitude fixed at 1 or integrated over its
-    prior (:func:`~.likelihood.log_amplitude_integral`); a position the scan has no value for takes the
-    smallest value elsewhere (it cannot lift the evidence)."""
-    c1, c2 = np.asarray(cross, dtype=float), np.asarray(power, dtype=float)
-    bad = ~(np.isfinite(c1) & np.isfinite(c2))
-    c1, c2 = np.where(bad, 0.0, c1), np.where(bad, 0.0, c2)
-    ll = c1 - 0.5 * c2 if amplitude_max is None else log_amplitude_integral(c1, c2, amplitude_max)
-    ll = np.asarray(ll, dtype=float)
-    if np.any(bad):
-        ll[bad] = np.min(ll[~bad]) if np.any(~bad) else 0.0
-    return ll
-
-
-def position_ln_bayes(r_p: np.ndarray, phi_p: np.ndarray, log_like: np.ndarray, r_prior: tuple[float, float],
-                      upsample: int = UPSAMPLE) -> float:
-    """``ln B`` of one template from its ``ln L/L_0`` on the scan's grid, the position integrated over its prior.
-
-    ``ln L`` — smooth, and near a peak close to quadratic, where ``L`` itself can be narrower than a
-    cell — is interpolated by bicubic splines (periodic in ``φ_p``) onto a grid ``upsample`` times
-    finer, and ``L`` integrated there: trapezoidal in ``r_p`` over the part of the r_p prior the scan
-    covers, uniform over the circle in ``φ_p``. Radii of the prior outside the scanned range are taken
-    to hold no planet (their share of the prior counts, their likelihood does not).
-
-    Parameters
-    ----------
-    r_p : (n_r,) array
-        Increasing scanned radii [arcsec] (at least 4).
-    phi_p : (n_phi,) array
-        Equally spaced azimuths over the circle [rad].
-    log_like : (n_r, n_phi) array
-    r_prior : (float, float)
-        The uniform r_p prior's range [arcsec].
-    upsample : int
-
-    Returns
-    -------
-    float
-    """
-    from scipy.interpolate import RectBivariateSpline
-
-    lo, hi = max(r_prior[0], float(r_p[0])), min(r_prior[1], float(r_p[-1]))
-    if not lo < hi:
-        raise InputError(f"the scanned radii {r_p[0]:.3g}-{r_p[-1]:.3g} arcsec lie outside the r_p prior {r_prior}")
-    n, pad = phi_p.size, 3
-    step = 2 * np.pi / n
-    wrap = np.arange(-pad, n + pad)
-    spline = RectBivariateSpline(r_p, phi_p[0] + step * wrap, log_like[:, wrap % n], kx=3, ky=3)
-    n_fine = max(2, int(np.ceil((hi - lo) / float(np.min(np.diff(r_p))))) * int(upsample) + 1)
-    r_fine = np.linspace(lo, hi, n_fine)
-    fine = spline(r_fine, phi_p[0] + step / upsample * np.arange(n * upsample))
-    w = np.full(n_fine, (hi - lo) / (n_fine - 1))
-    w[[0, -1]] *= 0.5
-    return float(logsumexp(fine + np.log(w / (r_prior[1] - r_prior[0]))[:, None]) - np.log(fine.shape[1]))
