@@ -260,7 +260,10 @@ def _near(k: int, mu: float, h_p: float, slope: float, alpha: float) -> Case:
 # the lightest planet at H/r 0.12. Cheapest and nearest first; α ≥ 2e-3 for the massive ones, whose
 # lower-viscosity neighbours at H/r 0.08–0.10 grew vortices.
 NEAR = [_near(0, 3.0, 0.06, 1.0, 2.0e-3), _near(1, 3.0, 0.08, 1.0, 5.0e-3), _near(2, 2.5, 0.07, 0.7, 2.0e-3),
-        _near(3, 1.5, 0.11, 1.2, 2.0e-4), _near(4, 0.2, 0.12, 1.0, 1.0e-3), _near(5, 3.0, 0.07, 1.3, 5.0e-3)]
+        _near(3, 1.5, 0.11, 1.2, 2.0e-4), _near(4, 0.2, 0.12, 1.0, 1.0e-3), _near(5, 3.0, 0.07, 1.3, 5.0e-3),
+        # with those 60 training runs, the two below 0.6 are massive planets at H/r 0.11: α 1e-2 and 1.3e-4
+        _near(6, 3.0, 0.11, 1.0, 5.0e-3), _near(7, 2.5, 0.12, 0.7, 1.0e-2), _near(8, 1.0, 0.12, 1.4, 1.3e-4),
+        _near(9, 2.0, 0.10, 1.2, 1.0e-2)]
 CASES += NEAR
 BY_NAME = {c.name: c for c in CASES}
 
