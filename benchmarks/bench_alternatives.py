@@ -58,7 +58,8 @@ def timing() -> None:
     t0 = time.perf_counter()
     alts = fit_alternatives(vis, axisym, nthreads=2)
     t_alt = time.perf_counter() - t0
-    print(f"16-template scan: {t_scan:.1f} s; all {len(alts.fits)} alternatives: {t_alt:.1f} s; ratio {t_alt / t_scan:.2f}")
+    print(f"16-template scan: {t_scan:.1f} s; all {len(alts.fits)} alternatives: {t_alt:.1f} s; "
+          f"ratio {t_alt / t_scan:.2f}")
     for fit in alts.fits.values():
         print(f"  {fit.name:<16} {fit.time_s:6.2f} s  {fit.n_evaluations:4d} evaluations  "
               f"dchi2 = {fit.delta_chi2:9.1f}")

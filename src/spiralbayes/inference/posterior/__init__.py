@@ -76,7 +76,16 @@ from .physics import (
     PhysicsPosterior,
     physics_posterior,
 )
-from .position import UPSAMPLE, position_ln_bayes
+from .position import (
+    MIN_WINDOW_STEPS,
+    REFINE_LN_B_RANGE,
+    UPSAMPLE,
+    PositionLevel,
+    composite_ln_bayes,
+    grid_log_likelihood,
+    peak_window,
+    position_ln_bayes,
+)
 from .odds import NO_ASYMMETRY, check_alternatives, hypothesis_weights, model_probabilities, scan_alternatives
 
 __all__ = [
@@ -88,6 +97,12 @@ __all__ = [
     "PHYSICS_AXES",
     "RESOLUTION_TOLERANCE",
     "UPSAMPLE",
+    "MIN_WINDOW_STEPS",
+    "REFINE_LN_B_RANGE",
+    "PositionLevel",
+    "composite_ln_bayes",
+    "grid_log_likelihood",
+    "peak_window",
     "PhysicsPosterior",
     "physics_posterior",
     "position_ln_bayes",
