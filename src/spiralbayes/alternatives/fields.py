@@ -155,6 +155,12 @@ class FieldModel:
         return dict(zip(self.param_names, (float(x) for x in theta)))
 
 
+def _ellipse(e_c: float, e_s: float) -> dict:
+    """Eccentricity and pericentre azimuth [deg, 0-360] of ``e_c + i e_s = e exp(i omega)``."""
+    omega = wrap_angle(np.degrees(np.arctan2(e_s, e_c)), 0.0, 360.0)
+    return {"e": float(np.hypot(e_c, e_s)), "omega_deg": float(omega)}
+
+
 def _radial_bounds(ctx: ProfileContext, outer: float = 2.0):
     g = ctx.grid
     return (2 * g.dr, g.r_max), (2 * g.dr, outer * g.r_max)
@@ -298,9 +304,7 @@ class EccentricRingModel(FieldModel):
 
     def describe(self, theta):
         e_c, e_s, r_c, s_r = theta
-        return {"e": float(np.hypot(e_c, e_s)),
-                "omega_deg": float(wrap_angle(np.degrees(np.arctan2(e_s, e_c)), 0.0, 360.0)),
-                "r_c": float(r_c), "sigma_r": float(s_r)}
+        return {**_ellipse(e_c, e_s), "r_c": float(r_c), "sigma_r": float(s_r)}
 
 
 class EccentricExcessModel(FieldModel):
@@ -308,7 +312,7 @@ class EccentricExcessModel(FieldModel):
     label = "eccentric bright ring"
     param_names = ("e_c", "e_s", "r_c", "width", "contrast")
     amplitude_indices = (0, 1)
-    E_MAX = 0.5
+    E_MAX = EccentricRingModel.E_MAX
     CONTRAST_RANGE = (-1.0, 10.0)
     """A deficit cannot remove more than the disc's brightness; an excess of 10 is a ring in a faint gap."""
 
@@ -339,9 +343,7 @@ class EccentricExcessModel(FieldModel):
 
     def describe(self, theta):
         e_c, e_s, r_c, w, C = theta
-        return {"e": float(np.hypot(e_c, e_s)),
-                "omega_deg": float(wrap_angle(np.degrees(np.arctan2(e_s, e_c)), 0.0, 360.0)),
-                "r_c": float(r_c), "width": float(w), "contrast": float(C)}
+        return {**_ellipse(e_c, e_s), "r_c": float(r_c), "width": float(w), "contrast": float(C)}
 
 
 FIELD_MODELS = {m.name: m for m in (ArcModel(), LopsidedModel(), EccentricRingModel(), EccentricExcessModel(),
