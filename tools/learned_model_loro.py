@@ -183,6 +183,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-gap-depth", action="store_true", help="a basis of the log gap itself (no depth × shape)")
     ap.add_argument("--patch", action="store_true", help="model the near-planet patch apart (off by default)")
     ap.add_argument("--n-patch-components", type=int, default=6)
+    ap.add_argument("--min-length-scale", type=float, default=None,
+                    help="lower bound of the processes' length scales [box sides] (default: the model's)")
     ap.add_argument("--no-bank", action="store_true", help="skip the variant bank's recovery")
     ap.add_argument("--cache", default=None, help="JSON-lines cache (default: <cache dir>/learned_loro.jsonl)")
     ap.add_argument("--markdown", action="store_true", help="print the per-run table as Markdown")
@@ -204,6 +206,8 @@ def main(argv=None) -> int:
                "align": not args.no_align, "restarts": args.restarts, "sharing": args.sharing,
                "trend": args.trend, "gap_depth": not args.no_gap_depth, "patch": args.patch,
                "n_patch_components": args.n_patch_components}
+    if args.min_length_scale is not None:
+        options["min_length_scale"] = args.min_length_scale
     held = [r for r in runs if args.runs is None or any(s in r.name for s in args.runs)]
     bank = None
     if not args.no_bank:

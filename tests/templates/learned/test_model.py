@@ -67,7 +67,7 @@ def test_template_metadata_hand_and_uncertainty(model):
     ("mass", 5.0, r"mass = 5 outside \[0.1, 3\]"),
     ("h_p", 0.2, r"h_p = 0.2 outside \[0.04, 0.12\]"),
     ("alpha", 1.0, r"alpha = 1 outside"),
-    ("orbits", 5.0, r"orbits = 5 outside \[20, 500\]"),
+    ("orbits", 5.0, r"orbits = 5 outside \[20, 1000\]"),
 ])
 def test_outside_the_trained_box_is_a_clear_error(model, field, value, message):
     point = {"mass": 1.0, "h_p": 0.07, "slope": 1.0, "alpha": 2e-3, "orbits": 20.0, field: value}

@@ -17,7 +17,8 @@ docs/templates.md, "A template model continuous in disc physics". One concept pe
   as the visibilities see it, the gap as a depth times a shape (and the patch), each divided by its
   RMS and reduced to its mean and first principal components;
 * :mod:`.regression` — every coefficient and amplitude a Gaussian process (scikit-learn) of
-  ``(ln M_p, h_p, p, log10 α, ln orbits)`` over a linear trend;
+  ``(ln M_p, h_p, p, log10 α, ln orbits)`` over a linear trend, its length scales no shorter than a
+  tenth of the training box (``MIN_LENGTH_SCALE``);
 * :mod:`.model` — :class:`~.model.LearnedTemplateModel`: fit, predict a
   :class:`~spiralbayes.templates.template.SpiralTemplate` through the package's isothermal transfer
   (one model serves every optical depth τ0), save and load;
@@ -37,7 +38,7 @@ from .basis import GAP_DEPTH_FLOOR, Bases, fit_bases
 from .family import learned_family, model_from_file
 from .model import LEARNED_KIND, MODEL_VERSION, LearnedTemplateModel
 from .patch import PATCH_POINTS, PATCH_RADIUS, PATCH_WIDTH, from_patch, patch_grid, scaled_offsets, to_patch, window
-from .regression import TRENDS
+from .regression import MIN_LENGTH_SCALE, TRENDS
 from .training import (
     DISC_EXTENT,
     FLARING,
@@ -64,6 +65,7 @@ __all__ = [
     "GAP_DEPTH_FLOOR",
     "LEARNED_KIND",
     "MAX_CHANGE",
+    "MIN_LENGTH_SCALE",
     "MODEL_VERSION",
     "NUMERICAL_CHECKS",
     "OUTSIDE_WEIGHT",

@@ -33,7 +33,8 @@ from ..template import SpiralTemplate, check_tau0, validate_hand
 from ..wake import wake_shape
 from .basis import fit_bases
 from .patch import from_patch
-from .regression import TRENDS, fit_hyperparameters, fit_trends, gaussian_process, output_groups, trend_at
+from .regression import (MIN_LENGTH_SCALE, TRENDS, fit_hyperparameters, fit_trends, gaussian_process, output_groups,
+                         trend_at)
 from .training import FLARING, MAX_CHANGE, PARAMETERS, TrainingRun, parameter_vector, read_training_runs
 from .uncertainty import PredictionUncertainty, prediction_uncertainty
 
@@ -44,7 +45,7 @@ log = logging.getLogger(__name__)
 LEARNED_KIND = "spiralbayes.LearnedTemplateModel"
 """The ``kind`` root attribute of a saved model (:mod:`spiralbayes.results`)."""
 
-MODEL_VERSION = 2
+MODEL_VERSION = 3
 """Version of the fit: it changes when a fit of the same runs with the same options gives another model
 (cached measurements, e.g. ``tools/learned_model_loro.py``'s, key on it)."""
 
@@ -170,7 +171,8 @@ class LearnedTemplateModel(ResultMixin):
     @classmethod
     def fit(cls, runs: Sequence[TrainingRun], *, n_components: int = 10, n_gap_components: int = 5,
             n_patch_components: int = 6, align: bool = True, restarts: int = 2, sharing: str = "grouped",
-            trend: str = "disc", gap_depth: bool = True, patch: bool = False) -> LearnedTemplateModel:
+            trend: str = "disc", gap_depth: bool = True, patch: bool = False,
+            min_length_scale: float = MIN_LENGTH_SCALE) -> LearnedTemplateModel:
         """Fit the bases (:func:`~spiralbayes.templates.learned.basis.fit_bases`) and the Gaussian
         processes (:mod:`spiralbayes.templates.learned.regression`) to ``runs``.
 
@@ -218,6 +220,9 @@ class LearnedTemplateModel(ResultMixin):
             runs' patches look alike at every aspect ratio. Off by default: left out, the
             leave-one-run-out recoveries keep their medians and their worst runs do better
             (docs/templates.md).
+        min_length_scale : float
+            Lower bound of the processes' length scales, in units of the training box's side
+            (:data:`~spiralbayes.templates.learned.regression.MIN_LENGTH_SCALE`).
 
         Returns
         -------
@@ -228,6 +233,8 @@ class LearnedTemplateModel(ResultMixin):
             raise InputError(f"a learned template model needs at least 4 training runs, got {len(runs)}")
         if sharing not in ("grouped", "independent"):
             raise InputError(f"sharing = {sharing!r}: use 'grouped' or 'independent'")
+        if not (np.isfinite(min_length_scale) and 0 < min_length_scale < 100):
+            raise InputError(f"min_length_scale = {min_length_scale!r}: use a length in (0, 100) box sides")
         if trend not in TRENDS:
             raise InputError(f"trend = {trend!r}: use one of {sorted(k for k in TRENDS if isinstance(k, str))}")
         b = fit_bases(runs, n_components=n_components, n_gap_components=n_gap_components,
@@ -241,11 +248,13 @@ class LearnedTemplateModel(ResultMixin):
                     run_names=tuple(r.name for r in runs),
                     options={"n_components": sizes[0], "n_gap_components": sizes[1], "n_patch_components": sizes[2],
                              "align": bool(align), "restarts": int(restarts), "sharing": str(sharing),
-                             "trend": TRENDS[trend], "gap_depth": bool(gap_depth), "patch": bool(patch)})
+                             "trend": TRENDS[trend], "gap_depth": bool(gap_depth), "patch": bool(patch),
+                             "min_length_scale": float(min_length_scale)})
         z = model._scaled(inputs)
         model.trends = fit_trends(z, b.targets, TRENDS[trend], sizes[0], sum(sizes))
         resid = b.targets - np.column_stack([np.ones(len(z)), z]) @ model.trends.T
-        model.thetas = fit_hyperparameters(z, resid, output_groups(sizes, b.targets.shape[1], sharing), restarts)
+        model.thetas = fit_hyperparameters(z, resid, output_groups(sizes, b.targets.shape[1], sharing), restarts,
+                                           min_length_scale)
         model.provenance = provenance_record(
             generator="spiralbayes.templates.learned.LearnedTemplateModel.fit", model_version=MODEL_VERSION,
             runs=list(model.run_names), options=model.options)

@@ -14,8 +14,8 @@ import warnings
 
 import numpy as np
 
-__all__ = ["TRENDS", "fit_hyperparameters", "fit_trends", "gaussian_process", "kernel", "output_groups",
-           "trend_at"]
+__all__ = ["MIN_LENGTH_SCALE", "TRENDS", "fit_hyperparameters", "fit_trends", "gaussian_process", "kernel",
+           "output_groups", "trend_at"]
 
 TRENDS = {"disc": "disc", "map": "map", "amplitudes": "amplitudes", "all": "all", "none": "none", True: "all",
           False: "none"}
@@ -23,13 +23,23 @@ TRENDS = {"disc": "disc", "map": "map", "amplitudes": "amplitudes", "all": "all"
 booleans they stand for)."""
 
 
-def kernel(n_inputs: int):
+MIN_LENGTH_SCALE = 0.1
+"""Lower bound of the RBF length scales, in units of the training box's side. The design's distinct
+values lie 0.05-0.125 of the box apart (H/r rounded to 0.01, p to 0.05, α to 0.1 dex), so the data
+cannot tell a shorter length scale from noise; left free to 0.01, the marginal likelihood sometimes
+settles there for the map's coefficients in H/r, and runs between the training values' rows then
+fall back to the trend (docs/templates.md, "What each part is worth")."""
+
+
+def kernel(n_inputs: int, min_length_scale: float = MIN_LENGTH_SCALE):
     """Constant × anisotropic RBF + white noise, on inputs scaled to the unit box.
 
     Parameters
     ----------
     n_inputs : int
         Dimensions of the inputs (one RBF length scale each).
+    min_length_scale : float
+        Lower bound of the length scales [box sides] (:data:`MIN_LENGTH_SCALE`).
 
     Returns
     -------
@@ -37,10 +47,11 @@ def kernel(n_inputs: int):
     """
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
-    return ConstantKernel(1.0, (1e-3, 1e3)) * RBF(np.ones(n_inputs), (1e-2, 1e2)) + WhiteKernel(1e-2, (1e-6, 1.0))
+    return (ConstantKernel(1.0, (1e-3, 1e3)) * RBF(np.ones(n_inputs), (float(min_length_scale), 1e2))
+            + WhiteKernel(1e-2, (1e-6, 1.0)))
 
 
-def gaussian_process(n_inputs: int, theta=None, restarts: int = 0):
+def gaussian_process(n_inputs: int, theta=None, restarts: int = 0, min_length_scale: float = MIN_LENGTH_SCALE):
     """A Gaussian-process regressor of :func:`kernel`: to be fitted, or with fixed hyperparameters.
 
     Parameters
@@ -52,6 +63,8 @@ def gaussian_process(n_inputs: int, theta=None, restarts: int = 0):
         regressor keeps them (no optimisation).
     restarts : int
         Extra random starts of the hyperparameter optimisation (without ``theta``).
+    min_length_scale : float
+        Lower bound of the fitted length scales [box sides].
 
     Returns
     -------
@@ -60,7 +73,7 @@ def gaussian_process(n_inputs: int, theta=None, restarts: int = 0):
     """
     from sklearn.gaussian_process import GaussianProcessRegressor
 
-    k = kernel(n_inputs)
+    k = kernel(n_inputs, min_length_scale)
     if theta is None:
         return GaussianProcessRegressor(k, normalize_y=True, n_restarts_optimizer=restarts, random_state=0)
     return GaussianProcessRegressor(k.clone_with_theta(np.asarray(theta, float)), normalize_y=True, optimizer=None)
@@ -148,7 +161,8 @@ def output_groups(sizes: tuple[int, int, int], n_outputs: int, sharing: str) -> 
     return [g for g in groups if g.size]
 
 
-def fit_hyperparameters(z: np.ndarray, residuals: np.ndarray, groups: list[np.ndarray], restarts: int) -> np.ndarray:
+def fit_hyperparameters(z: np.ndarray, residuals: np.ndarray, groups: list[np.ndarray], restarts: int,
+                        min_length_scale: float = MIN_LENGTH_SCALE) -> np.ndarray:
     """Each group's kernel fitted to its outputs' summed marginal likelihood.
 
     Parameters
@@ -161,6 +175,8 @@ def fit_hyperparameters(z: np.ndarray, residuals: np.ndarray, groups: list[np.nd
         :func:`output_groups`.
     restarts : int
         Extra random starts of each optimisation.
+    min_length_scale : float
+        Lower bound of the length scales [box sides].
 
     Returns
     -------
@@ -169,7 +185,7 @@ def fit_hyperparameters(z: np.ndarray, residuals: np.ndarray, groups: list[np.nd
     """
     thetas = np.zeros((residuals.shape[1], kernel(z.shape[1]).n_dims))
     for g in groups:
-        gp = gaussian_process(z.shape[1], restarts=restarts)
+        gp = gaussian_process(z.shape[1], restarts=restarts, min_length_scale=min_length_scale)
         with warnings.catch_warnings():  # hyperparameters at a bound are not an error
             warnings.simplefilter("ignore")
             gp.fit(z, residuals[:, g] if g.size > 1 else residuals[:, g[0]])
