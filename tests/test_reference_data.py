@@ -33,8 +33,9 @@ def test_reference_files_exist():
     names = {p.name for p in FILES}
     assert {"wakeflow_isothermal.h5", "fargo3d_isothermal.h5"} <= names, names
     # issue 21: at most 15 MB in all; 17 MB with the library's second dust run set (stored at 2^-14),
-    # 21 MB with the physics run set; the continuum set's 40 runs at ~0.33 MB each (2^-14) add <= 14 MB
-    assert sum(p.stat().st_size for p in FILES) < 35e6
+    # 21 MB with the physics run set; the continuum file's runs at ~0.35 MB each (2^-14): the design's
+    # 40, the aged run and the 13 neighbours of the worst held-out runs add <= 19 MB
+    assert sum(p.stat().st_size for p in FILES) < 40e6
 
 
 @pytest.fixture(params=FILES, ids=[str(p.relative_to(REF_DIR)) for p in FILES])
