@@ -83,9 +83,10 @@ def main(argv=None) -> int:
     from spiralbayes.templates.bank import default_cache_dir
 
     cache = Cache(Path(args.cache) if args.cache else default_cache_dir() / "physics_held_out.jsonl")
-    from spiralbayes.templates.learned import reference_files
+    from spiralbayes.templates.learned import MODEL_VERSION, reference_files
 
-    training = _file_key(reference_files())  # a row is the model's on these training files
+    # a row is the model's on these training files, fitted as this version of the model fits them
+    training = f"{_file_key(reference_files())}|learned{MODEL_VERSION}"
     rows = []
     for name in args.cases:
         for tau0 in args.taus:
