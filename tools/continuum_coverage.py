@@ -5,7 +5,8 @@
 
 One Markdown row per reduced run, in design order, with the cost FARGO3D recorded (wall time on
 the machine that ran it, and CPU seconds per orbit where the driver recorded them) and the run's
-arm RMS; a last line counts the design's points still missing.
+arm RMS; a last line names the design's points not in the file (still running, still to run, or run
+but not reduced: the file cannot tell which).
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def main(argv=None) -> None:
           "| arm RMS δΣ/Σ |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     print("\n".join(found))
-    print(f"\n{len(found)} runs reduced; {len(missing)} of the design still to run: {', '.join(missing) or 'none'}")
+    print(f"\n{len(found)} runs reduced; {len(missing)} of the design not reduced: {', '.join(missing) or 'none'}")
 
 
 if __name__ == "__main__":

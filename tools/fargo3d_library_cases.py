@@ -268,7 +268,14 @@ NEAR = [_near(0, 3.0, 0.06, 1.0, 2.0e-3), _near(1, 3.0, 0.08, 1.0, 5.0e-3), _nea
         # α 1.3e-4 (3 % below every other run's α) and the 0.24 M_th planet at H/r 0.04 (one other run there)
         _near(10, 1.7, 0.11, 1.3, 1.0e-4), _near(11, 0.3, 0.04, 0.8, 5.0e-4),
         # near10 grew vortices (not a training run): a lighter planet at that viscosity
-        _near(12, 1.2, 0.11, 1.4, 1.0e-4)]
+        _near(12, 1.2, 0.11, 1.4, 1.0e-4),
+        # with near11 and near12 (67 runs), the low-α planets at H/r 0.11 (near12 and the 1.4 M_th run) are each
+        # other's only neighbours: four more around them (each 2-4 CPU-min at 20 orbits)
+        _near(13, 1.3, 0.11, 1.3, 1.2e-4), _near(14, 1.0, 0.10, 1.4, 1.0e-4), _near(15, 1.4, 0.12, 1.4, 1.0e-4),
+        _near(16, 1.2, 0.11, 1.1, 1.5e-4),
+        # the physics set's α 2e-2 planet held out, the others' box stops at α 1e-2 and its mass is missed:
+        # two 20-orbit planets at α 2e-2 beside it
+        _near(17, 1.3, 0.08, 1.0, 2.0e-2), _near(18, 0.6, 0.06, 1.2, 2.0e-2)]
 CASES += NEAR
 BY_NAME = {c.name: c for c in CASES}
 

@@ -5,7 +5,7 @@ Each run's own reduced map is planted with the exact type-3 transform in the wea
 (1500 baselines, the planet alone at χ² = 400, ``mass_setup.plant``); the learned model is fitted without
 that run; :func:`~spiralbayes.inference.posterior.physics.physics_posterior` scans :data:`H_P` (H/r
 0.05–0.11 every 0.005), the learned bank's three slopes and viscosities, the ages :data:`ORBITS` (the
-runs are 20 orbits old but one, 500), :data:`MASSES` and the planted hand (1404 templates) on 41 radii
+runs are 20 orbits old but one, 500), :data:`MASSES` and the planted hand (2106 templates) on 41 radii
 over 0.25–0.45″ and 360 azimuths, with the default template-mismatch scatter.
 """
 
@@ -18,7 +18,7 @@ import numpy as np
 
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.inference.posterior import MassPrior, Priors
-from spiralbayes.inference.posterior.physics import PhysicsPosterior, physics_posterior
+from spiralbayes.inference.posterior.physics import DEFAULT_AGES, PhysicsPosterior, physics_posterior
 from spiralbayes.templates import SpiralTemplate
 from spiralbayes.templates.learned import LearnedTemplateModel, TrainingRun, read_training_runs, reference_files
 from tests._support.mass_setup import plant
@@ -31,7 +31,7 @@ RUNS = ("physics:h0.06_mu0.5", "physics:h0.07_mu1_nu1e-04", "physics:h0.07_mu1_n
 TAUS = (0.3, 3.0)
 H_P = np.round(np.arange(0.05, 0.1101, 0.005), 4)
 MASSES = np.geomspace(0.3, 3.0, 6)
-ORBITS = (20.0, 200.0)
+ORBITS = DEFAULT_AGES
 R_P_GRID = np.linspace(0.25, 0.45, 41)
 
 

@@ -12,7 +12,7 @@ from scipy.stats import norm
 from spiralbayes.axisymmetric import AxisymmetricModel
 from spiralbayes.exceptions import InputError
 from spiralbayes.inference.posterior import MassPrior, Priors
-from spiralbayes.inference.posterior.physics import PhysicsPosterior, physics_posterior
+from spiralbayes.inference.posterior.physics import DEFAULT_AGES, PhysicsPosterior, default_ages, physics_posterior
 from spiralbayes.templates.learned import LearnedTemplateModel, read_training_runs, reference_files
 from tests._support.mass_setup import plant
 from tests._support.posterior_setup import R_RANGE, TRUE_GEOMETRY, profile
@@ -80,6 +80,17 @@ def test_bad_lattices_are_refused():
         PhysicsPosterior([0.07], [1.0], [1e-3], [200.0], [1.0], ["R"], np.zeros((2, 1, 1, 1, 1, 1)), 0.3)
     with pytest.raises(InputError, match="unknown axis"):
         lattice_posterior(np.zeros(2), np.array([0.06, 0.07])).marginal("beta")
+
+
+class _Box:
+    def __init__(self, lo: float, hi: float):
+        self.bounds = {"orbits": (lo, hi)}
+
+
+def test_the_default_ages_are_those_inside_the_models_box():
+    assert default_ages(_Box(20.0, 1000.0)) == DEFAULT_AGES == (20.0, 200.0, 1000.0)
+    assert default_ages(_Box(20.0, 500.0)) == (20.0, 200.0)
+    assert default_ages(_Box(40.0, 40.0)) == (40.0,)  # none inside: the box's own age
 
 
 @pytest.fixture(scope="module")

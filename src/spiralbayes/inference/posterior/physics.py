@@ -4,7 +4,7 @@ A learned model (:class:`~spiralbayes.templates.learned.LearnedTemplateModel`) p
 any aspect ratio ``h_p = H/r``, surface-density slope ``p``, viscosity ``α``, age and mass, so the
 posterior of those parameters need not stop at a bank's few values. :func:`physics_posterior`
 predicts the templates on a lattice (by default ``H/r`` every 0.005 across the model's box, the
-learned bank's slopes and viscosities, ages 20 and 200 orbits, 12 masses), scans them, and reads each
+learned bank's slopes and viscosities, ages 20, 200 and 1000 orbits, 12 masses), scans them, and reads each
 template's Bayes factor against no planet from the scan's terms (:func:`~.position.position_ln_bayes`: the
 amplitude integrated over its prior, ``ln L`` interpolated between the scanned positions and
 ``(r_p, φ_p)`` integrated over the prior, at the scan's geometry). With uniform priors in ``H/r``, ``p``,
@@ -50,7 +50,7 @@ from .position import REFINE_LN_B_RANGE, PositionLevel, composite_ln_bayes, grid
 from .scan_evidence import _nearest_cells
 
 __all__ = ["DEFAULT_AGES", "DEFAULT_H_STEP", "DEFAULT_N_MASSES", "DEFAULT_REFINE", "GRID_FACTOR", "PHYSICS_AXES",
-           "RESOLUTION_TOLERANCE", "PhysicsPosterior", "physics_posterior"]
+           "RESOLUTION_TOLERANCE", "PhysicsPosterior", "default_ages", "physics_posterior"]
 
 log = logging.getLogger(__name__)
 
@@ -69,9 +69,10 @@ DEFAULT_H_STEP = 0.005
 DEFAULT_N_MASSES = 12
 """Log-spaced masses of the default lattice over the mass prior's range."""
 
-DEFAULT_AGES = (20.0, 200.0)
-"""Ages [orbits] of the default lattice: the two the training runs hold at many masses and aspect ratios
-(a planet's age moves its H/r and mass in the posterior)."""
+DEFAULT_AGES = (20.0, 200.0, 1000.0)
+"""Ages [orbits] of the default lattice: the two the training runs hold at many masses and aspect ratios,
+and the oldest (a planet's age moves its H/r and mass in the posterior, and a planet between two of
+these ages is fitted by the nearer one's templates at a shifted H/r unless the lattice brackets it)."""
 
 GRID_FACTOR = 4
 """The scan's default position grid here is this many times finer in r_p and φ_p than the scan's own
@@ -338,6 +339,15 @@ class PhysicsPosterior(ResultMixin):
                 f"alpha {b['alpha']:.2g}, {b['orbits']:g} orbits, {b['mass']:.3g} M_th, hand {b['hand']})")
 
 
+def default_ages(model) -> tuple[float, ...]:
+    """The ages of :data:`DEFAULT_AGES` inside ``model``'s training box (its oldest age if none is):
+    a model trained on younger runs gets the lattice it can predict, as the default H/r lattice spans
+    only the box."""
+    lo, hi = model.bounds["orbits"]
+    inside = tuple(a for a in DEFAULT_AGES if lo * (1 - 1e-9) <= a <= hi * (1 + 1e-9))
+    return inside or (float(hi),)
+
+
 def _lattice(name: str, values) -> np.ndarray:
     out = np.unique(np.atleast_1d(np.asarray(values, dtype=float)))
     if out.size == 0 or not np.all(np.isfinite(out)):
@@ -366,7 +376,7 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
         (:data:`~spiralbayes.templates.learned.bank.DEFAULT_SLOPES`, ``DEFAULT_ALPHAS``). One value fixes a
         parameter.
     orbits : array_like, optional
-        Ages [orbits]; default :data:`DEFAULT_AGES`.
+        Ages [orbits]; default :func:`default_ages` (:data:`DEFAULT_AGES` inside the model's box).
     masses : array_like, optional
         Template masses [M_th]; default :data:`DEFAULT_N_MASSES` log-spaced over ``mass_prior``'s range.
     hands : sequence of {'R', 'L'}
@@ -413,7 +423,7 @@ def physics_posterior(vis, axisymmetric, model, tau0: float, *, h_p=None, slope=
         masses = np.geomspace(mass_prior.mass_range[0], mass_prior.mass_range[1], DEFAULT_N_MASSES)
     lattice = {"h_p": _lattice("h_p", h_p), "slope": _lattice("slope", DEFAULT_SLOPES if slope is None else slope),
                "alpha": _lattice("alpha", DEFAULT_ALPHAS if alpha is None else alpha),
-               "orbits": _lattice("orbits", DEFAULT_AGES if orbits is None else orbits),
+               "orbits": _lattice("orbits", default_ages(model) if orbits is None else orbits),
                "mass": _lattice("masses", masses)}
     hands = [str(h) for h in ([hands] if isinstance(hands, str) else hands)]
     bank = learned_bank(model, lattice["mass"], lattice["h_p"], lattice["slope"], lattice["alpha"],

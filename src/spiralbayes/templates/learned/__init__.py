@@ -16,6 +16,8 @@ docs/templates.md, "A template model continuous in disc physics". One concept pe
 * :mod:`.basis` — the bases: the map with every row rotated onto the linear wake's ridge and weighted
   as the visibilities see it, the gap as a depth times a shape (and the patch), each divided by its
   RMS and reduced to its mean and first principal components;
+* :mod:`.scaling` — optionally (``azimuth_scaling``, off by default), the aligned rows seen at azimuth
+  offsets divided by ``(h_p/h_min)^q``, so that arms as wide as the disc is thick line up across H/r;
 * :mod:`.regression` — every coefficient and amplitude a Gaussian process (scikit-learn) of
   ``(ln M_p, h_p, p, log10 α, ln orbits)`` over a linear trend, its length scales no shorter than a
   tenth of the training box (``MIN_LENGTH_SCALE``);

@@ -31,6 +31,7 @@ from ...exceptions import InputError
 from ..family import shift_rows
 from ..wake import wake_shape
 from .patch import PATCH_POINTS, from_patch, to_patch, window
+from .scaling import compress, scale_factor
 from .training import FLARING, TrainingRun, row_weight
 
 __all__ = ["GAP_DEPTH_FLOOR", "Bases", "fit_bases"]
@@ -109,7 +110,7 @@ def _gap_basis(gaps: np.ndarray, kg: int, gap_depth: bool) -> tuple[np.ndarray, 
 
 
 def fit_bases(runs: Sequence[TrainingRun], *, n_components: int, n_gap_components: int, n_patch_components: int,
-              align: bool, gap_depth: bool, patch: bool) -> Bases:
+              align: bool, gap_depth: bool, patch: bool, azimuth_scaling: float = 0.0) -> Bases:
     """The bases of the runs' maps, gaps and patches (the module docstring), and each run's coefficients.
 
     Parameters
@@ -120,6 +121,9 @@ def fit_bases(runs: Sequence[TrainingRun], *, n_components: int, n_gap_component
         Principal components kept (at most one fewer than the runs).
     align, gap_depth, patch : bool
         As :meth:`~spiralbayes.templates.learned.model.LearnedTemplateModel.fit`.
+    azimuth_scaling : float
+        As there: the aligned rows seen at offsets divided by ``(h_p/h_min)^azimuth_scaling``
+        (:mod:`.scaling`; the amplitude ``A`` is the RMS before).
 
     Returns
     -------
@@ -137,6 +141,7 @@ def fit_bases(runs: Sequence[TrainingRun], *, n_components: int, n_gap_component
     gap_rows: list[np.ndarray] = []
     patch_rows: list[np.ndarray] = []
     log_amp: list[float] = []
+    h_min = min(r.h_p for r in runs)
     for r in runs:
         d = r.dsigma[rows]
         if patch:  # the rest is what the patch, put back on the map, leaves: the two add up exactly
@@ -149,6 +154,8 @@ def fit_bases(runs: Sequence[TrainingRun], *, n_components: int, n_gap_component
         a = float(np.sqrt(np.mean(d**2)))
         if not a > 0:
             raise InputError(f"training run {r.name} has an empty δΣ/Σ map")
+        if azimuth_scaling:
+            d = compress(d, phi, scale_factor(r.h_p, h_min, azimuth_scaling))
         map_rows.append((d / a).ravel())
         log_amp.append(math.log(a))
         gap_rows.append(np.log(r.gap[rows]))

@@ -1,0 +1,65 @@
+"""Azimuth scaling of the aligned maps: offsets from the wake's ridge in units that follow H/r.
+
+A planet's arms are about as wide in azimuth as the disc is thick, so once every row is rotated onto
+the linear wake's ridge (:mod:`.basis`) the maps of a thin and a thick disc still differ in width,
+and a small basis fitted to all of them spans the thinnest discs' narrow arms worst. With
+``azimuth_scaling = q > 0`` (:meth:`~.model.LearnedTemplateModel.fit`) the basis sees each aligned
+row of a run at aspect ratio ``h_p`` at the offsets ``ψ = φ'/s`` with
+
+    s = (h_p / h_min)^q ≥ 1,
+
+``h_min`` the training box's smallest ``H/r``: a thicker disc's row is compressed into
+``|ψ| ≤ π/s`` (zero outside) and :func:`expand` restores it, exactly up to the linear
+interpolation, so nothing of a training map is cut. ``q = 1`` makes widths proportional to ``h_p``
+alike; ``q = 0`` leaves the maps as they are. Rows must lie on a uniform azimuth grid over one period.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["compress", "expand", "scale_factor"]
+
+
+def scale_factor(h_p: float, h_min: float, power: float) -> float:
+    """``s = (h_p / h_min)^power``: how much narrower the basis sees a run at ``h_p``."""
+    return float((h_p / h_min) ** power)
+
+
+def _periodic_linear(rows: np.ndarray, phi: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Each row of ``rows`` (on the uniform periodic grid ``phi``) linearly interpolated at ``at`` [rad]."""
+    n = phi.size
+    step = 2.0 * np.pi / n
+    pos = np.mod((np.asarray(at, dtype=float) - phi[0]) / step, n)
+    i0 = np.floor(pos).astype(int) % n
+    frac = pos - np.floor(pos)
+    return rows[:, i0] * (1.0 - frac) + rows[:, (i0 + 1) % n] * frac
+
+
+def compress(rows: np.ndarray, phi: np.ndarray, s: float) -> np.ndarray:
+    """``D(x, ψ s)`` at every ``ψ`` of ``phi`` (offsets from the ridge, [rad]), zero where ``|ψ| > π/s``.
+
+    Parameters
+    ----------
+    rows : (n_x, n_phi) array
+        Aligned map (the ridge at φ' = 0).
+    phi : (n_phi,) array
+        Uniform azimuth grid over one period [rad], holding 0.
+    s : float
+        :func:`scale_factor`; ``s = 1`` returns ``rows``.
+    """
+    if s == 1.0:
+        return np.array(rows, dtype=float)
+    psi = np.angle(np.exp(1j * phi))
+    out = _periodic_linear(rows, phi, psi * s)
+    if s > 1.0:  # beyond π/s the samples wrap round the circle: no part of the run's row
+        out[:, np.abs(psi) > np.pi / s] = 0.0
+    return out
+
+
+def expand(rows: np.ndarray, phi: np.ndarray, s: float) -> np.ndarray:
+    """The inverse of :func:`compress`: ``D_s(x, φ'/s)`` at every ``φ'`` of ``phi`` [rad]."""
+    if s == 1.0:
+        return np.array(rows, dtype=float)
+    psi = np.angle(np.exp(1j * phi))
+    return _periodic_linear(rows, phi, psi / s)
