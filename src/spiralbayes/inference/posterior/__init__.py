@@ -74,6 +74,7 @@ from .physics import (
     PHYSICS_AXES,
     RESOLUTION_TOLERANCE,
     PhysicsPosterior,
+    default_ages,
     physics_posterior,
 )
 from .position import (
@@ -96,6 +97,7 @@ __all__ = [
     "GRID_FACTOR",
     "PHYSICS_AXES",
     "RESOLUTION_TOLERANCE",
+    "default_ages",
     "UPSAMPLE",
     "MIN_WINDOW_STEPS",
     "REFINE_LN_B_RANGE",

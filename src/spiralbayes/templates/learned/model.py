@@ -35,7 +35,7 @@ from .basis import fit_bases
 from .patch import from_patch
 from .regression import (MIN_LENGTH_SCALE, TRENDS, fit_hyperparameters, fit_trends, gaussian_process, output_groups,
                          trend_at)
-from .scaling import expand, scale_factor
+from .scaling import check_power, expand, scale_factor
 from .training import FLARING, MAX_CHANGE, PARAMETERS, TrainingRun, parameter_vector, read_training_runs
 from .uncertainty import PredictionUncertainty, prediction_uncertainty
 
@@ -225,10 +225,8 @@ class LearnedTemplateModel(ResultMixin):
             Lower bound of the processes' length scales, in units of the training box's side
             (:data:`~spiralbayes.templates.learned.regression.MIN_LENGTH_SCALE`).
         azimuth_scaling : float
-            Power ``q`` in [0, 3]: the basis sees each aligned row at azimuth offsets from the ridge
-            divided by ``(h_p/h_min)^q`` (:mod:`spiralbayes.templates.learned.scaling`; ``h_min`` the
-            runs' smallest H/r), so that arms whose width follows the disc's thickness line up. 0 (the
-            default) leaves the maps as they are; needs ``align``.
+            Power ``q`` in [0, 3]: aligned rows seen at azimuth offsets divided by ``(h_p/h_min)^q``
+            (:mod:`spiralbayes.templates.learned.scaling`); 0 (the default) is off; needs ``align``.
 
         Returns
         -------
@@ -243,13 +241,10 @@ class LearnedTemplateModel(ResultMixin):
             raise InputError(f"min_length_scale = {min_length_scale!r}: use a length in (0, 100) box sides")
         if trend not in TRENDS:
             raise InputError(f"trend = {trend!r}: use one of {sorted(k for k in TRENDS if isinstance(k, str))}")
-        if not (np.isfinite(azimuth_scaling) and 0 <= azimuth_scaling <= 3):
-            raise InputError(f"azimuth_scaling = {azimuth_scaling!r}: use a power in [0, 3] (0: off)")
-        if azimuth_scaling and not align:
-            raise InputError("azimuth_scaling scales offsets from the wake's ridge: it needs align=True")
+        azimuth_scaling = check_power(azimuth_scaling, align)
         b = fit_bases(runs, n_components=n_components, n_gap_components=n_gap_components,
                       n_patch_components=n_patch_components, align=align, gap_depth=gap_depth, patch=patch,
-                      azimuth_scaling=float(azimuth_scaling))
+                      azimuth_scaling=azimuth_scaling)
         sizes = (b.components.shape[0], b.gap_components.shape[0], b.patch_components.shape[0])
         inputs = np.array([r.inputs for r in runs])
         model = cls(x=b.x, phi=runs[0].phi.copy(), weight=b.weight, mean=b.mean, components=b.components,
@@ -262,7 +257,7 @@ class LearnedTemplateModel(ResultMixin):
                              "trend": TRENDS[trend], "gap_depth": bool(gap_depth), "patch": bool(patch),
                              "min_length_scale": float(min_length_scale)})
         if azimuth_scaling:  # absent when off: a default fit keeps the options (and cache keys) of a plain one
-            model.options["azimuth_scaling"] = float(azimuth_scaling)
+            model.options["azimuth_scaling"] = azimuth_scaling
         z = model._scaled(inputs)
         model.trends = fit_trends(z, b.targets, TRENDS[trend], sizes[0], sum(sizes))
         resid = b.targets - np.column_stack([np.ones(len(z)), z]) @ model.trends.T

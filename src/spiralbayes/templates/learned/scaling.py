@@ -18,7 +18,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["compress", "expand", "scale_factor"]
+from ...exceptions import InputError
+from ...units import wrap_angle
+
+__all__ = ["check_power", "compress", "expand", "scale_factor"]
+
+
+def check_power(power: float, align: bool) -> float:
+    """``power`` as a float, or :class:`~spiralbayes.exceptions.InputError` naming the fix."""
+    if not (np.isfinite(power) and 0 <= power <= 3):
+        raise InputError(f"azimuth_scaling = {power!r}: use a power in [0, 3] (0: off)")
+    if power and not align:
+        raise InputError("azimuth_scaling scales offsets from the wake's ridge: it needs align=True")
+    return float(power)
 
 
 def scale_factor(h_p: float, h_min: float, power: float) -> float:
@@ -50,7 +62,7 @@ def compress(rows: np.ndarray, phi: np.ndarray, s: float) -> np.ndarray:
     """
     if s == 1.0:
         return np.array(rows, dtype=float)
-    psi = np.angle(np.exp(1j * phi))
+    psi = wrap_angle(phi)
     out = _periodic_linear(rows, phi, psi * s)
     if s > 1.0:  # beyond π/s the samples wrap round the circle: no part of the run's row
         out[:, np.abs(psi) > np.pi / s] = 0.0
@@ -61,5 +73,5 @@ def expand(rows: np.ndarray, phi: np.ndarray, s: float) -> np.ndarray:
     """The inverse of :func:`compress`: ``D_s(x, φ'/s)`` at every ``φ'`` of ``phi`` [rad]."""
     if s == 1.0:
         return np.array(rows, dtype=float)
-    psi = np.angle(np.exp(1j * phi))
+    psi = wrap_angle(phi)
     return _periodic_linear(rows, phi, psi / s)
