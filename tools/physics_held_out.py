@@ -13,6 +13,7 @@ interrupted run resumes (about 10 minutes a case on 2 cores).
 from __future__ import annotations
 
 import argparse
+import hashlib
 import logging
 import sys
 import tempfile
@@ -71,7 +72,7 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    from tests._support.physics_setup import RUNS, TAUS
+    from tests._support.physics_setup import H_P, MASSES, ORBITS, R_P_GRID, RUNS, TAUS
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cases", nargs="*", default=list(RUNS), help="physics-set runs (default: all 7)")
@@ -87,6 +88,9 @@ def main(argv=None) -> int:
 
     # a row is the model's on these training files, fitted as this version of the model fits them
     training = f"{_file_key(reference_files())}|learned{MODEL_VERSION}"
+    # the lattice is the cases' set-up too (its ages follow DEFAULT_AGES)
+    lattice = repr([list(map(float, a)) for a in (H_P, MASSES, ORBITS, R_P_GRID)])
+    training += f"|lattice{hashlib.sha256(lattice.encode()).hexdigest()[:12]}"
     rows = []
     for name in args.cases:
         for tau0 in args.taus:

@@ -107,6 +107,7 @@ __all__ = [
     "gap_profile",
     "linear_profile",
     "surface_density_perturbation",
+    "periodic_interp",
 ]
 
 log = logging.getLogger(__name__)
@@ -402,8 +403,22 @@ def linear_profile(eta, amp: float = 0.5, width: float = 0.8, lobe_offset: float
 
 
 # ---------------------------------------------------------------------------- the wake map
-def _periodic_interp(table: np.ndarray, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """Linear interpolation of ``table[rows[i], ·]`` at fractional periodic indices ``pos[i, j]``."""
+def periodic_interp(table: np.ndarray, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """Linear interpolation of ``table[rows[i], ·]`` at fractional periodic indices ``pos[i, j]``.
+
+    Parameters
+    ----------
+    table : (n_rows, n) array
+        Rows periodic in their second index.
+    rows : (m,) int array
+        Which row of ``table`` each output row reads.
+    pos : (m, k) array
+        Fractional indices along the period (any real value; wrapped modulo ``n``).
+
+    Returns
+    -------
+    (m, k) array
+    """
     n = table.shape[1]
     j0f = np.floor(pos)
     w = pos - j0f
@@ -464,7 +479,7 @@ def _primary_and_secondary(x, phi, mass, beta, st: WakeSettings) -> np.ndarray:
     def primary(phis, sel=slice(None)):
         d = wrap_angle(phis[None, :] - phi_w[sel, None])
         pos = (side[sel, None] * (1.5 / h) * d + 0.5 * L) / d_eta
-        return scale[sel, None] * _periodic_interp(chi, rows[sel], pos)
+        return scale[sel, None] * periodic_interp(chi, rows[sel], pos)
 
     dsig = primary(phi)
     if st.secondary:

@@ -355,7 +355,7 @@ class LearnedTemplateModel(ResultMixin):
         d = shape * math.exp(y[at["ln_amplitude"]])
         q = self.options.get("azimuth_scaling", 0.0)
         if q:
-            d = expand(d, self.phi, scale_factor(h_p, float(self.box[0][1]), q))
+            d = expand(d, self.phi, scale_factor(h_p, self.bounds["h_p"][0], q))
         d = d / self.weight[:, None]
         if self.options.get("align", True):
             d = shift_rows(d, self._ridge(h_p))

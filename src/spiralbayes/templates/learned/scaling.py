@@ -20,6 +20,7 @@ import numpy as np
 
 from ...exceptions import InputError
 from ...units import wrap_angle
+from ..wake import periodic_interp
 
 __all__ = ["check_power", "compress", "expand", "scale_factor"]
 
@@ -40,12 +41,8 @@ def scale_factor(h_p: float, h_min: float, power: float) -> float:
 
 def _periodic_linear(rows: np.ndarray, phi: np.ndarray, at: np.ndarray) -> np.ndarray:
     """Each row of ``rows`` (on the uniform periodic grid ``phi``) linearly interpolated at ``at`` [rad]."""
-    n = phi.size
-    step = 2.0 * np.pi / n
-    pos = np.mod((np.asarray(at, dtype=float) - phi[0]) / step, n)
-    i0 = np.floor(pos).astype(int) % n
-    frac = pos - np.floor(pos)
-    return rows[:, i0] * (1.0 - frac) + rows[:, (i0 + 1) % n] * frac
+    pos = (np.asarray(at, dtype=float) - phi[0]) * (phi.size / (2.0 * np.pi))  # fractional grid indices
+    return periodic_interp(rows, np.arange(rows.shape[0]), np.broadcast_to(pos, rows.shape))
 
 
 def compress(rows: np.ndarray, phi: np.ndarray, s: float) -> np.ndarray:
