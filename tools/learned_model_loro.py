@@ -171,6 +171,8 @@ def summarise(rows: list[dict], label: str) -> str:
 
 
 def main(argv=None) -> int:
+    from spiralbayes.templates.learned import AZIMUTH_SCALING
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--references", nargs="+", default=[str(p) for p in DEFAULT_FILES],
@@ -189,8 +191,8 @@ def main(argv=None) -> int:
     ap.add_argument("--n-patch-components", type=int, default=6)
     ap.add_argument("--min-length-scale", type=float, default=None,
                     help="lower bound of the processes' length scales [box sides] (default: the model's)")
-    ap.add_argument("--azimuth-scaling", type=float, default=0.0,
-                    help="power q of the aligned maps' azimuth scaling (h_p/h_min)^q (default 0: off)")
+    ap.add_argument("--azimuth-scaling", type=float, default=AZIMUTH_SCALING,
+                    help=f"power q of the aligned maps' azimuth scaling (h_p/h_min)^q (default {AZIMUTH_SCALING:g}; 0: off)")
     ap.add_argument("--no-bank", action="store_true", help="skip the variant bank's recovery")
     ap.add_argument("--cache", default=None, help="JSON-lines cache (default: <cache dir>/learned_loro.jsonl)")
     ap.add_argument("--markdown", action="store_true", help="print the per-run table as Markdown")
@@ -214,8 +216,7 @@ def main(argv=None) -> int:
                "n_patch_components": args.n_patch_components}
     if args.min_length_scale is not None:
         options["min_length_scale"] = args.min_length_scale
-    if args.azimuth_scaling:
-        options["azimuth_scaling"] = args.azimuth_scaling
+    options["azimuth_scaling"] = args.azimuth_scaling
     held = [r for r in runs if args.runs is None or any(s in r.name for s in args.runs)]
     bank = None
     if not args.no_bank:

@@ -16,8 +16,9 @@ docs/templates.md, "A template model continuous in disc physics". One concept pe
 * :mod:`.basis` — the bases: the map with every row rotated onto the linear wake's ridge and weighted
   as the visibilities see it, the gap as a depth times a shape (and the patch), each divided by its
   RMS and reduced to its mean and first principal components;
-* :mod:`.scaling` — optionally (``azimuth_scaling``, off by default), the aligned rows seen at azimuth
-  offsets divided by ``(h_p/h_min)^q``, so that arms as wide as the disc is thick line up across H/r;
+* :mod:`.scaling` — the aligned rows seen at azimuth offsets divided by ``(h_p/h_min)^q``
+  (``azimuth_scaling``, default :data:`~.scaling.AZIMUTH_SCALING`), so that arms about as wide as the
+  disc is thick line up better across H/r;
 * :mod:`.regression` — every coefficient and amplitude a Gaussian process (scikit-learn) of
   ``(ln M_p, h_p, p, log10 α, ln orbits)`` over a linear trend, its length scales no shorter than a
   tenth of the training box (``MIN_LENGTH_SCALE``);
@@ -41,6 +42,7 @@ from .family import learned_family, model_from_file
 from .model import LEARNED_KIND, MODEL_VERSION, LearnedTemplateModel
 from .patch import PATCH_POINTS, PATCH_RADIUS, PATCH_WIDTH, from_patch, patch_grid, scaled_offsets, to_patch, window
 from .regression import MIN_LENGTH_SCALE, TRENDS
+from .scaling import AZIMUTH_SCALING
 from .training import (
     DISC_EXTENT,
     FLARING,
@@ -59,6 +61,7 @@ from .training import (
 from .uncertainty import PredictionUncertainty
 
 __all__ = [
+    "AZIMUTH_SCALING",
     "DEFAULT_ALPHAS",
     "DEFAULT_ORBITS",
     "DEFAULT_SLOPES",

@@ -35,7 +35,7 @@ from .basis import fit_bases
 from .patch import from_patch
 from .regression import (MIN_LENGTH_SCALE, TRENDS, fit_hyperparameters, fit_trends, gaussian_process, output_groups,
                          trend_at)
-from .scaling import check_power, expand, scale_factor
+from .scaling import AZIMUTH_SCALING, check_power, expand, scale_factor
 from .training import FLARING, MAX_CHANGE, PARAMETERS, TrainingRun, parameter_vector, read_training_runs
 from .uncertainty import PredictionUncertainty, prediction_uncertainty
 
@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 LEARNED_KIND = "spiralbayes.LearnedTemplateModel"
 """The ``kind`` root attribute of a saved model (:mod:`spiralbayes.results`)."""
 
-MODEL_VERSION = 3
+MODEL_VERSION = 4
 """Version of the fit: it changes when a fit of the same runs with the same options gives another model
 (cached measurements, e.g. ``tools/learned_model_loro.py``'s, key on it)."""
 
@@ -173,7 +173,7 @@ class LearnedTemplateModel(ResultMixin):
     def fit(cls, runs: Sequence[TrainingRun], *, n_components: int = 10, n_gap_components: int = 5,
             n_patch_components: int = 6, align: bool = True, restarts: int = 2, sharing: str = "grouped",
             trend: str = "disc", gap_depth: bool = True, patch: bool = False,
-            min_length_scale: float = MIN_LENGTH_SCALE, azimuth_scaling: float = 0.0) -> LearnedTemplateModel:
+            min_length_scale: float = MIN_LENGTH_SCALE, azimuth_scaling: float = AZIMUTH_SCALING) -> LearnedTemplateModel:
         """Fit the bases (:func:`~spiralbayes.templates.learned.basis.fit_bases`) and the Gaussian
         processes (:mod:`spiralbayes.templates.learned.regression`) to ``runs``.
 
@@ -226,7 +226,8 @@ class LearnedTemplateModel(ResultMixin):
             (:data:`~spiralbayes.templates.learned.regression.MIN_LENGTH_SCALE`).
         azimuth_scaling : float
             Power ``q`` in [0, 3]: aligned rows seen at azimuth offsets divided by ``(h_p/h_min)^q``
-            (:mod:`spiralbayes.templates.learned.scaling`); 0 (the default) is off; needs ``align``.
+            (:mod:`spiralbayes.templates.learned.scaling`; default
+            :data:`~spiralbayes.templates.learned.scaling.AZIMUTH_SCALING`); 0 is off; needs ``align``.
 
         Returns
         -------
@@ -256,7 +257,7 @@ class LearnedTemplateModel(ResultMixin):
                              "align": bool(align), "restarts": int(restarts), "sharing": str(sharing),
                              "trend": TRENDS[trend], "gap_depth": bool(gap_depth), "patch": bool(patch),
                              "min_length_scale": float(min_length_scale)})
-        if azimuth_scaling:  # absent when off: a default fit keeps the options (and cache keys) of a plain one
+        if azimuth_scaling:  # absent when off, as in models saved before the option existed
             model.options["azimuth_scaling"] = azimuth_scaling
         z = model._scaled(inputs)
         model.trends = fit_trends(z, b.targets, TRENDS[trend], sizes[0], sum(sizes))

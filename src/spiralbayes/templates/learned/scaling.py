@@ -11,7 +11,9 @@ row of a run at aspect ratio ``h_p`` at the offsets ``ψ = φ'/s`` with
 ``h_min`` the training box's smallest ``H/r``: a thicker disc's row is compressed into
 ``|ψ| ≤ π/s`` (zero outside) and :func:`expand` restores it, exactly up to the linear
 interpolation, so nothing of a training map is cut. ``q = 1`` makes widths proportional to ``h_p``
-alike; ``q = 0`` leaves the maps as they are. Rows must lie on a uniform azimuth grid over one period.
+alike; ``q = 0`` leaves the maps as they are. The default, :data:`AZIMUTH_SCALING`, is the power with
+the fewest poorly recovered runs left out one at a time (docs/templates.md). Rows must lie on a
+uniform azimuth grid over one period.
 """
 
 from __future__ import annotations
@@ -22,7 +24,11 @@ from ...exceptions import InputError
 from ...units import wrap_angle
 from ..wake import periodic_interp
 
-__all__ = ["check_power", "compress", "expand", "scale_factor"]
+__all__ = ["AZIMUTH_SCALING", "check_power", "compress", "expand", "scale_factor"]
+
+AZIMUTH_SCALING = 0.3
+"""Default power ``q``: milder powers leave the thinnest discs' arms too narrow for the basis, stronger
+ones smear the old, thick discs' (docs/templates.md, leave-one-run-out by power)."""
 
 
 def check_power(power: float, align: bool) -> float:
