@@ -192,7 +192,8 @@ def main(argv=None) -> int:
     ap.add_argument("--min-length-scale", type=float, default=None,
                     help="lower bound of the processes' length scales [box sides] (default: the model's)")
     ap.add_argument("--azimuth-scaling", type=float, default=AZIMUTH_SCALING,
-                    help=f"power q of the aligned maps' azimuth scaling (h_p/h_min)^q (default {AZIMUTH_SCALING:g}; 0: off)")
+                    help=f"power q of the aligned maps' azimuth scaling (h_p/h_min)^q (default {AZIMUTH_SCALING:g}; "
+                         "0: off)")
     ap.add_argument("--no-bank", action="store_true", help="skip the variant bank's recovery")
     ap.add_argument("--cache", default=None, help="JSON-lines cache (default: <cache dir>/learned_loro.jsonl)")
     ap.add_argument("--markdown", action="store_true", help="print the per-run table as Markdown")
