@@ -171,8 +171,9 @@ class LearnedTemplateModel(ResultMixin):
 
     @classmethod
     def fit(cls, runs: Sequence[TrainingRun], *, n_components: int = 10, n_gap_components: int = 5,
-            n_patch_components: int = 6, align: bool = True, restarts: int = 2, sharing: str = "grouped", trend: str = "disc",
-            gap_depth: bool = True, patch: bool = False, min_length_scale: float = MIN_LENGTH_SCALE,
+            n_patch_components: int = 6, align: bool = True, restarts: int = 2, sharing: str = "grouped",
+            trend: str = "disc", gap_depth: bool = True, patch: bool = False,
+            min_length_scale: float = MIN_LENGTH_SCALE,
             azimuth_scaling: float = AZIMUTH_SCALING) -> LearnedTemplateModel:
         """Fit the bases (:func:`~spiralbayes.templates.learned.basis.fit_bases`) and the Gaussian
         processes (:mod:`spiralbayes.templates.learned.regression`) to ``runs``.
