@@ -14,18 +14,7 @@ from tests._support.physics_setup import RUNS, TAUS, held_out_posterior
 pytestmark = pytest.mark.slow
 
 
-BEYOND_THE_BOX = {("physics:h0.07_mu1_nu1e-04", 0.3):
-                  "α 2e-2 lies beyond every other run's (1e-2) and the lattice's: its shallower gap reads as a lighter "
-                  "planet (0.49 M_th, 95 % 0.30-0.92, for 1 M_th; docs/templates.md)"}
-"""Cases whose truth lies outside the box of the runs the model is fitted to, and which miss for that reason."""
-
-
-def _cases():
-    return [pytest.param(run, tau0, marks=pytest.mark.xfail(strict=True, reason=BEYOND_THE_BOX[run, tau0]))
-            if (run, tau0) in BEYOND_THE_BOX else (run, tau0) for run in RUNS for tau0 in TAUS]
-
-
-@pytest.mark.parametrize("held_out, tau0", _cases())
+@pytest.mark.parametrize("held_out, tau0", [(run, tau0) for run in RUNS for tau0 in TAUS])
 def test_held_out_planets_aspect_ratio_and_mass_lie_in_the_95_percent_intervals(held_out, tau0, tmp_path):
     run, post = held_out_posterior(held_out, tau0, tmp_path)
     ci = post.intervals(0.95)
