@@ -34,8 +34,9 @@ def test_reference_files_exist():
     assert {"wakeflow_isothermal.h5", "fargo3d_isothermal.h5"} <= names, names
     # issue 21: at most 15 MB in all; 17 MB with the library's second dust run set (stored at 2^-14),
     # 21 MB with the physics run set; the continuum file's runs at ~0.35 MB each (2^-14): the design's
-    # 40, the aged run and the 13 neighbours of the worst held-out runs add <= 19 MB
-    assert sum(p.stat().st_size for p in FILES) < 40e6
+    # 40, the aged run and the 13 neighbours of the worst held-out runs add <= 19 MB, the four runs
+    # continued to 40 orbits 1.8 MB
+    assert sum(p.stat().st_size for p in FILES) < 42e6
 
 
 @pytest.fixture(params=FILES, ids=[str(p.relative_to(REF_DIR)) for p in FILES])
@@ -89,18 +90,26 @@ def test_peak_grows_with_mass(ref):
 
 
 def test_arms_trail_for_hand_R(ref):
-    """Outer arm just outside r_p at φ < 0, inner arm just inside at φ > 0 (hand R)."""
+    """Outer arm just outside r_p at φ < 0, inner arm just inside at φ > 0 (hand R). Where a vortex
+    outshines the outer arm the reducer records the check as failed; such a map must not be quasi-steady
+    (its δΣ/Σ changes by more than 50 % in its last 5 orbits), and its inner arm is still checked."""
     x, phi = ref["x"][()], ref["phi"][()]
     for name, g in _cases(ref).items():
         h = float(g.attrs["h_p"])
         d = g["dsigma"][()]
-        for xp, sign in ((1 + 3 * h, -1), (1 - 3 * h, +1)):
+        check = json.loads(g.attrs.get("orientation_check", "{}"))
+        arms = ((1 + 3 * h, -1), (1 - 3 * h, +1))
+        if "failed" in check:
+            steady = json.loads(g.attrs["steadiness"])
+            assert steady[f"rms_rel_diff_vs_orbit_{float(g.attrs['orbits']) - 5:g}"] > 0.5, name
+            arms = arms[1:]
+        for xp, sign in arms:
             i = int(np.argmin(np.abs(x - xp)))
             phi_max = phi[int(np.argmax(d[i, :]))]
             assert np.sign(phi_max) == sign and abs(phi_max) < np.pi / 2, (name, x[i], np.degrees(phi_max))
         # the mirror image would fail the same test
-        i = int(np.argmin(np.abs(x - (1 + 3 * h))))
-        assert phi[int(np.argmax(d[i, ::-1]))] > 0
+        i = int(np.argmin(np.abs(x - arms[0][0])))
+        assert np.sign(phi[int(np.argmax(d[i, ::-1]))]) == -arms[0][1]
 
 
 def test_optically_thick_residual_is_fainter(ref):

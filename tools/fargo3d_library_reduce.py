@@ -33,6 +33,7 @@ sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # tests.templates.
 import fargo3d_library_cases as lib
 import make_fargo3d_references as ref3
 import reference_common as rc
+from spiralbayes.templates.learned.training import MAX_CHANGE  # the training set's quasi-steady rule
 
 TAU0S = (0.1, 0.3, 1.0, 3.0)
 QUANTUM = 2.0**-17   # maps are rounded to multiples of this (7.6e-6) before gzip: 3x smaller files
@@ -186,6 +187,21 @@ def equal_time_check(case: lib.Case, runs_dir: Path, n: int, x, phi, valid, dsig
             "beam_ncc": round(ncc(sa, sb), 4)}
 
 
+def _orientation(x, phi, d, case: lib.Case, steady: dict) -> dict:
+    """The hand check of the arms; where a vortex outshines the arm the map is not quasi-steady and the check
+    is recorded as failed (the run's earlier, steady output was checked) instead of stopping the reduction."""
+    try:
+        return rc.check_orientation(x, phi, d, case.h_p)
+    except RuntimeError as err:
+        # the first entry is the change over the last 5 orbits (training.MAX_CHANGE's measure)
+        change = next((v for k, v in steady.items() if k.startswith("rms_rel_diff")), 0.0)
+        if change <= MAX_CHANGE:
+            raise
+        log.warning("%s: %s; kept, since its map is not quasi-steady (changes by %.0f%% in 5 orbits)",
+                    case.name, err, 100 * change)
+        return {"failed": str(err), "reason": f"not quasi-steady: changes by {change:.0%} in 5 orbits"}
+
+
 def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
     """The reduced record of one case, or None if it has fewer than ``min_output`` outputs."""
     run = runs_dir / case.name
@@ -258,7 +274,7 @@ def reduce_case(case: lib.Case, runs_dir: Path, x, phi, min_output: int):
         "steadiness": steady, "arm_rms": round(arm_rms(d, x, valid), 5),
         "near_planet_peak": round(main["near_planet_peak"], 4),
         "near_planet_peak_def": "max Sigma/<Sigma>_phi - 1 within 1 H(r_p) of the planet, native grid",
-        "orientation_check": rc.check_orientation(x, phi, d, case.h_p),
+        "orientation_check": _orientation(x, phi, d, case, steady),
         "diagnostics": rc.diagnostics(x, phi, d, case.h_p, valid), "package_reader": reader,
         "tau0": list(TAU0S), "quantisation": f"maps rounded to multiples of 2^{np.log2(q):.0f} = {q:.3g}", **extra,
     }

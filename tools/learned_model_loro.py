@@ -197,6 +197,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-bank", action="store_true", help="skip the variant bank's recovery")
     ap.add_argument("--cache", default=None, help="JSON-lines cache (default: <cache dir>/learned_loro.jsonl)")
     ap.add_argument("--markdown", action="store_true", help="print the per-run table as Markdown")
+    ap.add_argument("--drop-transients", action="store_true",
+                    help="leave out maps whose run is not quasi-steady at a later age (read_training_runs)")
     ap.add_argument("-v", "--verbose", action="store_true")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
@@ -208,7 +210,7 @@ def main(argv=None) -> int:
 
     t_start = time.perf_counter()
     files = [Path(p) for p in args.references]
-    runs = read_training_runs(files)
+    runs = read_training_runs(files, drop_transients=args.drop_transients)
     file_key = _file_key(files)
     cache = Cache(Path(args.cache) if args.cache else default_cache_dir() / "learned_loro.jsonl")
     options = {"n_components": args.n_components, "n_gap_components": args.n_gap_components,

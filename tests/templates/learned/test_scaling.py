@@ -62,13 +62,14 @@ def test_a_scaled_model_reproduces_its_training_runs(model, runs, name):
 def test_the_thin_discs_narrow_arms_are_spanned_better(model, plain, runs):
     """The 0.24 M_th planet at H/r 0.04, whose arms are the narrowest of the training set: fitted to it,
     the plain 10-component basis keeps 0.93 / 0.85 of its beam-smoothed power (τ0 0.3 / 3), the default
-    scaled one 0.97 / 0.95."""
+    scaled one 0.97 / 0.95 (0.95 / 0.91 and 0.97 / 0.94 without the transients): the scaling removes at
+    least a quarter of what the basis loses."""
     run = run_named(runs, "continuum:h0.04_mu0.24_slope0.65_alpha2.5e-04")
     for tau0 in (0.3, 3.0):
         unscaled = F.beam_metrics(reference(run, tau0), plain.predict(**run.parameters, tau0=tau0))
         better = F.beam_metrics(reference(run, tau0), model.predict(**run.parameters, tau0=tau0))
-        assert better["beam_recovery"] > unscaled["beam_recovery"] + 0.03 and better["beam_recovery"] > 0.88, \
-            (tau0, unscaled, better)
+        lost, lost_plain = 1.0 - better["beam_recovery"], 1.0 - unscaled["beam_recovery"]
+        assert lost < 0.75 * lost_plain and better["beam_recovery"] > 0.88, (tau0, unscaled, better)
 
 
 def test_the_scaling_is_saved_and_an_unscaled_fit_has_none(model, plain, tmp_path):

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import re
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -199,8 +200,33 @@ def _last_change(attrs) -> float:
     return float(steady.get(f"rms_rel_diff_vs_orbit_{orbits - 5:g}", 0.0))
 
 
-def _skip_reason(attrs, max_change: float) -> str | None:
-    """Why a group is not a training run of the isothermal gas model (None: it is one)."""
+def _physics_key(attrs) -> tuple:
+    """What makes two groups one disc and planet at different ages (a run and its continuation)."""
+    def text(key):
+        v = attrs.get(key, "")
+        return v.decode() if isinstance(v, bytes) else str(v)
+    visc = float(attrs["alpha_at_rp"]) if "alpha_at_rp" in attrs else float(attrs.get("nu", 0.0))
+    # a continuation's variant is its run's with the age appended ("slope1_alpha2.0e-03_orbits200")
+    variant = re.sub(r"_?orbits[0-9.e+]+$", "", text("variant"))
+    numbers = [round(float(attrs.get(k, 0.0) or 0.0), 10) for k in ("stokes", "beta", "h_p", "mu_Mth", "p_sigma")]
+    return (text("fluid"), variant, *numbers, round(visc, 12))
+
+
+def _later_changes(groups) -> dict:
+    """``{physics key: [(orbits, change over the last 5 orbits), ...]}`` over a file's finished groups."""
+    out: dict = {}
+    for attrs in groups:
+        if "orbits" in attrs and not str(attrs.get("run_state", "finished")).startswith("running"):
+            out.setdefault(_physics_key(attrs), []).append((float(attrs["orbits"]), _last_change(attrs)))
+    return out
+
+
+def _skip_reason(attrs, max_change: float, ages: dict | None = None) -> str | None:
+    """Why a group is not a training run of the isothermal gas model (None: it is one).
+
+    ``ages`` (:func:`_later_changes` of the group's file) adds the transient rule: a map is not trained
+    on when a later age of the same disc and planet is not quasi-steady, since the map is then a stage
+    on the way to vortices, not a state the planet keeps."""
     fluid = attrs.get("fluid", "gas")
     fluid = "gas" if fluid is None else (fluid.decode() if isinstance(fluid, bytes) else str(fluid))
     if fluid != "gas" or float(attrs.get("stokes", 0.0) or 0.0) > 0:
@@ -218,10 +244,16 @@ def _skip_reason(attrs, max_change: float) -> str | None:
     for key in ("h_p", "mu_Mth", "orbits"):
         if key not in attrs:
             return f"no {key!r} attribute"
+    later = [(o, c) for o, c in (ages or {}).get(_physics_key(attrs), []) if o > float(attrs["orbits"])]
+    unsteady = [(o, c) for o, c in later if c > max_change]
+    if unsteady:
+        o, c = min(unsteady)
+        return (f"a transient (the same run at {o:g} orbits is not quasi-steady: δΣ/Σ changes by {c:.0%} "
+                f"in 5 orbits > {max_change:.0%})")
     return None
 
 
-def _read_file(path: Path, max_change: float) -> list[TrainingRun]:
+def _read_file(path: Path, max_change: float, drop_transients: bool) -> list[TrainingRun]:
     """The training runs of one reduced file."""
     import h5py
 
@@ -233,12 +265,13 @@ def _read_file(path: Path, max_change: float) -> list[TrainingRun]:
                                 "(tools/README.md, 'File layout')")
         x, phi = f["x"][()].astype(float), f["phi"][()].astype(float)
         skipped: list[str] = []
+        ages = _later_changes(f[n].attrs for n in f if isinstance(f[n], h5py.Group)) if drop_transients else None
         for name in sorted(f):
             g = f[name]
             if not isinstance(g, h5py.Group):
                 continue
             a = g.attrs
-            reason = _skip_reason(a, max_change)
+            reason = _skip_reason(a, max_change, ages)
             if reason is None and not {"dsigma", "sigma_axisym"} <= set(g):
                 reason = "no dsigma or sigma_axisym dataset"
             if reason is not None:
@@ -259,13 +292,16 @@ def _read_file(path: Path, max_change: float) -> list[TrainingRun]:
     return runs
 
 
-def read_training_runs(paths: Iterable, *, max_change: float = MAX_CHANGE) -> list[TrainingRun]:
+def read_training_runs(paths: Iterable, *, max_change: float = MAX_CHANGE,
+                       drop_transients: bool = False) -> list[TrainingRun]:
     """The isothermal gas runs of reduced reference files (tools/README.md, "File layout").
 
     Every group of each file is read except dust (``fluid`` not gas, ``stokes > 0``), β-cooled runs
     (``beta > 0``), checks of one numerical setting (``variant`` starting with
     :data:`NUMERICAL_CHECKS`), runs still going and maps that are not quasi-steady (RMS change of
-    δΣ/Σ over the last 5 orbits above ``max_change``); each skip is logged. Files that gain groups
+    δΣ/Σ over the last 5 orbits above ``max_change``); with ``drop_transients`` also maps of a run whose
+    later age, reduced into the same file (its continuation: same disc and planet), is not quasi-steady.
+    Each skip is logged. Files that gain groups
     (runs reduced later) give more runs on the next call.
 
     Parameters
@@ -276,6 +312,9 @@ def read_training_runs(paths: Iterable, *, max_change: float = MAX_CHANGE) -> li
         ``nu`` or ``alpha_at_rp``, ``orbits``).
     max_change : float
         Largest relative change over the last 5 orbits (default :data:`MAX_CHANGE`).
+    drop_transients : bool
+        Leave out transients, the maps on the way to a later map that is not quasi-steady (default
+        False: they are trained on; docs/templates.md, "Runs still changing at 20 orbits").
 
     Returns
     -------
@@ -295,7 +334,7 @@ def read_training_runs(paths: Iterable, *, max_change: float = MAX_CHANGE) -> li
         if not path.exists():
             raise InputError(f"reference file {path} does not exist: give reduced FARGO3D files "
                              "(tests/data/references/...; tools/README.md, 'File layout')")
-        runs += _read_file(path, max_change)
+        runs += _read_file(path, max_change, drop_transients)
     names = [r.name for r in runs]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
