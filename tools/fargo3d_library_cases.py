@@ -287,11 +287,10 @@ def _later(c: Case, orbits: float = 40.0) -> Case:
                  role=f"{c.role}_orbits{orbits:g}", batch="continuum", continues=c.name)
 
 
-_BY_NAME = {c.name: c for c in CASES}
-LATE = [_later(_BY_NAME[n]) for n in ("cont13_mu1.4_h0.11_slope1.4_alpha1.3e-04",
-                                      "near03_mu1.5_h0.11_slope1.2_alpha2.0e-04",
-                                      "near06_mu3_h0.11_slope1_alpha5.0e-03",
-                                      "near13_mu1.3_h0.11_slope1.3_alpha1.2e-04") if n in _BY_NAME]
+LATE = [_later(c) for c in CASES if c.name in ("cont13_mu1.4_h0.11_slope1.4_alpha1.3e-04",
+                                                "near03_mu1.5_h0.11_slope1.2_alpha2.0e-04",
+                                                "near06_mu3_h0.11_slope1_alpha5.0e-03",
+                                                "near13_mu1.3_h0.11_slope1.3_alpha1.2e-04")]
 CASES += LATE
 BY_NAME = {c.name: c for c in CASES}
 

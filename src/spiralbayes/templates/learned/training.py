@@ -200,16 +200,19 @@ def _last_change(attrs) -> float:
     return float(steady.get(f"rms_rel_diff_vs_orbit_{orbits - 5:g}", 0.0))
 
 
+def _text(attrs, key: str, default: str = "") -> str:
+    """A string attribute (h5py may return bytes); ``default`` where it is missing or None."""
+    v = attrs.get(key)
+    return default if v is None else (v.decode() if isinstance(v, bytes) else str(v))
+
+
 def _physics_key(attrs) -> tuple:
     """What makes two groups one disc and planet at different ages (a run and its continuation)."""
-    def text(key):
-        v = attrs.get(key, "")
-        return v.decode() if isinstance(v, bytes) else str(v)
     visc = float(attrs["alpha_at_rp"]) if "alpha_at_rp" in attrs else float(attrs.get("nu", 0.0))
     # a continuation's variant is its run's with the age appended ("slope1_alpha2.0e-03_orbits200")
-    variant = re.sub(r"_?orbits[0-9.e+]+$", "", text("variant"))
+    variant = re.sub(r"_?orbits[0-9.e+]+$", "", _text(attrs, "variant"))
     numbers = [round(float(attrs.get(k, 0.0) or 0.0), 10) for k in ("stokes", "beta", "h_p", "mu_Mth", "p_sigma")]
-    return (text("fluid"), variant, *numbers, round(visc, 12))
+    return (_text(attrs, "fluid", "gas"), variant, *numbers, round(visc, 12))
 
 
 def _later_changes(groups) -> dict:
@@ -227,13 +230,12 @@ def _skip_reason(attrs, max_change: float, ages: dict | None = None) -> str | No
     ``ages`` (:func:`_later_changes` of the group's file) adds the transient rule: a map is not trained
     on when a later age of the same disc and planet is not quasi-steady, since the map is then a stage
     on the way to vortices, not a state the planet keeps."""
-    fluid = attrs.get("fluid", "gas")
-    fluid = "gas" if fluid is None else (fluid.decode() if isinstance(fluid, bytes) else str(fluid))
+    fluid = _text(attrs, "fluid", "gas")
     if fluid != "gas" or float(attrs.get("stokes", 0.0) or 0.0) > 0:
         return f"fluid {fluid!r} (the model is of the gas)"
     if float(attrs.get("beta", 0.0) or 0.0) > 0:
         return f"beta = {float(attrs['beta']):g} (the model is locally isothermal)"
-    variant = str(attrs.get("variant", "") or "")
+    variant = _text(attrs, "variant")
     if variant.startswith(NUMERICAL_CHECKS):
         return f"a check of one numerical setting ({variant})"
     if str(attrs.get("run_state", "finished")).startswith("running"):
@@ -244,8 +246,8 @@ def _skip_reason(attrs, max_change: float, ages: dict | None = None) -> str | No
     for key in ("h_p", "mu_Mth", "orbits"):
         if key not in attrs:
             return f"no {key!r} attribute"
-    later = [(o, c) for o, c in (ages or {}).get(_physics_key(attrs), []) if o > float(attrs["orbits"])]
-    unsteady = [(o, c) for o, c in later if c > max_change]
+    unsteady = [(o, c) for o, c in (ages or {}).get(_physics_key(attrs), [])
+                if o > float(attrs["orbits"]) and c > max_change]
     if unsteady:
         o, c = min(unsteady)
         return (f"a transient (the same run at {o:g} orbits is not quasi-steady: δΣ/Σ changes by {c:.0%} "
