@@ -34,7 +34,7 @@ def rows(path: Path) -> tuple[list[str], list[str]]:
         if a is None:
             missing.append(case.name)
             continue
-        out.append(f"| {case.name.split('_')[0]} | {a['mu_Mth']:g} | {a['h_p']:.2f} | {a['p_sigma']:g} "
+        out.append(f"| {case.name.split('_')[0]} | {a['mu_Mth']:g} | {lib.h_text(a['h_p'])} | {a['p_sigma']:g} "
                    f"| {a['alpha_at_rp']:.1e} | {a['nx_phi']} × {a['ny_r']} ({a['cells_per_H']:.1f} per H) "
                    f"| {a['orbits']:g} | {a['wall_time_s']} ({a['wall_time_per_orbit_s']:.0f} per orbit) "
                    f"| {_cpu(a)} | {a['arm_rms']:.3f} |")

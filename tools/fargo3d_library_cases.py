@@ -28,6 +28,11 @@ STEPS_PER_ORBIT = 20          # DT = 1/20 orbit
 ORBITS_PER_OUTPUT = 5
 
 
+def h_text(h_p: float) -> str:
+    """H/r as case and group names write it: two decimals, three where two would round it."""
+    return f"{h_p:.2f}" if round(h_p, 2) == h_p else f"{h_p:.3f}"
+
+
 @dataclass(frozen=True)
 class Case:
     """One library run.
@@ -96,7 +101,7 @@ class Case:
     @property
     def group(self) -> str:
         """HDF5 group name of the reduced case."""
-        tag = f"h{self.h_p:.2f}_mu{self.mu:g}"
+        tag = f"h{h_text(self.h_p)}_mu{self.mu:g}"
         if self.beta > 0:
             tag += f"_beta{self.beta:g}"
         if self.stokes > 0:
@@ -250,7 +255,7 @@ CASES += AGED
 
 def _near(k: int, mu: float, h_p: float, slope: float, alpha: float) -> Case:
     role = f"slope{slope:g}_alpha{alpha:.1e}"
-    return _case(f"near{k:02d}_mu{mu:g}_h{h_p:.2f}_{role}", mu, h_p, sigma_slope=slope, nu=alpha * h_p**2,
+    return _case(f"near{k:02d}_mu{mu:g}_h{h_text(h_p)}_{role}", mu, h_p, sigma_slope=slope, nu=alpha * h_p**2,
                  role=role, batch="continuum")
 
 
@@ -275,7 +280,10 @@ NEAR = [_near(0, 3.0, 0.06, 1.0, 2.0e-3), _near(1, 3.0, 0.08, 1.0, 5.0e-3), _nea
         _near(16, 1.2, 0.11, 1.1, 1.5e-4),
         # the physics set's α 2e-2 planet held out, the others' box stops at α 1e-2 and its mass is missed:
         # two 20-orbit planets at α 2e-2 beside it
-        _near(17, 1.3, 0.08, 1.0, 2.0e-2), _near(18, 0.6, 0.06, 1.2, 2.0e-2)]
+        _near(17, 1.3, 0.08, 1.0, 2.0e-2), _near(18, 0.6, 0.06, 1.2, 2.0e-2),
+        # without the four transients (LATE) that planet is still predicted at half its mass: one more α 2e-2
+        # planet between near17 and near18
+        _near(19, 0.9, 0.065, 0.9, 2.0e-2)]
 CASES += NEAR
 
 # Training runs whose δΣ/Σ still changes by more than 25 % in their last 5 orbits at 20 orbits, continued
